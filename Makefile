@@ -1,0 +1,49 @@
+# exobench quick start:  make run   (install everything, run the default suite)
+#                        make test  (install everything, run the tests)
+SHELL := /bin/bash
+PYTHON ?= python3
+VENV := .venv
+STAMP := $(VENV)/.installed
+export MUJOCO_GL ?= egl
+export PYOPENGL_PLATFORM ?= $(MUJOCO_GL)
+
+SYSTEM_LIBS := libusb-1.0.so.0 libEGL.so.1 libOSMesa.so libGL.so.1
+DEBIAN_PKGS := libusb-1.0-0 libegl1 libosmesa6 libgl1 libgomp1
+
+.PHONY: run test bench lint system clean
+run: $(STAMP)
+	$(VENV)/bin/exobench run
+
+test: $(STAMP)
+	$(VENV)/bin/python -m pytest
+
+bench: $(STAMP)
+	$(VENV)/bin/exobench bench rtls
+	$(VENV)/bin/exobench bench sim
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+# Debian libraries that open3d and MuJoCo's off-screen renderer load at run time.
+system:
+	@missing=""; for lib in $(SYSTEM_LIBS); do ldconfig -p | grep -q "$$lib" || missing="$$missing $$lib"; done; \
+	if [ -n "$$missing" ]; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing system libraries:$$missing"; \
+	    DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(DEBIAN_PKGS) >/dev/null; \
+	  else \
+	    echo "missing system libraries:$$missing; run: sudo apt-get install -y $(DEBIAN_PKGS)"; exit 1; \
+	  fi; \
+	fi
+
+$(VENV)/bin/python:
+	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install -q --upgrade pip
+
+$(STAMP): pyproject.toml | $(VENV)/bin/python system
+	$(VENV)/bin/python -m pip install -q -e '.[test]'
+	@touch $(STAMP)
+
+clean:
+	rm -rf $(VENV) .pytest_cache build *.egg-info

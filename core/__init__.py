@@ -1,0 +1,59 @@
+"""Shared contracts of exobench: poses, frames, calibration, ground truth, estimates, errors.
+
+numpy and the standard library only. Everything else in exobench builds on these types.
+"""
+
+from .calibration import Calibration, SensorMount
+from .errors import (
+    ConfigError,
+    ExobenchError,
+    RenderError,
+    SessionError,
+    UnknownNameError,
+    check_range,
+)
+from .estimates import PlaneEstimate, PointAssignment, StaircaseEstimate
+from .frames import (
+    FRAME_TYPES,
+    ContactSample,
+    Frame,
+    ImuSample,
+    JointState,
+    StreamStats,
+    ToFReading,
+    TofStatus,
+    frame_kind,
+)
+from .pipeline import Pipeline, coerce_like, config_from_dict
+from .truth import SURFACE_KINDS, PlanarSurface, SceneTruth, ToFTruth, height_at
+
+__all__ = [
+    "Calibration",
+    "ConfigError",
+    "ContactSample",
+    "ExobenchError",
+    "FRAME_TYPES",
+    "Frame",
+    "ImuSample",
+    "JointState",
+    "Pipeline",
+    "PlanarSurface",
+    "PlaneEstimate",
+    "PointAssignment",
+    "RenderError",
+    "SURFACE_KINDS",
+    "SceneTruth",
+    "SensorMount",
+    "SessionError",
+    "StaircaseEstimate",
+    "StreamStats",
+    "ToFReading",
+    "ToFTruth",
+    "TofStatus",
+    "UnknownNameError",
+    "check_range",
+    "coerce_like",
+    "config_from_dict",
+    "frame_kind",
+    "height_at",
+]

@@ -1,0 +1,147 @@
+"""Sensor frames: what a pipeline receives, live or from a recorded session.
+
+Each frame is a frozen dataclass with a time stamp ``stamp_s`` (seconds since the start of the
+episode, on the exoskeleton's clock: the time the measurement was *delivered*, latency included)
+and the ``sensor_id`` of the mount that produced it (see :class:`exobench.core.calibration`).
+A dropped frame is simply absent from the stream. Ground truth is never part of a frame.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Union
+
+import numpy as np
+
+
+class TofStatus(IntEnum):
+    """Range status codes of the ST VL53L1X ULD API (the subset exobench emits)."""
+
+    VALID = 0
+    SIGMA_FAIL = 1
+    SIGNAL_FAIL = 2
+    OUT_OF_BOUNDS = 4
+    WRAP_AROUND = 7
+    NO_TARGET = 255
+
+
+@dataclass(frozen=True, eq=False)
+class ToFReading:
+    """One single-beam time-of-flight range.
+
+    Attributes:
+        stamp_s: delivery time, s.
+        sensor_id: mount id, e.g. ``"tof_r_lat"``.
+        range_m: measured distance along the beam (sensor +z axis), m; NaN when there is no
+            valid target (then ``status`` is not VALID).
+        status: a :class:`TofStatus` code.
+    """
+
+    stamp_s: float
+    sensor_id: str
+    range_m: float
+    status: int = TofStatus.VALID
+
+    @property
+    def valid(self) -> bool:
+        return self.status == TofStatus.VALID and bool(np.isfinite(self.range_m))
+
+
+@dataclass(frozen=True, eq=False)
+class ImuSample:
+    """One IMU sample in the IMU's own frame.
+
+    Attributes:
+        stamp_s: delivery time, s.
+        sensor_id: mount id, e.g. ``"imu_trunk"``.
+        quat_wxyz: orientation estimate of the IMU frame in a gravity-aligned world frame
+            (``R_world_imu``), as an AHRS would report it; shape (4,).
+        gyro_rad_s: angular velocity in the IMU frame, rad/s; shape (3,).
+        accel_m_s2: specific force in the IMU frame (gravity included, +9.81 up at rest),
+            m/s^2; shape (3,).
+    """
+
+    stamp_s: float
+    sensor_id: str
+    quat_wxyz: np.ndarray
+    gyro_rad_s: np.ndarray
+    accel_m_s2: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class JointState:
+    """Joint encoder readings.
+
+    Attributes:
+        stamp_s: delivery time, s.
+        sensor_id: ``"encoders"``.
+        names: joint names, as in the robot description.
+        position_rad: measured joint angles, rad; shape (len(names),).
+    """
+
+    stamp_s: float
+    sensor_id: str
+    names: tuple[str, ...]
+    position_rad: np.ndarray
+
+    def as_dict(self) -> dict[str, float]:
+        return {n: float(v) for n, v in zip(self.names, self.position_rad)}
+
+
+@dataclass(frozen=True, eq=False)
+class ContactSample:
+    """Force under one foot region (heel or toe pad of an insole).
+
+    Attributes:
+        stamp_s: delivery time, s.
+        sensor_id: e.g. ``"contact_r_heel"``.
+        force_n: normal force, N (>= 0).
+        in_contact: force above the contact threshold.
+    """
+
+    stamp_s: float
+    sensor_id: str
+    force_n: float
+    in_contact: bool
+
+
+Frame = Union[ToFReading, ImuSample, JointState, ContactSample]
+
+FRAME_TYPES: dict[str, type] = {
+    "tof": ToFReading,
+    "imu": ImuSample,
+    "joints": JointState,
+    "contact": ContactSample,
+}
+
+
+def frame_kind(frame: Frame) -> str:
+    """The short kind name of a frame (the key of :data:`FRAME_TYPES`)."""
+    for kind, cls in FRAME_TYPES.items():
+        if isinstance(frame, cls):
+            return kind
+    raise TypeError(f"not an exobench frame: {type(frame).__name__}")
+
+
+@dataclass
+class StreamStats:
+    """Counts of faulty input a pipeline met; reported in the results."""
+
+    n_frames: int = 0
+    n_no_return: int = 0
+    n_nan: int = 0
+    n_out_of_order: int = 0
+    n_without_state: int = 0
+    extra: dict[str, int] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, int]:
+        d = {
+            "n_frames": self.n_frames,
+            "n_no_return": self.n_no_return,
+            "n_nan": self.n_nan,
+            "n_out_of_order": self.n_out_of_order,
+            "n_without_state": self.n_without_state,
+        }
+        d.update(self.extra)
+        return d

@@ -1,0 +1,130 @@
+"""Ground-truth types. The harness keeps these; they never reach a pipeline."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+SURFACE_KINDS = ("ground", "tread", "riser", "ramp", "landing", "wall", "side")
+
+
+@dataclass(frozen=True, eq=False)
+class PlanarSurface:
+    """One planar surface of a built world, in world coordinates.
+
+    Attributes:
+        surface_id: unique id within the scene. For a staircase built alone the ids follow the
+            staircase paper: 0 the ground before it, 1 the first riser, 2 the first tread,
+            3 the second riser, ... (odd risers, even treads).
+        kind: one of :data:`SURFACE_KINDS`.
+        normal_w: unit normal pointing out of the solid (up for treads, towards the
+            approaching walker for risers), shape (3,).
+        point_w: a point on the plane, shape (3,).
+        polygon_w: vertices of the surface's boundary in order, shape (K, 3).
+        geom_names: MuJoCo geoms whose faces make up this surface.
+    """
+
+    surface_id: int
+    kind: str
+    normal_w: np.ndarray
+    point_w: np.ndarray
+    polygon_w: np.ndarray
+    geom_names: tuple[str, ...] = ()
+
+    def signed_distance(self, points_w: np.ndarray) -> np.ndarray:
+        """Signed distance of points (N, 3) or (3,) to the infinite plane, m."""
+        return (np.asarray(points_w, dtype=float) - self.point_w) @ self.normal_w
+
+    def contains(self, point_w: np.ndarray, tol_m: float = 1e-6) -> bool:
+        """Whether a point lies on the plane and inside the polygon (within ``tol_m``)."""
+        p = np.asarray(point_w, dtype=float)
+        if abs(float(self.signed_distance(p))) > tol_m:
+            return False
+        # project on the plane and test the point against each polygon edge (convex polygons)
+        n = self.normal_w
+        poly = self.polygon_w
+        sign = 0.0
+        for i in range(len(poly)):
+            a, b = poly[i], poly[(i + 1) % len(poly)]
+            c = float(np.dot(np.cross(b - a, p - a), n))
+            if abs(c) <= tol_m * np.linalg.norm(b - a):
+                continue
+            if sign == 0.0:
+                sign = np.sign(c)
+            elif np.sign(c) != sign:
+                return False
+        return True
+
+
+@dataclass(frozen=True, eq=False)
+class SceneTruth:
+    """Static ground truth of a built world.
+
+    Attributes:
+        surfaces: every planar surface.
+        geom_surfaces: for each named geom, the ids of the surfaces it contributes to.
+        params: the builder's validated parameters (riser_m, tread_m, yaw_deg, ...).
+        kind: ``"staircase"``, ``"ramp"``, ``"course"`` or ``"level"``.
+    """
+
+    surfaces: tuple[PlanarSurface, ...]
+    geom_surfaces: dict[str, tuple[int, ...]]
+    params: dict[str, Any] = field(default_factory=dict)
+    kind: str = "level"
+
+    def surface(self, surface_id: int) -> PlanarSurface:
+        for s in self.surfaces:
+            if s.surface_id == surface_id:
+                return s
+        raise KeyError(surface_id)
+
+    def surface_of_hit(self, geom_name: str, point_w: np.ndarray, tol_m: float = 1e-4) -> int:
+        """Surface id of a ray hit on ``geom_name`` at ``point_w``; -1 if on no listed surface.
+
+        A box contributes several faces; the face whose plane passes through the point (and
+        whose polygon contains it) is the one hit.
+        """
+        best, best_d = -1, tol_m
+        for sid in self.geom_surfaces.get(geom_name, ()):
+            s = self.surface(sid)
+            d = abs(float(s.signed_distance(point_w)))
+            if d <= best_d and s.contains(point_w, tol_m=max(tol_m, 1e-6)):
+                best, best_d = sid, d
+        return best
+
+
+@dataclass(frozen=True, eq=False)
+class ToFTruth:
+    """Ground truth of one emitted ToF frame (same ``stamp_s`` and ``sensor_id``).
+
+    Attributes:
+        true_range_m: exact distance along the beam at the measurement time, NaN if no hit.
+        hit_w: exact hit point in the world, shape (3,) (NaN if none).
+        surface_id: id of the surface hit, -1 if none or not a listed surface.
+        T_world_sensor: true pose of the sensor at the measurement time.
+    """
+
+    stamp_s: float
+    sensor_id: str
+    true_range_m: float
+    hit_w: np.ndarray
+    surface_id: int
+    T_world_sensor: np.ndarray
+
+
+def height_at(truth: SceneTruth, x: float, y: float, kinds: tuple[str, ...] = ("ground", "tread", "ramp", "landing")) -> float:
+    """Terrain height under (x, y): the highest walkable surface whose polygon covers the point.
+
+    Returns NaN where no walkable surface lies below the point.
+    """
+    best = float("nan")
+    for s in truth.surfaces:
+        n = s.normal_w
+        if s.kind not in kinds or abs(n[2]) < 1e-6:
+            continue
+        z = s.point_w[2] - (n[0] * (x - s.point_w[0]) + n[1] * (y - s.point_w[1])) / n[2]
+        if s.contains(np.array([x, y, z]), tol_m=1e-6) and not (z <= best):
+            best = float(z)
+    return best

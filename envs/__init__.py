@@ -1,0 +1,1 @@
+"""exobench.envs"""
