@@ -4,6 +4,7 @@ numpy and the standard library only. Everything else in exobench builds on these
 """
 
 from .calibration import Calibration, SensorMount
+from .episode import Episode, EpisodeTruth
 from .errors import (
     ConfigError,
     ExobenchError,
@@ -31,6 +32,8 @@ __all__ = [
     "Calibration",
     "ConfigError",
     "ContactSample",
+    "Episode",
+    "EpisodeTruth",
     "ExobenchError",
     "FRAME_TYPES",
     "Frame",
