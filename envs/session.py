@@ -1,0 +1,311 @@
+"""Recorded sessions on disk: an episode's frames, calibration and (apart) ground truth.
+
+Layout of a session directory (format ``exobench-session``, version 1)::
+
+    meta.json            format, version, exobench version, scenario, seed, frame counts
+    calibration.json     sensor mounts, encoder joint names, robot description (URDF text)
+    frames.jsonl         every frame, time-ordered, one JSON object per line ("kind" first)
+    truth/episode.json   scene surfaces, estimator frame, touch-down, tracks, events
+    truth/tof.jsonl      ground truth of each ToF frame, in ToF frame order
+
+Floats are written with Python's shortest round-trip repr, so reading a session gives back the
+same float64 values bit for bit; NaN is written as ``null``. A session is written into a
+temporary sibling directory and renamed into place, so a failed write leaves nothing behind.
+A pipeline replayed on a session gets exactly the frames it would have had live, so it scores
+identically; the truth/ folder is for the harness and can be left out when sharing real logs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from exobench.core import (
+    Calibration,
+    ContactSample,
+    Episode,
+    EpisodeTruth,
+    Frame,
+    ImuSample,
+    JointState,
+    PlanarSurface,
+    SceneTruth,
+    SensorMount,
+    SessionError,
+    ToFReading,
+    ToFTruth,
+    frame_kind,
+)
+
+FORMAT = "exobench-session"
+VERSION = 1
+
+
+def _f(x: float) -> float | None:
+    x = float(x)
+    return None if math.isnan(x) else x
+
+
+def _arr(a: np.ndarray) -> list:
+    return [_arr(r) for r in a] if np.ndim(a) > 1 else [_f(v) for v in np.asarray(a, dtype=float)]
+
+
+def _unarr(v: list) -> np.ndarray:
+    return np.array(v, dtype=float)  # None (written for NaN) becomes NaN
+
+
+def _unf(x: float | None) -> float:
+    return float("nan") if x is None else float(x)
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready copy of scenario/params values (numpy scalars and tuples included)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _arr(value)
+    if isinstance(value, (np.floating, float)):
+        return _f(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    return value
+
+
+# --- frames ---------------------------------------------------------------------------------
+def frame_to_dict(frame: Frame) -> dict[str, Any]:
+    kind = frame_kind(frame)
+    d: dict[str, Any] = {"kind": kind, "stamp_s": frame.stamp_s, "sensor_id": frame.sensor_id}
+    if isinstance(frame, ToFReading):
+        d.update(range_m=_f(frame.range_m), status=int(frame.status))
+    elif isinstance(frame, ImuSample):
+        d.update(quat_wxyz=_arr(frame.quat_wxyz), gyro_rad_s=_arr(frame.gyro_rad_s), accel_m_s2=_arr(frame.accel_m_s2))
+    elif isinstance(frame, JointState):
+        d.update(names=list(frame.names), position_rad=_arr(frame.position_rad))
+    elif isinstance(frame, ContactSample):
+        d.update(force_n=_f(frame.force_n), in_contact=bool(frame.in_contact))
+    return d
+
+
+def frame_from_dict(d: dict[str, Any]) -> Frame:
+    kind, stamp, sid = d["kind"], float(d["stamp_s"]), d["sensor_id"]
+    if kind == "tof":
+        return ToFReading(stamp, sid, _unf(d["range_m"]), int(d["status"]))
+    if kind == "imu":
+        return ImuSample(stamp, sid, _unarr(d["quat_wxyz"]), _unarr(d["gyro_rad_s"]), _unarr(d["accel_m_s2"]))
+    if kind == "joints":
+        return JointState(stamp, sid, tuple(d["names"]), _unarr(d["position_rad"]))
+    if kind == "contact":
+        return ContactSample(stamp, sid, _unf(d["force_n"]), bool(d["in_contact"]))
+    raise SessionError(f"frames.jsonl: unknown frame kind {kind!r}; valid: tof, imu, joints, contact")
+
+
+# --- calibration ------------------------------------------------------------------------------
+def calibration_to_dict(c: Calibration) -> dict[str, Any]:
+    return {
+        "robot_urdf": c.robot_urdf,
+        "base_link": c.base_link,
+        "joint_names": list(c.joint_names),
+        "sole_height_m": c.sole_height_m,
+        "foot_length_m": c.foot_length_m,
+        "heel_to_ankle_m": c.heel_to_ankle_m,
+        "extra": _plain(c.extra),
+        "mounts": [
+            {
+                "sensor_id": m.sensor_id,
+                "kind": m.kind,
+                "parent_link": m.parent_link,
+                "T_parent_sensor": _arr(m.T_parent_sensor),
+                "params": _plain(m.params),
+            }
+            for m in c.mounts
+        ],
+    }
+
+
+def calibration_from_dict(d: dict[str, Any]) -> Calibration:
+    mounts = tuple(
+        SensorMount(m["sensor_id"], m["kind"], m["parent_link"], _unarr(m["T_parent_sensor"]), dict(m["params"]))
+        for m in d["mounts"]
+    )
+    return Calibration(
+        robot_urdf=d["robot_urdf"],
+        base_link=d["base_link"],
+        joint_names=tuple(d["joint_names"]),
+        mounts=mounts,
+        sole_height_m=float(d["sole_height_m"]),
+        foot_length_m=float(d["foot_length_m"]),
+        heel_to_ankle_m=float(d["heel_to_ankle_m"]),
+        extra=dict(d.get("extra", {})),
+    )
+
+
+# --- truth ------------------------------------------------------------------------------------
+def _surface_to_dict(s: PlanarSurface) -> dict[str, Any]:
+    return {
+        "surface_id": s.surface_id,
+        "kind": s.kind,
+        "normal_w": _arr(s.normal_w),
+        "point_w": _arr(s.point_w),
+        "polygon_w": _arr(s.polygon_w),
+        "geom_names": list(s.geom_names),
+    }
+
+
+def _surface_from_dict(d: dict[str, Any]) -> PlanarSurface:
+    return PlanarSurface(
+        int(d["surface_id"]), d["kind"], _unarr(d["normal_w"]), _unarr(d["point_w"]),
+        _unarr(d["polygon_w"]), tuple(d["geom_names"]),
+    )
+
+
+def truth_to_dict(t: EpisodeTruth) -> dict[str, Any]:
+    return {
+        "scene": {
+            "kind": t.scene.kind,
+            "params": _plain(t.scene.params),
+            "surfaces": [_surface_to_dict(s) for s in t.scene.surfaces],
+            "geom_surfaces": {k: list(v) for k, v in t.scene.geom_surfaces.items()},
+        },
+        "T_world_estimator": _arr(t.T_world_estimator),
+        "stance_side": t.stance_side,
+        "touchdown_w": _arr(t.touchdown_w),
+        "foot_track_w": _arr(t.foot_track_w),
+        "body_tracks": {k: _arr(v) for k, v in t.body_tracks.items()},
+        "max_penetration_m": _f(t.max_penetration_m),
+        "events": {k: _f(v) for k, v in t.events.items()},
+    }
+
+
+def _tof_truth_to_dict(t: ToFTruth) -> dict[str, Any]:
+    return {
+        "stamp_s": t.stamp_s,
+        "sensor_id": t.sensor_id,
+        "true_range_m": _f(t.true_range_m),
+        "hit_w": _arr(t.hit_w),
+        "surface_id": int(t.surface_id),
+        "T_world_sensor": _arr(t.T_world_sensor),
+    }
+
+
+def _tof_truth_from_dict(d: dict[str, Any]) -> ToFTruth:
+    return ToFTruth(
+        float(d["stamp_s"]), d["sensor_id"], _unf(d["true_range_m"]), _unarr(d["hit_w"]),
+        int(d["surface_id"]), _unarr(d["T_world_sensor"]),
+    )
+
+
+def truth_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...]) -> EpisodeTruth:
+    sc = d["scene"]
+    scene = SceneTruth(
+        surfaces=tuple(_surface_from_dict(s) for s in sc["surfaces"]),
+        geom_surfaces={k: tuple(v) for k, v in sc["geom_surfaces"].items()},
+        params=dict(sc["params"]),
+        kind=sc["kind"],
+    )
+    return EpisodeTruth(
+        scene=scene,
+        tof=tof,
+        T_world_estimator=_unarr(d["T_world_estimator"]),
+        stance_side=d["stance_side"],
+        touchdown_w=_unarr(d["touchdown_w"]),
+        foot_track_w=_unarr(d["foot_track_w"]).reshape(-1, 4),
+        body_tracks={k: _unarr(v).reshape(-1, 8) for k, v in d["body_tracks"].items()},
+        max_penetration_m=_unf(d["max_penetration_m"]),
+        events={k: _unf(v) for k, v in d["events"].items()},
+    )
+
+
+# --- directory I/O ----------------------------------------------------------------------------
+def _dump(obj: Any) -> str:
+    return json.dumps(obj, separators=(",", ":"), allow_nan=False)
+
+
+def write_session(episode: Episode, path: str | os.PathLike, *, include_truth: bool = True) -> Path:
+    """Write ``episode`` as a session directory at ``path`` (which must not exist yet)."""
+    from exobench import __version__
+
+    final = Path(path)
+    if final.exists():
+        raise SessionError(f"session path {str(final)!r} exists already; choose a new directory")
+    final.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
+    try:
+        counts: dict[str, int] = {}
+        with open(tmp / "frames.jsonl", "w") as fh:
+            for fr in episode.frames:
+                d = frame_to_dict(fr)
+                counts[d["kind"]] = counts.get(d["kind"], 0) + 1
+                fh.write(_dump(d) + "\n")
+        meta = {
+            "format": FORMAT,
+            "version": VERSION,
+            "exobench_version": __version__,
+            "scenario": _plain(episode.scenario),
+            "seed": int(episode.seed),
+            "frame_counts": counts,
+            "has_truth": include_truth,
+        }
+        (tmp / "meta.json").write_text(json.dumps(meta, indent=1, allow_nan=False))
+        (tmp / "calibration.json").write_text(json.dumps(calibration_to_dict(episode.calibration), allow_nan=False))
+        if include_truth:
+            (tmp / "truth").mkdir()
+            (tmp / "truth" / "episode.json").write_text(_dump(truth_to_dict(episode.truth)))
+            with open(tmp / "truth" / "tof.jsonl", "w") as fh:
+                for t in episode.truth.tof:
+                    fh.write(_dump(_tof_truth_to_dict(t)) + "\n")
+        os.rename(tmp, final)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return final
+
+
+def read_meta(path: str | os.PathLike) -> dict[str, Any]:
+    p = Path(path)
+    try:
+        meta = json.loads((p / "meta.json").read_text())
+    except FileNotFoundError:
+        raise SessionError(f"{str(p)!r} is not a session: meta.json missing") from None
+    except json.JSONDecodeError as e:
+        raise SessionError(f"{p / 'meta.json'}: malformed JSON ({e})") from None
+    if meta.get("format") != FORMAT:
+        raise SessionError(f"{p / 'meta.json'}: format {meta.get('format')!r}, expected {FORMAT!r}")
+    if meta.get("version") != VERSION:
+        raise SessionError(f"{p / 'meta.json'}: version {meta.get('version')!r} unsupported; supported: {VERSION}")
+    return meta
+
+
+def iter_frames(path: str | os.PathLike) -> Iterator[Frame]:
+    """Stream the frames of a session without loading them all."""
+    with open(Path(path) / "frames.jsonl") as fh:
+        for n, line in enumerate(fh, 1):
+            if not line.strip():
+                continue
+            try:
+                yield frame_from_dict(json.loads(line))
+            except (json.JSONDecodeError, KeyError, TypeError, ValueError) as e:
+                raise SessionError(f"frames.jsonl line {n}: malformed frame ({e})") from None
+
+
+def read_session(path: str | os.PathLike) -> Episode:
+    """Read a whole session back into an :class:`Episode` (truth required)."""
+    p = Path(path)
+    meta = read_meta(p)
+    if not meta.get("has_truth", False):
+        raise SessionError(f"{str(p)!r} has no truth/ folder; it can be replayed but not scored")
+    calib = calibration_from_dict(json.loads((p / "calibration.json").read_text()))
+    frames = tuple(iter_frames(p))
+    with open(p / "truth" / "tof.jsonl") as fh:
+        tof = tuple(_tof_truth_from_dict(json.loads(line)) for line in fh if line.strip())
+    truth = truth_from_dict(json.loads((p / "truth" / "episode.json").read_text()), tof)
+    return Episode(scenario=meta["scenario"], seed=meta["seed"], calibration=calib, frames=frames, truth=truth)
