@@ -1,1 +1,10 @@
-"""exobench.perception"""
+"""exobench.perception: per-frame estimators that run on sensor frames alone (live or recorded).
+
+Modules (import them directly; this package imports nothing heavy):
+
+- ``rtls``: recursive total least squares planes of the staircase paper (general and HTVR).
+- ``staircase``: the paper's Algorithm 1 (Assign / SurfUpdate / Shift) over surfaces S0..S4.
+- ``tof_kinematics``: ToF beam hit points by forward kinematics (pinocchio) in ``stance_ground``.
+- ``readout``: riser height and tread depth from estimated planes.
+- ``pipelines``: the stairs-track pipelines ``rtls``, ``rtls-htvr`` and ``batch-ransac``.
+"""

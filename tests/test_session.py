@@ -17,8 +17,8 @@ from exobench.core import (
     SensorMount,
     SessionError,
     ToFReading,
-    ToFTruth,
     TofStatus,
+    ToFTruth,
 )
 from exobench.envs.session import iter_frames, read_session, write_session
 

@@ -1,0 +1,270 @@
+"""Algorithm 1 of the staircase paper (seeds/004, Sec. IV): assign ToF points to surfaces S0..S4.
+
+Points arrive one at a time from two ranging sensors, flagged ``"r"`` and ``"l"`` (the paper's
+right and left sensor). :meth:`StaircaseAlgorithm.assign` is the paper's ``Assign(p, Q, S, f, id)``
+and the private ``_surf_update`` its ``SurfUpdate(q, S_id, f)`` (:meth:`StaircaseAlgorithm.surf_update`
+runs it on a new point directly):
+
+- Each sensor has a FIFO ``Q`` of ``q`` points. Nothing is assigned until ``Q`` is full; then
+  ``z_bar`` and ``sigma_z`` (population standard deviation, 1/q) are computed over ``Q``, the
+  oldest point ``q`` is extracted, tested with lines 5-17, and the new point is inserted.
+  The surface index ``id`` is shared by both sensors.
+- Lines 5-17: even ``id`` (tread/ground): flat queue and ``|q_z - z_bar| < sigma_z`` -> S_id;
+  non-flat queue and ``q_z > S_id.e_z + 1.5 th_z`` -> ``id += 1`` and S_id. Odd ``id`` (riser):
+  non-flat -> S_id; flat -> ``id += 1`` first if ``q_z > S_{id-1}.e_z + th_pl``, then S_id.
+  Every other case discards ``q``.
+- ``SurfUpdate``: when the surface's FIFO ``B`` (``b`` points) is full its oldest point ``r`` is
+  extracted and removed from the plane (eq. 17-18) if not ``|d| <= sigma_n``; ``q`` enters ``B``
+  and the plane (eq. 15-16); the surface becomes reliable (``ok``) once it holds ``N`` points of
+  each sensor; when S_id is reliable, ``Shift(S_{id-1}, S_id)`` runs.
+
+Choices where the paper is silent or ambiguous (each is a :class:`StaircaseParams` field or
+documented here):
+- ``q``, ``b`` and ``N`` are not given in the paper. Defaults: ``q = 5`` (0.1 s of one sensor at
+  50 Hz: short enough to span at most two adjacent surfaces, as Sec. IV-A requires, long enough
+  for a meaningful ``sigma_z``), ``b = 10`` (each point is checked against a plane fitted with
+  the 10 points after it) and ``N = 5`` (five points per sensor, the two segments Sec. II needs).
+- Lines 14-17 (odd ``id``, flat queue, ``q_z`` not above ``S_{id-1}.e_z + th_pl``): the listing
+  indents line 17 (``SurfUpdate``) outside the inner ``if``, so ``q`` is assigned to the riser;
+  the prose of Sec. IV-A calls "any other situation" a discard. ``riser_flat_low="assign"``
+  follows the listing (default), ``"discard"`` the prose.
+- An empty surface has ``e_z = 0``: the structure starts zeroed, which in the paper's frame on
+  the supporting foot (``stance_ground``) is the ground height, so line 8 works for S0.
+- ``RemoveFromSurf`` decrements the count of the sensor that produced ``r`` (the flag is kept
+  with each point in ``B``), not the flag of the point being added.
+- ``Shift(S_{id-1}, S_id)`` moves the points still held in ``S_{id-1}.B`` whose distance to S_id
+  is smaller than to S_{id-1} (the device keeps only ``B``, not the whole cloud). Distances are
+  taken to the planes before any move; moved points leave ``S_{id-1}.B`` and enter the plane of
+  S_id (eq. 15-16) but not its ``B``: they have just been checked against S_id.
+- ``ok`` never goes back to false (the listing only ever sets it).
+- The test ``|d| <= sigma_n`` allows 1e-12 m of round-off: for exactly coplanar points both
+  sides are ~1e-17 m and the bare comparison would drop points at random.
+- Only ``n_surfaces`` (5) surfaces exist: a switch beyond S4 stops the algorithm, and every later
+  point is discarded.
+
+Expect many discards: with Gaussian noise about a third of the tread points fail line 5's
+``|q_z - z_bar| < sigma_z`` and about a third of the points leaving ``B`` lie beyond
+``sigma_n``; on synthetic sweeps with 1.5 mm noise about 40-45 % of the points end in a surface.
+
+The algorithm keeps, for every point it received, the surface it is in now (-1: discarded,
+removed, or still waiting in ``Q``), so a harness can score the assignment.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from exobench.core.errors import ConfigError, check_range
+
+from .rtls import PlaneFit, make_plane
+
+__all__ = ["FLAGS", "StaircaseAlgorithm", "StaircaseParams", "Surface"]
+
+FLAGS = ("r", "l")
+# numerical guard of the test |d| <= sigma_n: exactly coplanar points give d and sigma_n of ~1e-17
+_ROUNDOFF_M = 1e-12
+
+
+@dataclass(frozen=True)
+class StaircaseParams:
+    """Parameters of Algorithm 1.
+
+    Attributes:
+        th_z_m: flatness threshold on ``sigma_z`` of the queue, m (paper: 8e-3).
+        th_pl_m: minimum riser height before switching to the next tread, m (paper: 0.13).
+        queue_q: length ``q`` of each sensor's FIFO ``Q`` (not in the paper; default 5).
+        buffer_b: length ``b`` of each surface's FIFO ``B`` (not in the paper; default 10).
+        reliable_n: points ``N`` needed from each sensor for ``ok`` (not in the paper; default 5).
+        n_surfaces: number of surfaces S0..S_{n-1} (paper: 5).
+        htvr: horizontal treads and vertical risers (Sec. V-B): even ids use a 1-D horizontal
+            plane, odd ids a 2-D vertical one; otherwise every surface is a general plane.
+        riser_flat_low: ``"assign"`` (listing of Algorithm 1) or ``"discard"`` (prose), see the
+            module docstring.
+    """
+
+    th_z_m: float = 8e-3
+    th_pl_m: float = 0.13
+    queue_q: int = 5
+    buffer_b: int = 10
+    reliable_n: int = 5
+    n_surfaces: int = 5
+    htvr: bool = False
+    riser_flat_low: str = "assign"
+
+    def __post_init__(self) -> None:
+        check_range("th_z_m", self.th_z_m, 0.0, 1.0, low_open=True)
+        check_range("th_pl_m", self.th_pl_m, 0.0, 2.0)
+        for name, low in (("queue_q", 2), ("buffer_b", 1), ("reliable_n", 1), ("n_surfaces", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < low or v > 100_000:
+                raise ConfigError(name, v, f"an integer {low} <= {name} <= 100000")
+        if self.riser_flat_low not in ("assign", "discard"):
+            raise ConfigError("riser_flat_low", self.riser_flat_low, "'assign' or 'discard'")
+
+
+@dataclass
+class Surface:
+    """The paper's structure ``S_id = {n, B, V, e, n*, sigma, ok}``.
+
+    ``plane`` holds ``V``, ``e``, the normal and ``sigma_n``; ``buffer`` is ``B`` as point ids;
+    ``n_by_flag`` is ``n = [n_r, n_l]``; ``reliable_uid`` is the id of the point whose ``Assign``
+    call made the surface reliable.
+    """
+
+    index: int
+    plane: PlaneFit
+    buffer: deque = field(default_factory=deque)
+    n_by_flag: dict[str, int] = field(default_factory=lambda: {f: 0 for f in FLAGS})
+    ok: bool = False
+    reliable_uid: int | None = None
+
+    @property
+    def e_z(self) -> float:
+        """Height of the centroid; 0 for an empty surface (the zeroed structure)."""
+        return float(self.plane.centroid[2]) if self.plane.n else 0.0
+
+
+class StaircaseAlgorithm:
+    """Algorithm 1 on a stream of points, general or HTVR (see the module docstring)."""
+
+    def __init__(self, params: StaircaseParams | None = None) -> None:
+        self.params = params or StaircaseParams()
+        self.reset()
+
+    def reset(self) -> None:
+        p = self.params
+        kinds = [("horizontal" if i % 2 == 0 else "vertical") if p.htvr else "general" for i in range(p.n_surfaces)]
+        self.surfaces: tuple[Surface, ...] = tuple(Surface(i, make_plane(k)) for i, k in enumerate(kinds))
+        self.current_id = 0
+        self._queues: dict[str, deque[int]] = {f: deque() for f in FLAGS}
+        self._points: list[np.ndarray] = []
+        self._flags: list[str] = []
+        self._where: list[int] = []
+        self._call_uid = -1
+        self.counts = {"n_assigned": 0, "n_discarded": 0, "n_removed": 0, "n_shifted": 0, "n_beyond_last": 0}
+
+    # --- public read-out ---
+    @property
+    def finished(self) -> bool:
+        """True once a switch beyond the last surface happened."""
+        return self.current_id >= self.params.n_surfaces
+
+    def surface_of(self, uid: int) -> int:
+        """Surface the point ``uid`` is in now, -1 if none."""
+        return self._where[uid]
+
+    def point_surfaces(self) -> np.ndarray:
+        """Surface of every point received so far, in arrival order (-1: none)."""
+        return np.array(self._where, dtype=int)
+
+    def points(self) -> np.ndarray:
+        """Every point received so far, shape (N, 3)."""
+        return np.array(self._points).reshape(-1, 3)
+
+    # --- Algorithm 1 ---
+    def _register(self, p: np.ndarray, flag: str) -> int:
+        if flag not in FLAGS:
+            raise ConfigError("flag", flag, "'r' or 'l'")
+        uid = len(self._points)
+        self._points.append(np.array(p, dtype=float).reshape(3))
+        self._flags.append(flag)
+        self._where.append(-1)
+        self._call_uid = uid
+        return uid
+
+    def assign(self, p: np.ndarray, flag: str) -> int:
+        """``Assign(p, Q_f, S, f, id)``; returns the id given to ``p`` (its arrival index)."""
+        uid = self._register(p, flag)
+        Q = self._queues[flag]
+        if len(Q) >= self.params.queue_q:
+            zs = [float(self._points[u][2]) for u in Q]
+            z_bar = sum(zs) / len(zs)
+            sigma_z = math.sqrt(sum((z - z_bar) ** 2 for z in zs) / len(zs))
+            qu = Q.popleft()
+            self._decide(qu, float(self._points[qu][2]), z_bar, sigma_z)
+        Q.append(uid)
+        return uid
+
+    def _decide(self, qu: int, q_z: float, z_bar: float, sigma_z: float) -> None:
+        """Lines 5-17 for the extracted point ``qu``."""
+        p = self.params
+        i = self.current_id
+        target = None
+        if i >= p.n_surfaces:
+            self.counts["n_beyond_last"] += 1
+        elif i % 2 == 0:
+            if sigma_z < p.th_z_m and abs(q_z - z_bar) < sigma_z:
+                target = i
+            elif sigma_z >= p.th_z_m and q_z > self.surfaces[i].e_z + 1.5 * p.th_z_m:
+                target = i + 1
+        elif sigma_z >= p.th_z_m:
+            target = i
+        elif q_z > self.surfaces[i - 1].e_z + p.th_pl_m:
+            target = i + 1
+        elif p.riser_flat_low == "assign":
+            target = i
+        if target is None:
+            self.counts["n_discarded"] += 1
+            return
+        self.current_id = target
+        if target >= p.n_surfaces:
+            self.counts["n_beyond_last"] += 1
+            return
+        self._surf_update(qu, self.surfaces[target])
+
+    def surf_update(self, p: np.ndarray, flag: str, index: int) -> int:
+        """``SurfUpdate(p, S_index, f)`` on a new point, bypassing ``Assign``; returns its id.
+
+        For callers that assign points by other means, and for testing the update on its own.
+        """
+        if not 0 <= index < self.params.n_surfaces:
+            raise ConfigError("index", index, f"0 <= index < {self.params.n_surfaces}")
+        uid = self._register(p, flag)
+        self._surf_update(uid, self.surfaces[index])
+        return uid
+
+    def _surf_update(self, qu: int, S: Surface) -> None:
+        """``SurfUpdate(q, S_id, f)`` (lines 19-30)."""
+        p = self.params
+        self.counts["n_assigned"] += 1
+        if len(S.buffer) >= p.buffer_b:
+            r = S.buffer.popleft()
+            d = S.plane.distance(self._points[r])
+            if not (abs(d) <= S.plane.sigma_m + _ROUNDOFF_M):
+                self._remove_from_surf(r, S)
+                self.counts["n_removed"] += 1
+        S.buffer.append(qu)
+        self._add_to_surf(qu, S)
+        if not S.ok and all(S.n_by_flag[f] >= p.reliable_n for f in FLAGS):
+            S.ok = True
+            S.reliable_uid = self._call_uid
+        if S.index > 0 and S.ok:
+            self._shift(self.surfaces[S.index - 1], S)
+
+    def _add_to_surf(self, u: int, S: Surface) -> None:
+        S.plane.add(self._points[u])
+        S.n_by_flag[self._flags[u]] += 1
+        self._where[u] = S.index
+
+    def _remove_from_surf(self, u: int, S: Surface) -> None:
+        S.plane.remove(self._points[u])
+        S.n_by_flag[self._flags[u]] -= 1
+        self._where[u] = -1
+
+    def _shift(self, prev: Surface, cur: Surface) -> None:
+        """``Shift(S_{id-1}, S_id)``: move points of ``prev.B`` that are closer to ``cur``."""
+        if not prev.buffer:
+            return
+        pts = np.array([self._points[u] for u in prev.buffer])
+        d_prev = np.abs((pts - prev.plane.centroid) @ prev.plane.normal)
+        d_cur = np.abs((pts - cur.plane.centroid) @ cur.plane.normal)
+        move = [u for u, a, b in zip(prev.buffer, d_prev, d_cur, strict=True) if b < a]
+        for u in move:
+            prev.buffer.remove(u)
+            self._remove_from_surf(u, prev)
+            self._add_to_surf(u, cur)
+        self.counts["n_shifted"] += len(move)
