@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Union
 
 import numpy as np
 
@@ -106,7 +105,7 @@ class ContactSample:
     in_contact: bool
 
 
-Frame = Union[ToFReading, ImuSample, JointState, ContactSample]
+Frame = ToFReading | ImuSample | JointState | ContactSample
 
 FRAME_TYPES: dict[str, type] = {
     "tof": ToFReading,

@@ -34,6 +34,18 @@ RGBD_IDS = ("rgbd_head", "rgbd_chest", "rgbd_thigh_l", "rgbd_thigh_r")
 HIP_AXIS = np.array([0.0, -1.0, 0.0])
 KNEE_AXIS = np.array([0.0, 1.0, 0.0])
 ANKLE_AXIS = np.array([0.0, -1.0, 0.0])
+# neck joints of the head body: yaw + turns the face to the left, pitch + looks down
+NECK_YAW_AXIS = np.array([0.0, 0.0, 1.0])
+NECK_PITCH_AXIS = np.array([0.0, 1.0, 0.0])
+
+# joint ranges, rad [A: normal human range of motion, trimmed to what the device allows]
+JOINT_RANGES_RAD = {
+    "hip": (np.radians(-30.0), np.radians(120.0)),
+    "knee": (np.radians(-5.0), np.radians(130.0)),
+    "ankle": (np.radians(-40.0), np.radians(30.0)),
+    "neck_yaw": (np.radians(-80.0), np.radians(80.0)),
+    "neck_pitch": (np.radians(-40.0), np.radians(60.0)),
+}
 
 
 def _camera_optical(pitch_down_rad: float) -> np.ndarray:
@@ -130,12 +142,44 @@ class ExoSpec:
 
     # --- masses (de Leva, male; exo distribution [A]) ---
     def segment_mass_kg(self, segment: str) -> float:
+        """Mass of a body (``pelvis``, ``thigh``, ``shank``, ``foot``, ``head``) with its exo share."""
         body = {"thigh": 0.1416, "shank": 0.0433, "foot": 0.0137, "head": 0.0694}
         exo = {"thigh": 0.15, "shank": 0.10, "foot": 0.05, "head": 0.0}
         if segment == "pelvis":  # trunk, arms and pelvis: the rest of the body
             rest = 1.0 - 2 * (body["thigh"] + body["shank"] + body["foot"]) - body["head"]
             return rest * self.user_mass_kg + 0.40 * self.exo_mass_kg
         return body[segment] * self.user_mass_kg + exo[segment] * self.exo_mass_kg
+
+    def segment_inertial(self, segment: str) -> tuple[np.ndarray, np.ndarray]:
+        """(centre of mass in the body frame, principal moments of inertia about x, y, z) of a body.
+
+        Centre-of-mass positions and radii of gyration are de Leva's (1996, male): thigh CoM at
+        0.4095 of its length from the hip, radii 0.329/0.329/0.149 (about x/y/z); shank 0.4459,
+        0.255/0.249/0.103; foot 0.4415 from the heel, 0.124 about its long axis (x), 0.245
+        about y, 0.257 about z; head+neck 0.5002 from the vertex, 0.303/0.315/0.261; trunk 0.5138
+        from the neck, 0.328/0.306/0.169 (pelvis body: trunk, arms and pelvis lumped [A]). The
+        exoskeleton's share of a segment is lumped with the same distribution [A].
+        """
+        m = self.segment_mass_kg(segment)
+        if segment == "thigh":
+            L = self.thigh_m
+            com, r = np.array([0.0, 0.0, -0.4095 * L]), np.array([0.329, 0.329, 0.149]) * L
+        elif segment == "shank":
+            L = self.shank_m
+            com, r = np.array([0.0, 0.0, -0.4459 * L]), np.array([0.255, 0.249, 0.103]) * L
+        elif segment == "foot":
+            L = self.foot_m
+            com = np.array([0.4415 * L - self.heel_to_ankle_m, 0.0, -0.5 * self.sole_height_m])
+            r = np.array([0.124, 0.245, 0.257]) * L
+        elif segment == "head":
+            L = self.head_m
+            com, r = np.array([0.0, 0.0, (1.0 - 0.5002) * L]), np.array([0.303, 0.315, 0.261]) * L
+        elif segment == "pelvis":
+            L = self.trunk_m
+            com, r = np.array([0.0, 0.0, (1.0 - 0.5138) * L]), np.array([0.328, 0.306, 0.169]) * L
+        else:
+            raise KeyError(segment)
+        return com, m * r**2
 
     # --- body placement in the parent body's frame (zero posture) ---
     def hip_offset(self, side: str) -> np.ndarray:
@@ -210,9 +254,12 @@ __all__ = [
     "CONTACT_IDS",
     "ExoSpec",
     "HIP_AXIS",
+    "JOINT_RANGES_RAD",
     "KNEE_AXIS",
     "LEG_JOINTS",
     "NECK_JOINTS",
+    "NECK_PITCH_AXIS",
+    "NECK_YAW_AXIS",
     "RGBD_IDS",
     "TOF_IDS",
     "rot_about",
