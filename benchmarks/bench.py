@@ -1,0 +1,126 @@
+"""Micro-benchmarks behind `exobench bench`: the RTLS update cost, the simulator's speed.
+
+- :func:`bench_rtls`: on the case-A stream (simulated, or a recorded session), the points the
+  RTLS pipeline put into each surface are replayed in arrival order twice: once through the
+  recursive plane (:class:`exobench.perception.rtls.RtlsPlane`: add, then read normal and
+  sigma), once by refitting a batch total least squares plane (SVD of all the surface's points
+  so far) after each point; the same is done with all the points as one sequence, where the
+  batch cost grows with the count. Medians per point and their ratios come from the same run.
+- :func:`bench_sim`: real-time factor of :func:`exobench.envs.sim.simulate_stairs` (simulated
+  seconds per wall-clock second) with every sensor of the scenario on.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from exobench.core.episode import Episode
+from exobench.core.frames import frame_kind
+
+PAPER_MS_PER_POINT = {"rtls": 0.685, "rtls-htvr": 0.427}  # Cortex-M4 at 168 MHz, Sec. V-B
+
+
+def case_a_episode(seed: int = 0) -> Episode:
+    from .tracks.stairs import CASES, StairsTrack
+
+    return StairsTrack().simulate(dict(CASES["A"]), seed)
+
+
+def _surface_streams(episode: Episode) -> tuple[list[np.ndarray], np.ndarray]:
+    from exobench.perception.pipelines import RtlsStairs
+
+    pipe = RtlsStairs()
+    pipe.reset(episode.calibration)
+    for frame in episode.frames:
+        pipe.process(frame)
+    est = pipe.finalize()
+    streams = []
+    for idx in sorted({a.surface_index for a in est.assignments if a.surface_index >= 0}):
+        pts = np.array([a.point for a in est.assignments if a.surface_index == idx and np.all(np.isfinite(a.point))])
+        if len(pts) >= 3:
+            streams.append(pts)
+    return streams, np.asarray(est.compute_time_s, dtype=float)
+
+
+def _time_sequence(pts: np.ndarray) -> tuple[list[float], list[float]]:
+    """Per point: seconds of the recursive update and of a batch refit on all points so far."""
+    from exobench.perception.rtls import RtlsPlane
+
+    rec_t, batch_t = [], []
+    plane = RtlsPlane()
+    for k in range(len(pts)):
+        t0 = time.perf_counter()
+        plane.add(pts[k])
+        _ = plane.normal, plane.sigma_m
+        rec_t.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        P = pts[: k + 1]
+        c = P.mean(axis=0)
+        _, s, vt = np.linalg.svd(P - c, full_matrices=False)
+        _ = vt[-1], s[-1] / np.sqrt(k + 1)
+        batch_t.append(time.perf_counter() - t0)
+    return rec_t, batch_t
+
+
+def bench_rtls(episode: Episode | None = None, *, repeats: int = 5) -> dict[str, Any]:
+    """Median time per point of the recursive update vs a batch refit, and their ratio.
+
+    Two sequences: each surface's points in arrival order (what the estimator maintains), and
+    all used points of the stream as one sequence (where the batch cost grows with N).
+    """
+    episode = episode if episode is not None else case_a_episode()
+    streams, pipeline_times = _surface_streams(episode)
+    if not streams:
+        return {"points": 0, "error": "the RTLS pipeline assigned no points on this stream"}
+    whole = np.vstack(streams)
+    rec_t, batch_t, rec_w, batch_w = [], [], [], []
+    for _ in range(repeats):
+        for pts in streams:
+            r, b = _time_sequence(pts)
+            rec_t += r
+            batch_t += b
+        r, b = _time_sequence(whole)
+        rec_w += r
+        batch_w += b
+    med = {k: float(np.median(v) * 1e6) for k, v in (("r", rec_t), ("b", batch_t), ("rw", rec_w), ("bw", batch_w))}
+    return {
+        "points": int(len(whole)),
+        "surfaces": len(streams),
+        "repeats": repeats,
+        "rtls_update_median_us": med["r"],
+        "batch_tls_refit_median_us": med["b"],
+        "batch_over_rtls": med["b"] / med["r"],
+        "stream_rtls_update_median_us": med["rw"],
+        "stream_batch_tls_refit_median_us": med["bw"],
+        "stream_batch_over_rtls": med["bw"] / med["rw"],
+        "rtls_pipeline_median_us": float(np.median(pipeline_times) * 1e6) if pipeline_times.size else float("nan"),
+        "paper_ms_per_point_cortex_m4": PAPER_MS_PER_POINT,
+    }
+
+
+def bench_sim(scenario: dict[str, Any] | None = None, seed: int = 0) -> dict[str, Any]:
+    """Real-time factor of one simulated stairs episode (case A unless ``scenario`` is given)."""
+    from .tracks.stairs import CASES, StairsTrack
+
+    track = StairsTrack()
+    values = track.validate_scenario(scenario if scenario is not None else dict(CASES["A"]))
+    t0 = time.perf_counter()
+    episode = track.simulate(values, seed)
+    wall = time.perf_counter() - t0
+    stamps = [f.stamp_s for f in episode.frames]
+    sim_s = float(max(stamps) - min(stamps)) if stamps else 0.0
+    counts: dict[str, int] = {}
+    for f in episode.frames:
+        counts[frame_kind(f)] = counts.get(frame_kind(f), 0) + 1
+    return {
+        "simulated_s": sim_s,
+        "wall_s": wall,
+        "real_time_factor": sim_s / wall if wall > 0 else float("nan"),
+        "frames": counts,
+        "frames_per_s": len(stamps) / wall if wall > 0 else float("nan"),
+        "scenario": values,
+        "seed": seed,
+    }

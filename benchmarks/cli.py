@@ -1,0 +1,274 @@
+"""The `exobench` command: a thin shell over the runner, report, bench and session functions.
+
+Only click is imported at module level so that `exobench --help` answers at once; each
+command imports what it needs. Every :class:`exobench.core.errors.ExobenchError` becomes one
+line on stderr, ``exobench: error: <message>``, and exit status 2; everything is validated
+before an output folder is created, so a refused call leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from typing import Any
+
+import click
+
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+class _Group(click.Group):
+    """Turns exobench's typed errors into a one-line message and exit status 2."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except Exception as e:
+            from exobench.core.errors import ExobenchError
+
+            if isinstance(e, ExobenchError):
+                click.echo(f"exobench: error: {e}", err=True)
+                ctx.exit(EXIT_USAGE)
+            raise
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="exobench", prog_name="exobench")
+def cli() -> None:
+    """exobench: a MuJoCo benchmark for exoskeleton perception.
+
+    \b
+    exobench run                   the default suite (stairs/quick) with every pipeline
+    exobench run paper --jobs 2    the staircase paper's protocol
+    exobench list                  suites, tracks, pipelines, scenario parameters
+    """
+
+
+def _default_out(suite: str) -> str:
+    import datetime
+
+    return f"runs/{suite}-{datetime.datetime.now().strftime('%Y%m%d-%H%M%S')}"
+
+
+def _seeds(seed: int | None, seeds: int | None) -> list[int]:
+    from exobench.core.errors import ConfigError
+
+    if seed is not None and seeds is not None:
+        raise ConfigError("--seed/--seeds", f"{seed}/{seeds}", "one of --seed N or --seeds N")
+    if seeds is not None:
+        if seeds < 1:
+            raise ConfigError("--seeds", seeds, "--seeds >= 1")
+        return list(range(seeds))
+    if seed is not None and seed < 0:
+        raise ConfigError("--seed", seed, "--seed >= 0")
+    return [0 if seed is None else seed]
+
+
+@cli.command()
+@click.argument("suite", required=False)
+@click.option("--track", default="stairs", show_default=True, help="Track to run.")
+@click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
+@click.option("--seed", type=int, default=None, help="Run seed (default 0).")
+@click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
+@click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
+@click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
+@click.option("--out", type=click.Path(file_okay=False), default=None, help="Run folder (default runs/<suite>-<time>).")
+@click.option("--resume", is_flag=True, help="Continue the run in --out, skipping finished episodes.")
+@click.option("--rerun", "rerun_path", type=click.Path(dir_okay=False), default=None, help="Also write the first episode as a rerun .rrd.")
+@click.option("--no-report", is_flag=True, help="Skip report.md and its plots.")
+def run(
+    suite: str | None,
+    track: str,
+    pipelines: tuple[str, ...],
+    seed: int | None,
+    seeds: int | None,
+    assignments: tuple[str, ...],
+    jobs: int,
+    out: str | None,
+    resume: bool,
+    rerun_path: str | None,
+    no_report: bool,
+) -> None:
+    """Run SUITE (default: the track's quick suite) and print the summary table."""
+    from tqdm import tqdm
+
+    from exobench.core.errors import ConfigError
+
+    from .report import summary_text, write_report
+    from .runner import execute, parse_assignments, plan_run, rerun_first_episode
+
+    if jobs < 1:
+        raise ConfigError("--jobs", jobs, "--jobs >= 1")
+    if resume and out is None:
+        raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
+    plan = plan_run(track, suite, pipelines or None, _seeds(seed, seeds), parse_assignments(assignments))
+    out_dir = out or _default_out(plan.suite)
+    bar: dict[str, Any] = {}
+
+    def on_start(n_todo: int, n_skipped: int) -> None:
+        if n_skipped:
+            click.echo(f"resuming: {n_skipped} finished episodes kept", err=True)
+        bar["tqdm"] = tqdm(total=n_todo, unit="episode", file=sys.stderr, desc=f"{plan.track.name}/{plan.suite}")
+
+    def on_episode(key: str, records: list[dict[str, Any]]) -> None:
+        bar["tqdm"].update(1)
+
+    try:
+        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode)
+    except KeyboardInterrupt:
+        if "tqdm" in bar:
+            bar["tqdm"].close()
+        click.echo(f"exobench: interrupted; finished episodes are kept in {out_dir} (continue: --resume --out {out_dir})", err=True)
+        sys.exit(EXIT_INTERRUPTED)
+    bar["tqdm"].close()
+    names = [p.name for p in plan.pipelines]
+    click.echo(summary_text(outcome.records, plan.track, names, [e.key for e in plan.episodes]))
+    failed = sum(bool(r["metrics"].get("failed")) for r in outcome.records)
+    click.echo(f"\n{len(outcome.records)} records ({failed} failed) in {outcome.out_dir / 'results.jsonl'}")
+    if not no_report:
+        click.echo(f"report: {write_report(outcome.out_dir)}")
+    if rerun_path:
+        click.echo(f"rerun recording: {rerun_first_episode(plan, rerun_path)}")
+
+
+@cli.command("list")
+def list_() -> None:
+    """List tracks, suites, pipelines and the scenario parameters with ranges and units."""
+    from .registry import default_registry
+    from .tracks import get_track, track_names
+
+    reg = default_registry()
+    for tname in track_names():
+        track = get_track(tname)
+        click.echo(f"track {tname}")
+        click.echo("  suites:")
+        for s in track.suites:
+            default = " (default)" if s == track.default_suite else ""
+            click.echo(f"    {s:<8} {len(track.cases(s))} cases{default}")
+        click.echo("  scenario parameters (--set KEY=VALUE): name, default, range, unit, meaning")
+        for p in track.params():
+            click.echo(f"    {p.name:<20} {p.default!s:<7} {p.range_text():<14} {p.unit:<4} {p.doc}")
+    click.echo("pipelines (--pipeline NAME; parameters with --set NAME.KEY=VALUE):")
+    for name in reg.names():
+        spec = reg.spec(name)
+        click.echo(f"  {name:<14} track {spec.track or '?':<8} {spec.source:<12} {spec.entry_point}")
+
+
+@cli.command()
+@click.argument("what", type=click.Choice(["rtls", "sim"]))
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
+def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
+    """Time the RTLS update against a batch refit (rtls) or the simulator (sim)."""
+    from .bench import bench_rtls, bench_sim, case_a_episode
+    from .results import json_safe
+
+    if what == "rtls":
+        if session:
+            from exobench.envs.session import read_session
+
+            episode = read_session(session)
+        else:
+            episode = case_a_episode(seed)
+        result = bench_rtls(episode)
+    else:
+        result = bench_sim(seed=seed)
+    if as_json:
+        click.echo(json.dumps(json_safe(result), indent=2))
+        return
+    for key, value in json_safe(result).items():
+        click.echo(f"{key:<28} {value:.4g}" if isinstance(value, float) else f"{key:<28} {value}")
+
+
+@cli.command()
+@click.argument("session_dir", type=click.Path(file_okay=False))
+@click.option("--track", default="stairs", show_default=True)
+@click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
+@click.option("--set", "assignments", multiple=True, metavar="NAME.KEY=VALUE", help="Pipeline parameter.")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON record per pipeline.")
+def replay(session_dir: str, track: str, pipelines: tuple[str, ...], assignments: tuple[str, ...], as_json: bool) -> None:
+    """Score pipelines on a recorded session (SESSION_DIR written by `exobench record`)."""
+    from exobench.envs.session import read_session
+
+    from .report import summary_text
+    from .results import json_safe
+    from .runner import parse_assignments, plan_run, run_pipelines
+
+    overrides = parse_assignments(assignments)
+    plan = plan_run(track, None, pipelines or None, [0], overrides)
+    if plan.scenario_overrides:
+        from exobench.core.errors import ConfigError
+
+        raise ConfigError("--set", ",".join(plan.scenario_overrides), "pipeline parameters only (NAME.KEY=VALUE)")
+    episode = read_session(session_dir)
+    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines)
+    records = [
+        {"episode": "session", "group": "session", "pipeline": p.name, "config": p.config_dict(), "metrics": metrics[p.name], "wall_s": walls[p.name]}
+        for p in plan.pipelines
+    ]
+    if as_json:
+        for r in records:
+            click.echo(json.dumps(json_safe({**r, "session": str(session_dir), "scenario": episode.scenario, "seed": episode.seed})))
+        return
+    click.echo(summary_text(json_safe(records), plan.track, [p.name for p in plan.pipelines]))
+
+
+@cli.command()
+@click.argument("out_dir", type=click.Path(file_okay=False))
+@click.option("--track", default="stairs", show_default=True)
+@click.option("--case", "case_name", default=None, help="Start from a named case of the paper suite (A, B, C, ...).")
+@click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario parameter.")
+@click.option("--seed", type=int, default=0, show_default=True)
+def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[str, ...], seed: int) -> None:
+    """Simulate one episode and write it as a session folder OUT_DIR."""
+    from pathlib import Path
+
+    from exobench.core.errors import ConfigError
+    from exobench.envs.session import write_session
+
+    from .runner import _scenario_overrides, load_case, parse_assignments
+    from .tracks import get_track
+
+    trk = get_track(track)
+    base = load_case(trk, "paper", case_name).scenario if case_name else {}
+    scenario = trk.validate_scenario({**base, **_scenario_overrides(trk, parse_assignments(assignments))})
+    if seed < 0:
+        raise ConfigError("--seed", seed, "--seed >= 0")
+    if Path(out_dir).exists():
+        raise ConfigError("OUT_DIR", out_dir, "a path that does not exist yet")
+    episode = trk.simulate(scenario, seed)
+    path = write_session(episode, out_dir)
+    click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed})")
+
+
+@cli.command()
+@click.argument("run_dir", type=click.Path(file_okay=False))
+def report(run_dir: str) -> None:
+    """Rewrite report.md (and plots) of a run folder and print its summary."""
+    from pathlib import Path
+
+    from exobench.core.errors import ConfigError
+
+    from .report import summary_text, write_report
+    from .results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, sort_records
+    from .tracks import get_track
+
+    folder = Path(run_dir)
+    if not (folder / RUN_CONFIG_FILE).exists():
+        raise ConfigError("RUN_DIR", run_dir, "a run folder with run_config.json")
+    config = json.loads((folder / RUN_CONFIG_FILE).read_text())
+    names = [p["name"] for p in config["pipelines"]]
+    records = sort_records(read_records(folder / RESULTS_FILE), names)
+    click.echo(summary_text(records, get_track(config["track"]), names, config.get("episodes", [])))
+    click.echo(f"report: {write_report(folder)}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console-script entry point."""
+    cli.main(args=argv, prog_name="exobench")
+
+
+if __name__ == "__main__":
+    main()

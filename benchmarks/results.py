@@ -1,0 +1,135 @@
+"""The result store of a run folder: ``run_config.json`` and ``results.jsonl``.
+
+``results.jsonl`` holds one JSON object per (episode, pipeline). The records of one episode are
+appended together with a single write, then flushed and fsync'ed, so a stopped run loses at most
+the episode in flight. Each record carries ``records_in_episode``; on reading, a trailing
+partial line and a trailing episode with fewer records than announced are ignored, and
+:func:`repair_results` cuts them off before a resumed run appends. NaN is stored as ``null``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import tempfile
+from collections.abc import Iterable
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+RESULTS_FILE = "results.jsonl"
+RUN_CONFIG_FILE = "run_config.json"
+VERSIONED = {"exobench": "exobench", "mujoco": "mujoco", "numpy": "numpy", "pinocchio": "pin", "open3d": "open3d"}
+
+
+def versions() -> dict[str, str]:
+    """Versions of exobench, the engines, Python and the platform (from package metadata)."""
+    out = {}
+    for key, dist in VERSIONED.items():
+        try:
+            out[key] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[key] = "not installed"
+    out["python"] = platform.python_version()
+    out["platform"] = platform.platform()
+    return out
+
+
+def json_safe(value: Any) -> Any:
+    """Plain JSON values: NaN/inf -> None, numpy scalars/arrays -> Python, tuples -> lists."""
+    if isinstance(value, dict):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):
+        return json_safe(value.tolist())
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    return str(value)
+
+
+def write_json_atomic(path: Path, obj: Any) -> None:
+    """Write JSON to a temporary sibling, fsync, and rename it over ``path``."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(json_safe(obj), f, indent=2, allow_nan=False)
+            f.write("\n")
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def append_records(path: Path, records: list[dict[str, Any]]) -> None:
+    """Append one episode's records with a single write, then flush and fsync."""
+    n = len(records)
+    text = "".join(json.dumps(json_safe({**r, "records_in_episode": n}), allow_nan=False) + "\n" for r in records)
+    with open(path, "a", encoding="utf-8") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+
+
+def _complete_prefix(data: bytes) -> tuple[list[dict[str, Any]], int]:
+    """Records of complete episodes and the byte length they occupy."""
+    records: list[dict[str, Any]] = []
+    good_end = 0
+    pending: list[dict[str, Any]] = []
+    pos = 0
+    while True:
+        nl = data.find(b"\n", pos)
+        if nl < 0:
+            break  # a trailing partial line (or nothing)
+        line = data[pos:nl].strip()
+        pos = nl + 1
+        if not line:
+            continue
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            break
+        if pending and rec.get("episode") != pending[0].get("episode"):
+            break  # the previous episode ended short: a stopped write; nothing valid follows
+        pending.append(rec)
+        if len(pending) >= int(rec.get("records_in_episode", 1)):
+            records += pending
+            pending = []
+            good_end = pos
+    return records, good_end
+
+
+def read_records(path: Path) -> list[dict[str, Any]]:
+    """Records of the complete episodes in ``results.jsonl`` (empty if the file is missing)."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    return _complete_prefix(path.read_bytes())[0]
+
+
+def repair_results(path: Path) -> int:
+    """Cut off a partial trailing write; returns the number of bytes removed."""
+    path = Path(path)
+    if not path.exists():
+        return 0
+    data = path.read_bytes()
+    _, end = _complete_prefix(data)
+    if end < len(data):
+        with open(path, "r+b") as f:
+            f.truncate(end)
+            f.flush()
+            os.fsync(f.fileno())
+    return len(data) - end
+
+
+def sort_records(records: Iterable[dict[str, Any]], pipeline_order: list[str] | None = None) -> list[dict[str, Any]]:
+    """Records ordered by episode key, then pipeline (in ``pipeline_order`` if given)."""
+    order = {p: i for i, p in enumerate(pipeline_order or [])}
+    return sorted(records, key=lambda r: (r["episode"], order.get(r["pipeline"], len(order)), r["pipeline"]))

@@ -1,0 +1,395 @@
+"""Run a suite: (scenario, seed) episodes x pipelines, scored, stored episode by episode.
+
+Two steps, so that nothing touches the disk until everything is valid:
+
+- :func:`plan_run` validates the track, suite, pipelines and their configs, the ``--set``
+  overrides (every case's scenario is validated with them) and the seeds, and returns a
+  :class:`RunPlan`. It has no side effects.
+- :func:`execute` creates the output folder, writes ``run_config.json`` and runs the episodes,
+  in this process or a pool of ``jobs`` processes. Each episode is simulated once and the same
+  frames go to every pipeline; its records are appended atomically to ``results.jsonl`` as
+  soon as it is finished. A pipeline that raises is recorded as failed and the run goes on.
+  With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them.
+
+Episode seeds are derived from the run seed and the case name, so a case keeps its seed when a
+suite grows, and ``--jobs N`` gives the same results as ``--jobs 1``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import multiprocessing
+import os
+import time
+import zlib
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from exobench.core.errors import ConfigError, UnknownNameError
+from exobench.core.pipeline import coerce_like
+
+from .registry import PipelineRegistry, default_registry, load_entry_point
+from .results import (
+    RESULTS_FILE,
+    RUN_CONFIG_FILE,
+    append_records,
+    json_safe,
+    read_records,
+    repair_results,
+    sort_records,
+    versions,
+    write_json_atomic,
+)
+from .tracks import get_track
+from .tracks.base import Case, EpisodePlan, Track
+
+FIGURES_DIR = "figures"
+MAX_SEEDS = 10_000
+TIMING_METRICS = frozenset({"time_per_point_us"})  # the only metrics allowed to differ between runs
+
+
+@dataclass(frozen=True)
+class PipelineRun:
+    """A pipeline as the workers build it: registry name, class entry point, config instance."""
+
+    name: str
+    entry_point: str
+    config: Any
+
+    def config_dict(self) -> dict[str, Any]:
+        return json_safe(dataclasses.asdict(self.config))
+
+
+@dataclass
+class RunPlan:
+    """A validated run (see :func:`plan_run`)."""
+
+    track: Any
+    suite: str
+    pipelines: list[PipelineRun]
+    episodes: list[EpisodePlan]
+    seeds: list[int]
+    scenario_overrides: dict[str, Any]
+    pipeline_overrides: dict[str, dict[str, Any]]
+
+    def run_config(self) -> dict[str, Any]:
+        return {
+            "format": "exobench-run",
+            "version": 1,
+            "track": self.track.name,
+            "suite": self.suite,
+            "pipelines": [{"name": p.name, "entry_point": p.entry_point, "config": p.config_dict()} for p in self.pipelines],
+            "seeds": list(self.seeds),
+            "overrides": dict(self.scenario_overrides),
+            "pipeline_overrides": self.pipeline_overrides,
+            "episodes": [e.key for e in self.episodes],
+            "created": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "versions": versions(),
+        }
+
+
+@dataclass
+class RunOutcome:
+    out_dir: Path
+    ran: list[str] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+    records: list[dict[str, Any]] = field(default_factory=list)
+
+
+def episode_seed(run_seed: int, case_name: str) -> int:
+    """Simulation seed of a case under a run seed (stable, independent of the case's position)."""
+    return int(np.random.SeedSequence([int(run_seed), zlib.crc32(case_name.encode())]).generate_state(1)[0])
+
+
+def parse_assignments(items: Sequence[str]) -> dict[str, str]:
+    """``["KEY=VALUE", ...]`` -> dict; a malformed item raises ConfigError."""
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError("--set", item, "KEY=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _scenario_overrides(track: Track, raw: Mapping[str, Any]) -> dict[str, Any]:
+    """Check the names of scenario overrides; values stay as given (the track validates them)."""
+    if not raw:
+        return {}
+    names = {p.name for p in track.params()}
+    for key in raw:
+        if key not in names:
+            raise UnknownNameError("scenario parameter", key, names)
+    return dict(raw)
+
+
+def plan_run(
+    track: str | Track = "stairs",
+    suite: str | None = None,
+    pipelines: Sequence[str] | None = None,
+    seeds: Sequence[int] = (0,),
+    overrides: Mapping[str, Any] | None = None,
+    *,
+    registry: PipelineRegistry | None = None,
+) -> RunPlan:
+    """Validate a run and list its episodes; raises ConfigError / UnknownNameError, writes nothing.
+
+    ``overrides`` keys are scenario parameters (``riser_m``) or pipeline parameters prefixed by
+    the pipeline name (``rtls.th_z_m``); string values are converted to the parameter's type.
+    """
+    trk = get_track(track) if isinstance(track, str) else track
+    suite = suite or trk.default_suite
+    if suite not in trk.suites:
+        raise UnknownNameError("suite", suite, trk.suites)
+    reg = registry or default_registry()
+    names = list(pipelines) if pipelines else reg.names(track=trk.name)
+    if not names:
+        raise ConfigError("pipeline", "", f"at least one pipeline for track {trk.name!r}")
+    if len(set(names)) != len(names):
+        raise ConfigError("pipeline", ",".join(names), "each pipeline once")
+    for name in names:
+        cls = reg.load(name)
+        if getattr(cls, "track", trk.name) != trk.name:
+            raise ConfigError("pipeline", name, f"a pipeline of track {trk.name!r} (it serves {cls.track!r})")
+    seeds = [int(coerce_like("seed", s, 0)) for s in seeds]
+    if not seeds or len(seeds) > MAX_SEEDS or min(seeds) < 0 or len(set(seeds)) != len(seeds):
+        raise ConfigError("seeds", seeds, f"1 to {MAX_SEEDS} distinct integers >= 0")
+
+    scen_raw: dict[str, Any] = {}
+    pipe_raw: dict[str, dict[str, Any]] = {}
+    for key, value in (overrides or {}).items():
+        head, dot, rest = key.partition(".")
+        if dot:
+            if head not in names:
+                raise UnknownNameError("pipeline (in --set)", head, names)
+            pipe_raw.setdefault(head, {})[rest] = value
+        else:
+            scen_raw[key] = value
+    scen = _scenario_overrides(trk, scen_raw)
+    runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n))) for n in names]
+
+    episodes = []
+    typed: dict[str, Any] = {}
+    for case in trk.cases(suite):
+        scenario = trk.validate_scenario({**case.scenario, **scen})
+        typed = {k: scenario[k] for k in scen}
+        for s in seeds:
+            episodes.append(EpisodePlan(f"{case.name}/s{s}", suite, case, scenario, s, episode_seed(s, case.name)))
+    return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()})
+
+
+# ---------------------------------------------------------------- one episode (runs in workers)
+
+
+def run_pipelines(
+    track: Track, episode: Any, pipelines: Sequence[PipelineRun], *, timeline_every_s: float | None = None
+) -> tuple[dict[str, Any], dict[str, dict[str, Any]], dict[str, float], dict[str, list]]:
+    """Feed the same frames to each pipeline; estimates, metrics, wall times and online timelines.
+
+    A pipeline that raises is scored with ``track.failed_metrics`` and the error text.
+    With ``timeline_every_s`` the online estimates are kept at most that often (for rerun).
+    """
+    estimates: dict[str, Any] = {}
+    metrics: dict[str, dict[str, Any]] = {}
+    walls: dict[str, float] = {}
+    timelines: dict[str, list] = {}
+    for p in pipelines:
+        t0 = time.perf_counter()
+        timeline: list = []
+        try:
+            pipe = load_entry_point(p.entry_point)(p.config)
+            pipe.reset(episode.calibration)
+            last_t = -np.inf
+            for frame in episode.frames:
+                online = pipe.process(frame)
+                if timeline_every_s is not None and online is not None and frame.stamp_s - last_t >= timeline_every_s:
+                    timeline.append((float(frame.stamp_s), online))
+                    last_t = frame.stamp_s
+            est = pipe.finalize()
+            estimates[p.name] = est
+            metrics[p.name] = track.score(episode, est)
+        except Exception as e:  # a failing pipeline is a result, not a crash
+            metrics[p.name] = track.failed_metrics(episode, f"pipeline raised {type(e).__name__}: {e}")
+        walls[p.name] = time.perf_counter() - t0
+        timelines[p.name] = timeline
+    return estimates, metrics, walls, timelines
+
+
+@dataclass(frozen=True)
+class _Job:
+    track: Any
+    plan: EpisodePlan
+    pipelines: tuple[PipelineRun, ...]
+    versions: dict[str, str]
+
+
+def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | None]:
+    plan, track = job.plan, job.track
+    t0 = time.perf_counter()
+    try:
+        episode = track.simulate(plan.scenario, plan.seed)
+    except Exception as e:  # scored as a failure of every pipeline; the run goes on
+        episode, sim_error = None, f"simulation raised {type(e).__name__}: {e}"
+    else:
+        sim_error = None
+    sim_wall = time.perf_counter() - t0
+    if episode is None:
+        metrics = {p.name: track.failed_metrics(None, sim_error) for p in job.pipelines}
+        estimates, walls = {}, {p.name: 0.0 for p in job.pipelines}
+    else:
+        estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines)
+    base = {
+        "track": track.name,
+        "suite": plan.suite,
+        "episode": plan.key,
+        "case": plan.case.name,
+        "group": plan.case.group,
+        "scenario": plan.scenario,
+        "seed": plan.seed,
+        "run_seed": plan.run_seed,
+    }
+    records = [
+        {
+            **base,
+            "pipeline": p.name,
+            "config": p.config_dict(),
+            "metrics": metrics[p.name],
+            "versions": job.versions,
+            "wall_s": walls[p.name],
+            "sim_wall_s": sim_wall,
+        }
+        for p in job.pipelines
+    ]
+    figure = None
+    if plan.case.figure and episode is not None:
+        try:
+            figure = track.figure_data(episode, estimates)
+        except Exception:  # a figure is a convenience; never lose the episode's scores to it
+            figure = None
+    return plan.key, json_safe(records), figure
+
+
+# ---------------------------------------------------------------- the run
+
+
+def _check_resume(out: Path, plan: RunPlan) -> None:
+    import json
+
+    old = json.loads((out / RUN_CONFIG_FILE).read_text())
+    new = json_safe(plan.run_config())
+    for key in ("track", "suite", "pipelines", "seeds", "overrides", "pipeline_overrides"):
+        if old.get(key) != new.get(key):
+            raise ConfigError(f"--resume {key}", new.get(key), f"the value of the run being resumed: {old.get(key)!r}")
+
+
+def prepare_output(out_dir: str | os.PathLike, plan: RunPlan, *, resume: bool) -> Path:
+    """Create (or, resuming, check) the run folder and write run_config.json."""
+    out = Path(out_dir)
+    if resume:
+        if not (out / RUN_CONFIG_FILE).exists():
+            raise ConfigError("--resume", str(out), "a run folder with run_config.json")
+        _check_resume(out, plan)
+        repair_results(out / RESULTS_FILE)
+        return out
+    if out.exists() and any(out.iterdir()):
+        raise ConfigError("--out", str(out), "a new or empty folder (or --resume to continue a run)")
+    out.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(out / RUN_CONFIG_FILE, plan.run_config())
+    return out
+
+
+def _save_figure(out: Path, key: str, figure: dict[str, Any]) -> None:
+    folder = out / FIGURES_DIR
+    folder.mkdir(exist_ok=True)
+    target = folder / (key.replace("/", "__") + ".npz")
+    tmp = folder / (".tmp-" + target.name)
+    with open(tmp, "wb") as f:
+        np.savez(f, **figure)
+    os.replace(tmp, target)
+
+
+def execute(
+    plan: RunPlan,
+    out_dir: str | os.PathLike,
+    *,
+    jobs: int = 1,
+    resume: bool = False,
+    on_start: Callable[[int, int], None] | None = None,
+    on_episode: Callable[[str, list[dict[str, Any]]], None] | None = None,
+) -> RunOutcome:
+    """Run the plan into ``out_dir`` (see the module docstring).
+
+    ``on_start(n_to_run, n_skipped)`` and ``on_episode(key, records)`` report progress.
+    KeyboardInterrupt propagates after the finished episodes are on disk.
+    """
+    jobs = int(coerce_like("jobs", jobs, 1))
+    if jobs < 1:
+        raise ConfigError("jobs", jobs, "jobs >= 1")
+    out = prepare_output(out_dir, plan, resume=resume)
+    results = out / RESULTS_FILE
+    done = {r["episode"] for r in read_records(results)}
+    todo = [e for e in plan.episodes if e.key not in done]
+    outcome = RunOutcome(out, skipped=[e.key for e in plan.episodes if e.key in done])
+    if on_start:
+        on_start(len(todo), len(outcome.skipped))
+    vers = versions()
+    job_list = [_Job(plan.track, e, tuple(plan.pipelines), vers) for e in todo]
+
+    def finish(key: str, records: list[dict[str, Any]], figure: dict[str, Any] | None) -> None:
+        if figure is not None:
+            _save_figure(out, key, figure)
+        append_records(results, records)
+        outcome.ran.append(key)
+        if on_episode:
+            on_episode(key, records)
+
+    if jobs == 1 or len(job_list) <= 1:
+        for job in job_list:
+            finish(*_run_job(job))
+    else:
+        _run_pool(job_list, jobs, finish)
+    outcome.records = sort_records(read_records(results), [p.name for p in plan.pipelines])
+    return outcome
+
+
+def _run_pool(job_list: list[_Job], jobs: int, finish: Callable[..., None]) -> None:
+    # spawn: workers start clean (no inherited threads or GL contexts); results do not depend on it
+    pool = ProcessPoolExecutor(max_workers=min(jobs, len(job_list)), mp_context=multiprocessing.get_context("spawn"))
+    pending: set[Future] = set()
+    try:
+        pending = {pool.submit(_run_job, job) for job in job_list}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in sorted(finished, key=lambda f: f.result()[0]):
+                finish(*fut.result())
+    except BaseException:
+        for fut in pending:
+            fut.cancel()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
+
+
+def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: float = 0.1) -> Path:
+    """Simulate the plan's first episode again and write a rerun recording of it."""
+    from .rerun_bridge import write_recording
+
+    first = plan.episodes[0]
+    episode = plan.track.simulate(first.scenario, first.seed)
+    estimates, _, _, timelines = run_pipelines(plan.track, episode, plan.pipelines, timeline_every_s=every_s)
+    series = {n: timelines[n] + [(float(episode.frames[-1].stamp_s), e)] for n, e in estimates.items()}
+    return write_recording(episode, series, path)
+
+
+def load_case(track: Track, suite: str, name: str) -> Case:
+    """A case of a suite by name (UnknownNameError lists the valid ones)."""
+    cases = {c.name: c for c in track.cases(suite)}
+    if name not in cases:
+        raise UnknownNameError("case", name, cases)
+    return cases[name]

@@ -1,0 +1,149 @@
+"""What a track is: scenario grids, simulation, scoring and the published figures.
+
+A track is one perception problem of the source papers (see TRACKS.md). The runner knows only
+this protocol; everything specific to a problem (which parameters a scenario has, how an
+estimate is scored, what the paper reported) lives in the track's module.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+from exobench.core.episode import Episode
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    """One scenario parameter as `exobench list` shows it (SI units)."""
+
+    name: str
+    default: Any
+    low: Any
+    high: Any
+    unit: str
+    doc: str
+    low_open: bool = False
+
+    def range_text(self) -> str:
+        """E.g. ``(0, 0.3]`` or ``[0.15, 0.6]``; empty when the parameter is not numeric."""
+        if self.low is None and self.high is None:
+            return ""
+        return f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}]"
+
+
+@dataclass(frozen=True)
+class Case:
+    """One scenario of a suite, before a run seed is applied.
+
+    Attributes:
+        name: unique within the suite, e.g. ``"A"`` or ``"0.153-0.294/pose07"``.
+        group: rows of the summary pool the cases of one group, e.g. ``"A"``, ``"0.153/0.294"``.
+        scenario: scenario parameters that differ from the defaults.
+        figure: whether the runner keeps the points of this case for the report's side view.
+    """
+
+    name: str
+    group: str
+    scenario: dict[str, Any]
+    figure: bool = False
+
+
+@dataclass(frozen=True)
+class EpisodePlan:
+    """One episode to run: a case with its run seed and the derived simulation seed."""
+
+    key: str
+    suite: str
+    case: Case
+    scenario: dict[str, Any]
+    run_seed: int
+    seed: int
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A published figure to print beside ours.
+
+    Attributes:
+        metric: metric key it compares with (e.g. ``"riser_error_pct"``).
+        text: how the paper states it, e.g. ``"2.61 ± 1.83"`` or ``"< 3"``.
+        source: where, e.g. ``"Tab. III"``.
+        groups: the summary groups it applies to (empty: all).
+        pipelines: the pipelines it applies to (empty: all).
+        value: a number to compare against, when the paper gives one.
+        bound: ``"<"`` when the figure is an upper bound on the absolute value.
+    """
+
+    metric: str
+    text: str
+    source: str
+    groups: tuple[str, ...] = ()
+    pipelines: tuple[str, ...] = ()
+    value: float | None = None
+    bound: str | None = None
+
+    def applies(self, group: str, pipeline: str) -> bool:
+        return (not self.groups or group in self.groups) and (not self.pipelines or pipeline in self.pipelines)
+
+
+@dataclass(frozen=True)
+class SummaryRow:
+    """A metric row of the summary table.
+
+    ``scale`` converts the stored SI value to the shown unit; ``absolute`` shows |x|.
+    """
+
+    metric: str
+    label: str
+    scale: float = 1.0
+    absolute: bool = False
+    digits: int = 2
+    terminal: bool = True
+
+
+@runtime_checkable
+class Track(Protocol):
+    """Protocol of a track (see the module docstring)."""
+
+    name: ClassVar[str]
+    suites: ClassVar[tuple[str, ...]]
+    default_suite: ClassVar[str]
+
+    def params(self) -> list[ParamInfo]:
+        """The scenario parameters with default, range, unit and doc."""
+
+    def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """Validated, typed scenario values (raises ConfigError / UnknownNameError)."""
+
+    def cases(self, suite: str) -> list[Case]:
+        """The cases of a suite, deterministic."""
+
+    def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
+        """Simulate one episode."""
+
+    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
+        """Metrics of one estimate against the episode's truth (never raises on a bad estimate)."""
+
+    def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
+        """Metrics of a pipeline that raised (or of every pipeline when the simulation raised,
+        ``episode`` None): the failure is scored, the run goes on."""
+
+    def references(self) -> list[Reference]:
+        """Published figures."""
+
+    def summary_rows(self) -> list[SummaryRow]:
+        """Metric rows of the summary table."""
+
+    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
+        """Arrays the report's per-case figure needs (saved as .npz)."""
+
+
+@dataclass
+class TrackInfo:
+    """Static listing for `exobench list`."""
+
+    name: str
+    suites: tuple[str, ...]
+    params: list[ParamInfo] = field(default_factory=list)

@@ -1,0 +1,219 @@
+"""The stairs track: staircase identification from calf ToF rays (seeds/004, Sec. V).
+
+Suites (cases are deterministic; the run seed only drives the sensor noise):
+
+- ``quick`` (the default run): cases A, B, C and three random poses on the middle staircase.
+- ``paper``: cases A (frontal, L = 0.305 m), B (yaw +23 deg, L = 0.27 m) and C (yaw -23 deg,
+  L = 0.49 m) on riser/tread 0.162/0.280 m, then the staircases 0.153/0.294, 0.162/0.280 and
+  0.175/0.270 m with 20 random poses each (yaw uniform in +-25 deg, distance of the climbing
+  toe from the first riser uniform in 0.25-0.5 m, from a generator seeded with POSE_SEED).
+- ``full``: the paper grid, the same grid with every sensor noise off, and cases A, B, C for
+  users of 1.60 m and 1.90 m.
+
+Scoring is in :mod:`stairs_metrics`; the published figures below are printed beside ours.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from exobench.core.episode import Episode
+from exobench.core.errors import UnknownNameError
+from exobench.core.estimates import StaircaseEstimate
+
+from .base import Case, ParamInfo, Reference, SummaryRow
+from .stairs_figure import side_view_data
+from .stairs_metrics import failure_metrics, score_staircase
+
+POSE_SEED = 4  # the paper is seeds/004
+POSES_PER_STAIRCASE = 20
+YAW_RANGE_DEG = (-25.0, 25.0)
+DISTANCE_RANGE_M = (0.25, 0.5)
+STAIRCASES = ((0.153, 0.294), (0.162, 0.280), (0.175, 0.270))  # riser, tread (m), Tab. III
+CASES: dict[str, dict[str, float]] = {
+    "A": {"riser_m": 0.162, "tread_m": 0.280, "yaw_deg": 0.0, "distance_m": 0.305},
+    "B": {"riser_m": 0.162, "tread_m": 0.280, "yaw_deg": 23.0, "distance_m": 0.27},
+    "C": {"riser_m": 0.162, "tread_m": 0.280, "yaw_deg": -23.0, "distance_m": 0.49},
+}
+QUICK_POSES = 3
+USER_HEIGHTS_M = (1.60, 1.90)
+NOISE_OFF = {"tof_noise_m": 0.0, "tof_dropout": 0.0, "imu_noise_scale": 0.0, "imu_orientation_deg": 0.0, "encoder_noise_rad": 0.0}
+CASE_GROUPS = tuple(CASES)
+STAIR_GROUPS = tuple(f"{r:.3f}/{t:.3f}" for r, t in STAIRCASES)
+
+
+def random_poses(staircase_index: int, n: int = POSES_PER_STAIRCASE) -> list[dict[str, float]]:
+    """The paper suite's poses on one staircase (deterministic, rounded to 0.01 deg / 0.1 mm)."""
+    rng = np.random.default_rng([POSE_SEED, staircase_index])
+    yaw = rng.uniform(*YAW_RANGE_DEG, size=n)
+    dist = rng.uniform(*DISTANCE_RANGE_M, size=n)
+    return [{"yaw_deg": round(float(y), 2), "distance_m": round(float(d), 4)} for y, d in zip(yaw, dist, strict=True)]
+
+
+def _staircase_cases(n_poses: int, indices: tuple[int, ...] = (0, 1, 2)) -> list[Case]:
+    out = []
+    for k in indices:
+        riser, tread = STAIRCASES[k]
+        for j, pose in enumerate(random_poses(k)[:n_poses]):
+            out.append(
+                Case(f"{riser:.3f}-{tread:.3f}/pose{j:02d}", STAIR_GROUPS[k], {"riser_m": riser, "tread_m": tread, **pose})
+            )
+    return out
+
+
+def _abc(figure: bool = True) -> list[Case]:
+    return [Case(name, name, dict(values), figure=figure) for name, values in CASES.items()]
+
+
+def _ref(metric: str, text: str, source: str, groups: tuple[str, ...] = (), pipelines: tuple[str, ...] = (), **kw: Any) -> Reference:
+    return Reference(metric, text, source, groups, pipelines, **kw)
+
+
+def _tables_i_ii() -> list[Reference]:
+    """Tables I (general surfaces, 'rtls') and II (HTVR); alpha in deg, d in mm."""
+    general = {  # case -> S_i -> (alpha_deg, d_mm)
+        "A": [(2.104, -0.093), (1.999, 1.10), (2.607, -0.364), (10.749, -5.90)],
+        "B": [(4.340, -0.682), (5.287, -0.013), (2.350, 2.50), (8.147, -16.2)],
+        "C": [(2.295, 4.90), (3.916, 2.10), (6.744, 13.2)],
+    }
+    htvr = {  # alpha is 0 by construction on treads ('-' in the table)
+        "A": [(None, -1.64), (0.214, 1.47), (None, -6.36), (3.139, -3.50)],
+        "B": [(None, -2.91), (2.541, -0.72), (None, -4.22), (5.979, -15.0)],
+        "C": [(None, -1.76), (1.096, 4.12), (None, 1.65)],
+    }
+    refs = []
+    for table, rows, pipes in (("Tab. I", general, ("rtls",)), ("Tab. II", htvr, ("rtls-htvr",))):
+        for case, surfaces in rows.items():
+            for i, (alpha, d_mm) in enumerate(surfaces):
+                if alpha is not None:
+                    refs.append(_ref(f"alpha_deg_S{i}", f"{alpha:g}", table, (case,), pipes, value=alpha))
+                refs.append(_ref(f"d_m_S{i}", f"{d_mm:g}", table, (case,), pipes, value=d_mm / 1000))
+    return refs
+
+
+def published_references() -> list[Reference]:
+    """Every figure of Sec. V the track compares with (values in the summary's units)."""
+    refs = _tables_i_ii()
+    refs += [
+        _ref("alpha_deg_S2", "< 3", "Sec. V-A", ("A", "B"), value=3.0, bound="<"),
+        _ref("d_m_S2", "|d| < 3", "Sec. V-A", ("A", "B"), value=0.003, bound="<"),
+    ]
+    for case, e_mm in (("A", -4.1), ("B", -1.7), ("C", -6.9)):  # 0.1579, 0.1603, 0.1551 vs 0.162
+        refs.append(_ref("touchdown_error_m", f"{e_mm:g}", "Sec. V-A", (case,), ("rtls",), value=e_mm / 1000))
+    for case, e_mm in (("A", -6.36), ("B", -4.22), ("C", 1.65)):  # Tab. II: d = e for S2
+        refs.append(_ref("touchdown_error_m", f"{e_mm:g}", "Tab. II", (case,), ("rtls-htvr",), value=e_mm / 1000))
+    refs.append(_ref("touchdown_error_m", "|e| < 10", "Sec. V-C", value=0.01, bound="<"))
+    table3 = (  # riser mean, std, error %, tread mean, std, error % (HTVR)
+        (0.157, 2.8, "2.61 ± 1.83", 2.61, 0.290, 3.0, "1.36 ± 1.02", 1.36),
+        (0.169, 3.4, "4.32 ± 2.10", 4.32, 0.272, 3.2, "2.86 ± 1.14", 2.86),
+        (0.179, 3.2, "2.29 ± 1.83", 2.29, 0.264, 3.5, "2.22 ± 1.30", 2.22),
+    )
+    for group, (rm, rs, rtxt, rv, tm, ts, ttxt, tv) in zip(STAIR_GROUPS, table3, strict=True):
+        g = (group,)
+        refs += [
+            _ref("riser_est_m", f"{rm:.3f} ± {rs / 1000:.4f}", "Tab. III", g, value=rm),
+            _ref("riser_error_pct", rtxt, "Tab. III", g, value=rv),
+            _ref("tread_est_m", f"{tm:.3f} ± {ts / 1000:.4f}", "Tab. III", g, value=tm),
+            _ref("tread_error_pct", ttxt, "Tab. III", g, value=tv),
+        ]
+    refs += [
+        _ref("time_per_point_us", "685 ± 437", "Sec. V-B, Cortex-M4 168 MHz", (), ("rtls",), value=685.0),
+        _ref("time_per_point_us", "427 ± 132", "Sec. V-B, Cortex-M4 168 MHz", (), ("rtls-htvr",), value=427.0),
+    ]
+    return refs
+
+
+SUMMARY_ROWS = [
+    SummaryRow("alpha_deg_S2", "alpha S2 (deg)"),
+    SummaryRow("d_m_S2", "d S2 (mm)", scale=1000),
+    SummaryRow("riser_est_m", "riser (m)", digits=4),
+    SummaryRow("riser_error_pct", "riser error (%)"),
+    SummaryRow("tread_est_m", "tread (m)", digits=4),
+    SummaryRow("tread_error_pct", "tread error (%)"),
+    SummaryRow("touchdown_error_m", "|e| touch-down (mm)", scale=1000, absolute=True),
+    SummaryRow("touchdown_error_m", "e touch-down (mm)", scale=1000, terminal=False),
+    SummaryRow("s2_reliable_s", "S2 reliable after lift-off (s)"),
+    SummaryRow("s2_remaining_travel_m", "foot travel left then (m)", digits=3),
+    SummaryRow("assignment_accuracy", "assignment accuracy (%)", scale=100, digits=1),
+    SummaryRow("assigned_accuracy", "accuracy of kept points (%)", scale=100, digits=1, terminal=False),
+    SummaryRow("discarded_fraction", "discarded (%)", scale=100, digits=1, terminal=False),
+    SummaryRow("n_points", "points used", digits=0, terminal=False),
+    SummaryRow("time_per_point_us", "time per point (us)", digits=1),
+] + [
+    SummaryRow(key, label, scale=scale, terminal=False)
+    for i in (0, 1, 3, 4)
+    for key, label, scale in ((f"alpha_deg_S{i}", f"alpha S{i} (deg)", 1.0), (f"d_m_S{i}", f"d S{i} (mm)", 1000.0))
+]
+
+
+def _param_info(name: str, row: Any) -> ParamInfo:
+    if isinstance(row, ParamInfo):
+        return row
+    return ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, bool(getattr(row, "low_open", False)))
+
+
+class StairsTrack:
+    """Track protocol implementation for staircase identification (see module docstring)."""
+
+    name: ClassVar[str] = "stairs"
+    suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
+    default_suite: ClassVar[str] = "quick"
+
+    def params(self) -> list[ParamInfo]:
+        from exobench.envs.scenarios import PARAMS
+
+        return [_param_info(k, v) for k, v in PARAMS.items()]
+
+    def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        from exobench.envs.scenarios import StairScenario
+
+        return dataclasses.asdict(StairScenario.from_dict(dict(values)))
+
+    def noise_off(self) -> dict[str, Any]:
+        """Scenario values that switch every sensor noise, orientation error and dropout off."""
+        names = {p.name for p in self.params()}
+        return {k: v for k, v in NOISE_OFF.items() if k in names}
+
+    def cases(self, suite: str) -> list[Case]:
+        if suite == "quick":
+            return _abc() + _staircase_cases(QUICK_POSES, (1,))
+        if suite == "paper":
+            return _abc() + _staircase_cases(POSES_PER_STAIRCASE)
+        if suite == "full":
+            base = _abc() + _staircase_cases(POSES_PER_STAIRCASE)
+            off = self.noise_off()
+            quiet = [Case(f"noise-off/{c.name}", f"{c.group} noise-off", {**c.scenario, **off}) for c in base]
+            heights = [
+                Case(f"h{h:.2f}/{c.name}", f"{c.group} h={h:.2f}", {**c.scenario, "user_height_m": h})
+                for h in USER_HEIGHTS_M
+                for c in _abc(figure=False)
+            ]
+            return base + quiet + heights
+        raise UnknownNameError("suite", suite, self.suites)
+
+    def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
+        from exobench.envs.scenarios import StairScenario
+        from exobench.envs.sim import simulate_stairs
+
+        return simulate_stairs(StairScenario.from_dict(dict(scenario)), seed)
+
+    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
+        if not isinstance(estimate, StaircaseEstimate):
+            return failure_metrics(episode, f"finalize() returned {type(estimate).__name__}, not StaircaseEstimate")
+        return score_staircase(episode, estimate)
+
+    def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
+        return failure_metrics(episode, reason)
+
+    def references(self) -> list[Reference]:
+        return published_references()
+
+    def summary_rows(self) -> list[SummaryRow]:
+        return list(SUMMARY_ROWS)
+
+    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
+        return side_view_data(episode, estimates)

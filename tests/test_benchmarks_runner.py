@@ -1,0 +1,144 @@
+"""Runner: validation before any file, determinism across --jobs, atomic results and resume."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from test_benchmarks_support import FakeStairs, FakeTrack, RaisingStairs
+
+from exobench.benchmarks.registry import PipelineRegistry
+from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, repair_results
+from exobench.benchmarks.runner import TIMING_METRICS, episode_seed, execute, plan_run
+from exobench.core import ConfigError, UnknownNameError
+
+
+@pytest.fixture
+def reg() -> PipelineRegistry:
+    r = PipelineRegistry()
+    r.register("fake", FakeStairs)
+    r.register("fake-raise", RaisingStairs)
+    return r
+
+
+def _plan(reg, **kw):
+    args = {"track": FakeTrack(), "suite": "quick", "pipelines": ["fake", "fake-raise"], "seeds": [0], "overrides": None}
+    args.update(kw)
+    return plan_run(args.pop("track"), args.pop("suite"), args.pop("pipelines"), args.pop("seeds"), args.pop("overrides"), registry=reg)
+
+
+def _comparable(records):
+    out = []
+    for r in records:
+        metrics = {k: v for k, v in r["metrics"].items() if k not in TIMING_METRICS}
+        out.append((r["episode"], r["pipeline"], r["seed"], r["scenario"], r["config"], metrics))
+    return sorted(out, key=lambda x: (x[0], x[1]))
+
+
+def test_plan_validates_everything_before_anything_is_written(reg, tmp_path):
+    with pytest.raises(ConfigError, match="riser_m"):
+        _plan(reg, overrides={"riser_m": "0.31"})
+    with pytest.raises(ConfigError, match="riser_m"):
+        _plan(reg, overrides={"riser_m": "nan"})
+    with pytest.raises(UnknownNameError, match="riser_m"):  # the valid names are listed
+        _plan(reg, overrides={"risr_m": "0.1"})
+    with pytest.raises(UnknownNameError, match="quick"):
+        _plan(reg, suite="fast")
+    with pytest.raises(UnknownNameError, match="fake"):
+        _plan(reg, pipelines=["nope"])
+    with pytest.raises(ConfigError, match="seeds"):
+        _plan(reg, seeds=[-1])
+    with pytest.raises(ConfigError, match="fake.offset_m"):
+        _plan(reg, overrides={"fake.offset_m": "x"})
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_plan_applies_overrides_and_derives_seeds(reg):
+    plan = _plan(reg, seeds=[0, 1], overrides={"tof_noise_m": "0", "fake.offset_m": "0.002"})
+    assert len(plan.episodes) == 12
+    assert all(e.scenario["tof_noise_m"] == 0.0 for e in plan.episodes)
+    assert plan.pipelines[0].config.offset_m == 0.002
+    e = plan.episodes[0]
+    assert e.seed == episode_seed(e.run_seed, e.case.name)
+    assert len({x.seed for x in plan.episodes}) == 12
+
+
+def test_failing_pipeline_is_recorded_and_run_goes_on(reg, tmp_path):
+    out = execute(_plan(reg), tmp_path / "run")
+    by = {}
+    for r in out.records:
+        by.setdefault(r["pipeline"], []).append(r)
+    assert len(by["fake"]) == len(by["fake-raise"]) == 6
+    assert all(r["metrics"]["failed"] and "boom" in r["metrics"]["failed_reason"] for r in by["fake-raise"])
+    assert not any(r["metrics"]["failed"] for r in by["fake"])
+    rec = by["fake"][0]
+    for key in ("track", "suite", "episode", "scenario", "seed", "pipeline", "config", "metrics", "versions", "wall_s"):
+        assert key in rec
+    assert {"exobench", "mujoco", "numpy", "pinocchio", "open3d", "python", "platform"} <= set(rec["versions"])
+    config = json.loads((tmp_path / "run" / RUN_CONFIG_FILE).read_text())
+    assert config["suite"] == "quick" and [p["name"] for p in config["pipelines"]] == ["fake", "fake-raise"]
+    # figures are kept for cases A, B, C only
+    assert sorted(p.name for p in (tmp_path / "run" / "figures").glob("*.npz")) == ["A__s0.npz", "B__s0.npz", "C__s0.npz"]
+
+
+def test_jobs_two_gives_the_same_results_as_jobs_one(reg, tmp_path):
+    plan = _plan(reg, seeds=[0, 1], pipelines=["fake"])
+    one = execute(plan, tmp_path / "one", jobs=1)
+    two = execute(plan, tmp_path / "two", jobs=2)
+    assert _comparable(one.records) == _comparable(two.records)
+    assert len(one.records) == 12
+
+
+def test_resume_after_interrupt_neither_repeats_nor_loses(reg, tmp_path, monkeypatch):
+    plan = _plan(reg, pipelines=["fake"])
+    calls = {"n": 0}
+    real = FakeStairs.finalize
+
+    def interrupting(self):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt
+        return real(self)
+
+    monkeypatch.setattr(FakeStairs, "finalize", interrupting)
+    with pytest.raises(KeyboardInterrupt):
+        execute(plan, tmp_path / "run")
+    kept = read_records(tmp_path / "run" / RESULTS_FILE)
+    assert len(kept) == 2
+
+    monkeypatch.setattr(FakeStairs, "finalize", real)
+    out = execute(plan, tmp_path / "run", resume=True)
+    assert sorted(out.skipped) == sorted(r["episode"] for r in kept)
+    assert len(out.ran) == 4
+    keys = [r["episode"] for r in out.records]
+    assert sorted(keys) == sorted(e.key for e in plan.episodes)  # each exactly once
+    first = {r["episode"]: r["wall_s"] for r in kept}
+    assert all(r["wall_s"] == first[r["episode"]] for r in out.records if r["episode"] in first)
+
+
+def test_partial_trailing_write_is_cut_and_rerun(reg, tmp_path):
+    plan = _plan(reg)
+    run = tmp_path / "run"
+    execute(plan, run)
+    results = run / RESULTS_FILE
+    lines = results.read_text().splitlines(keepends=True)
+    assert len(lines) == 12
+    # the last episode's write stopped after its first record and half of the second
+    results.write_text("".join(lines[:-1]) + lines[-1][: len(lines[-1]) // 2])
+    assert len(read_records(results)) == 10  # the incomplete episode is not counted
+    removed = repair_results(results)
+    assert removed > 0 and len(results.read_text().splitlines()) == 10
+    out = execute(plan, run, resume=True)
+    assert len(out.ran) == 1 and len(out.records) == 12
+
+
+def test_existing_folder_and_changed_resume_are_refused(reg, tmp_path):
+    run = tmp_path / "run"
+    execute(_plan(reg, pipelines=["fake"]), run)
+    with pytest.raises(ConfigError, match="--out"):
+        execute(_plan(reg, pipelines=["fake"]), run)
+    with pytest.raises(ConfigError, match="resume"):
+        execute(_plan(reg, pipelines=["fake"], seeds=[1]), run, resume=True)
+    with pytest.raises(ConfigError, match="resume"):
+        execute(_plan(reg, pipelines=["fake"]), tmp_path / "never-ran", resume=True)
+    assert not (tmp_path / "never-ran").exists()

@@ -1,0 +1,132 @@
+"""The `exobench` command line: help, listing, bad input (exit 2, one line, no folder), a run."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+from test_benchmarks_support import FakeStairs
+
+from exobench.benchmarks import registry as registry_mod
+from exobench.benchmarks import tracks as tracks_mod
+from exobench.benchmarks.cli import cli
+
+EXOBENCH = Path(sys.executable).with_name("exobench")
+
+
+def _run(args: list[str]):
+    return CliRunner().invoke(cli, args, catch_exceptions=False)
+
+
+def _one_error_line(result) -> str:
+    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("exobench: error: ")
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    ("assignment", "expected"),
+    [
+        ("riser_m=0", "riser_m"),
+        ("riser_m=0.31", "riser_m"),
+        ("riser_m=nan", "riser_m"),
+        ("riser_height=0.2", "riser_m"),  # unknown key: the valid names are listed
+        ("riser_m", "KEY=VALUE"),
+    ],
+)
+def test_bad_scenario_values_exit_2_and_write_nothing(tmp_path, assignment, expected):
+    out = tmp_path / "run"
+    result = _run(["run", "--set", assignment, "--out", str(out)])
+    assert result.exit_code == 2
+    assert expected in _one_error_line(result)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["run", "--pipeline", "nope"], "rtls-htvr"),
+        (["run", "fast"], "quick"),
+        (["run", "--track", "ladders"], "stairs"),
+        (["run", "--seed", "1", "--seeds", "2"], "--seed"),
+        (["run", "--seeds", "0"], "--seeds"),
+        (["run", "--jobs", "0"], "--jobs"),
+        (["run", "--set", "rtls.no_such_param=1", "--pipeline", "rtls"], "no_such_param"),
+        (["run", "--resume"], "--resume"),
+    ],
+)
+def test_bad_names_and_options_exit_2_and_write_nothing(tmp_path, args, expected):
+    out = tmp_path / "run"
+    result = _run([*args, "--out", str(out)] if "--resume" not in args else args)
+    assert result.exit_code == 2
+    line = _one_error_line(result)
+    assert expected in line, line
+    assert not out.exists()
+
+
+def test_help_answers_and_lists_the_commands():
+    result = _run(["--help"])
+    assert result.exit_code == 0
+    for command in ("run", "list", "bench", "replay", "record"):
+        assert command in result.output
+
+
+def test_help_in_a_fresh_process_imports_nothing_heavy():
+    code = "import sys; from exobench.benchmarks import cli; print(sorted(m for m in ('numpy', 'mujoco', 'matplotlib', 'rerun', 'open3d') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.skipif(not EXOBENCH.exists(), reason="console script not installed")
+def test_console_script_refuses_bad_riser_in_a_real_call(tmp_path):
+    out = tmp_path / "run"
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    proc = subprocess.run([str(EXOBENCH), "run", "--set", "riser_m=0.31", "--out", str(out)], capture_output=True, text=True, env=env)
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("exobench: error: ") and "riser_m" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert not out.exists()
+    help_proc = subprocess.run([str(EXOBENCH), "--help"], capture_output=True, text=True)
+    assert help_proc.returncode == 0 and "Commands:" in help_proc.stdout
+
+
+def test_list_shows_suites_pipelines_and_parameter_ranges():
+    result = _run(["list"])
+    assert result.exit_code == 0, result.output
+    for word in ("quick", "paper", "full", "rtls", "rtls-htvr", "batch-ransac", "riser_m", "yaw_deg"):
+        assert word in result.output
+
+
+@pytest.fixture
+def fake_stairs(monkeypatch):
+    """Serve the hand-built track under "stairs" and only the fake pipeline (no MuJoCo)."""
+    monkeypatch.setitem(tracks_mod.TRACKS, "stairs", "test_benchmarks_support:FakeTrack")
+    tracks_mod.get_track.cache_clear()
+    reg = registry_mod.PipelineRegistry()
+    reg.register("fake", FakeStairs)
+    monkeypatch.setattr(registry_mod, "default_registry", lambda: reg)
+    monkeypatch.setattr("exobench.benchmarks.runner.default_registry", lambda: reg)
+    yield
+    tracks_mod.get_track.cache_clear()
+
+
+def test_run_prints_the_table_and_writes_the_run_folder(tmp_path, fake_stairs):
+    out = tmp_path / "run"
+    result = _run(["run", "--out", str(out), "--seeds", "2", "--set", "tof_noise_m=0"])
+    assert result.exit_code == 0, result.output + result.stderr
+    assert "alpha S2 (deg)" in result.output and "Tab. III" in result.output
+    assert "episode" in result.stderr  # the progress bar
+    records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert len(records) == 12 and all(r["scenario"]["tof_noise_m"] == 0.0 for r in records)
+    assert (out / "report.md").exists() and (out / "run_config.json").exists()
+    again = _run(["run", "--out", str(out), "--seeds", "2", "--set", "tof_noise_m=0", "--resume", "--no-report"])
+    assert again.exit_code == 0 and "12 finished episodes kept" in again.stderr
+    assert len((out / "results.jsonl").read_text().splitlines()) == 12
+    report = _run(["report", str(out)])
+    assert report.exit_code == 0 and "report.md" in report.output
