@@ -1,0 +1,335 @@
+"""Footstep planning along a route: level ground, stairs up and down, ramps and turns.
+
+The exoskeleton walks stop-and-go (every swing is rest to rest, then a short double support),
+as lower-limb exoskeletons do. Each step the heading turns towards a look-ahead point of the
+route (at most ``max_turn_deg``, the stance foot pivoting about its ankle) and the swing foot
+is placed ``a`` ahead of the stance ankle along the new heading, one hip width beside it. A
+placement is a *foothold* when the sole from the ankle to the toe rests on one walkable surface
+(the heel may overhang a lower one, as on stairs) with the foot pitched along it and no roll.
+On level ground and ramps the nominal step is kept when it is a foothold at about the same
+level; otherwise (a riser or a slope change ahead) the foot goes to the next surface ahead,
+centred on it if it is a tread, at the nominal length clamped into it otherwise. ``step-over``
+puts each foot on the next tread; ``step-to`` brings the trailing foot beside the leading one
+before the next tread. The swing apex keeps ``clearance_m`` over nosings (see
+:func:`exobench.envs.gait.swing_apex_m`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from exobench.core import ConfigError, SceneTruth, check_range
+from exobench.models.exo_spec import ExoSpec
+
+from .gait import (
+    CLIMB_LEAN_RAD,
+    STANCE_KNEE_MAX_RAD,
+    STAND_KNEE_RAD,
+    SWING_SHAPES,
+    Footstep,
+    GaitError,
+    Motion,
+    Segment,
+    _SwingPlan,
+    check_feasible,
+    end_pelvis_options,
+    leg_length_for_knee,
+    still_segment,
+    swing_apex_m,
+    toe_pivot,
+)
+from .terrain import Terrain, sole_grid_f
+
+STAIR_MODES = ("step-over", "step-to")
+DESCENT_KNEE_MAX_RAD = np.radians(100.0)  # stair descent flexes the stance knee to about 90 deg (SENSORS.md)
+HEEL_RISE_RAD = tuple(np.radians([15.0, 25.0, 5.0, 0.0, 35.0]))  # trailing heel rises tried on stairs [A]
+
+
+@dataclass(frozen=True)
+class Route:
+    """Where and how to walk.
+
+    Attributes:
+        waypoints_xy: polyline (x, y) the body follows, m; it starts at the first point with the
+            feet beside it, facing the second (or ``start_yaw_deg``).
+        step_length_m: nominal step length on level ground, m (the foot lands this far ahead of
+            the other). swing_s / double_support_s: duration of a swing / of the pause after it, s.
+        stairs: ``"step-over"`` or ``"step-to"``. max_turn_deg: heading change per step, deg.
+        still_s: standing still at the start and at the end, s. clearance_m: toe clearance, m.
+    """
+
+    waypoints_xy: tuple[tuple[float, float], ...]
+    step_length_m: float = 0.35
+    swing_s: float = 0.8
+    double_support_s: float = 0.2
+    stairs: str = "step-over"
+    max_turn_deg: float = 25.0
+    still_s: float = 0.3
+    clearance_m: float = 0.04
+    start_yaw_deg: float | None = None
+    max_steps: int = 200
+
+    def __post_init__(self) -> None:
+        pts = np.asarray(self.waypoints_xy, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
+            raise ConfigError("route.waypoints_xy", self.waypoints_xy, "at least two finite (x, y) points")
+        if np.any(np.linalg.norm(np.diff(pts, axis=0), axis=1) < 1e-6):
+            raise ConfigError("route.waypoints_xy", self.waypoints_xy, "distinct consecutive points")
+        check_range("route.step_length_m", self.step_length_m, 0.1, 0.8)
+        check_range("route.swing_s", self.swing_s, 0.3, 5.0)
+        check_range("route.double_support_s", self.double_support_s, 0.0, 5.0)
+        if self.stairs not in STAIR_MODES:
+            raise ConfigError("route.stairs", self.stairs, " or ".join(STAIR_MODES))
+        check_range("route.max_turn_deg", self.max_turn_deg, 0.0, 60.0)
+        check_range("route.still_s", self.still_s, 0.0, 10.0)
+        check_range("route.clearance_m", self.clearance_m, 0.0, 0.2)
+        if self.start_yaw_deg is not None:
+            check_range("route.start_yaw_deg", self.start_yaw_deg, -360.0, 360.0)
+        check_range("route.max_steps", self.max_steps, 1, 10000)
+
+
+class _Polyline:
+    def __init__(self, pts: np.ndarray) -> None:
+        self.p = pts
+        self.seg = np.diff(pts, axis=0)
+        self.len = np.linalg.norm(self.seg, axis=1)
+        self.cum = np.concatenate([[0.0], np.cumsum(self.len)])
+        self.total = float(self.cum[-1])
+
+    def project(self, q: np.ndarray) -> float:
+        best, best_d = 0.0, np.inf
+        for i in range(len(self.seg)):
+            u = float(np.clip((q - self.p[i]) @ self.seg[i] / self.len[i] ** 2, 0.0, 1.0))
+            d = float(np.linalg.norm(self.p[i] + u * self.seg[i] - q))
+            if d < best_d:
+                best, best_d = float(self.cum[i] + u * self.len[i]), d
+        return best
+
+    def point(self, s: float) -> np.ndarray:
+        """Point at arc length ``s``; beyond the end the last segment is extended."""
+        s = max(float(s), 0.0)
+        i = int(np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.seg) - 1))
+        return self.p[i] + (s - self.cum[i]) / self.len[i] * self.seg[i]
+
+
+def _wrap(a: float) -> float:
+    return float((a + np.pi) % (2.0 * np.pi) - np.pi)
+
+
+@dataclass
+class _Foot:
+    ankle: np.ndarray  # world (3,)
+    pitch: float
+    surface: int
+
+
+class _Planner:
+    def __init__(self, exo: ExoSpec, truth: SceneTruth, route: Route) -> None:
+        self.exo, self.truth, self.route = exo, truth, route
+        self.terrain = Terrain(truth)
+        self.grid = sole_grid_f(exo)
+        self.front = self.grid[:, 0] >= 0.0
+        self.w = exo.hip_width_m
+        self.normals = {s.surface_id: s.normal_w for s in truth.surfaces}
+
+    def foothold(self, sole_xy: np.ndarray, yaw: float) -> tuple[_Foot, float] | None:
+        """The foot placed with its sole point at ``sole_xy`` and heading ``yaw``, or None."""
+        z, sid = self.terrain.query(sole_xy[None, :])
+        if sid[0] < 0:
+            return None
+        n = self.normals[int(sid[0])]
+        x = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+        y = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
+        if abs(float(n @ y)) > np.sin(np.radians(3.0)):
+            return None  # the foot cannot roll
+        pitch = float(np.arctan2(-(n @ x), n[2]))
+        zf = np.array([-np.sin(pitch) * x[0], -np.sin(pitch) * x[1], np.cos(pitch)])
+        xf = np.array([np.cos(pitch) * x[0], np.cos(pitch) * x[1], np.sin(pitch)])
+        sole = np.array([sole_xy[0], sole_xy[1], z[0]])
+        pts = sole + np.outer(self.grid[:, 0], xf) + np.outer(self.grid[:, 1], y)
+        tz, tid = self.terrain.query(pts[:, :2])
+        if np.any(tid[self.front] != sid[0]) or np.any(np.isfinite(tz) & (tz > pts[:, 2] + 1e-6)):
+            return None
+        ankle = sole + self.exo.sole_height_m * zf
+        return _Foot(ankle, pitch, int(sid[0])), float(z[0])
+
+    def place(self, A: np.ndarray, sg: float, yaw: float, a: float) -> tuple[_Foot, float] | None:
+        x = np.array([np.cos(yaw), np.sin(yaw)])
+        y = np.array([-np.sin(yaw), np.cos(yaw)])
+        return self.foothold(A[:2] + a * x - sg * self.w * y, yaw)
+
+
+def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
+    """Plan and return the motion of walking ``route`` in the world of ``truth``."""
+    pl = _Planner(exo, truth, route)
+    path = _Polyline(np.asarray(route.waypoints_xy, dtype=float))
+    d0 = path.p[1] - path.p[0]
+    yaw = np.radians(route.start_yaw_deg) if route.start_yaw_deg is not None else float(np.arctan2(d0[1], d0[0]))
+    w = exo.hip_width_m
+    feet: dict[str, _Foot] = {}
+    for side, s in (("l", 1.0), ("r", -1.0)):
+        y = np.array([-np.sin(yaw), np.cos(yaw)])
+        got = pl.foothold(path.p[0] + s * 0.5 * w * y, yaw)
+        if got is None:
+            raise ConfigError("route.waypoints_xy", route.waypoints_xy, f"a start where foot_{side} stands on one walkable surface")
+        feet[side] = got[0]
+    h_stand = leg_length_for_knee(exo, STAND_KNEE_RAD)
+    pelvis = 0.5 * (feet["l"].ankle + feet["r"].ankle)
+    pelvis[2] = min(feet["l"].ankle[2], feet["r"].ankle[2]) + h_stand
+    pitch = 0.0
+    segs: list[Segment] = []
+    steps: list[Footstep] = []
+    t = 0.0
+    swing = "r"
+    done = False
+    first_plan = None
+    for _ in range(route.max_steps):
+        stance = "l" if swing == "r" else "r"
+        sg = 1.0 if stance == "l" else -1.0
+        A = feet[stance].ankle
+        mid = 0.5 * (feet["l"].ankle + feet["r"].ankle)[:2]
+        s_mid, s_A = path.project(mid), path.project(A[:2])
+        look = path.point(s_mid + max(route.step_length_m, 0.5)) - mid
+        remaining = path.total - s_A
+        yaw1 = yaw
+        if np.linalg.norm(look) > 1e-6:
+            turn = np.clip(_wrap(float(np.arctan2(look[1], look[0])) - yaw), *np.radians([-route.max_turn_deg, route.max_turn_deg]))
+            yaw1 = yaw + float(turn)
+        final = remaining < 0.05
+        a_nom = 0.0 if final else min(route.step_length_m, remaining)
+        options = _choose(pl, route, A, sg, yaw1, a_nom, feet, stance, swing, final)
+        if not options:
+            raise GaitError(f"no foothold for foot_{swing} ahead of ({A[0]:.2f}, {A[1]:.2f}) at t={t:.2f} s")
+        sw = feet[swing]
+        x0 = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+        x1 = np.array([np.cos(yaw1), np.sin(yaw1), 0.0])
+        beta0 = feet[stance].pitch
+        a0 = float((sw.ankle - A) @ x0)
+        f0, h0 = float((pelvis - A) @ x0), float(pelvis[2] - A[2])
+        found = None
+        for new, _a in options:  # the first foothold the legs can reach and swing to
+            dz0 = float(new.ankle[2] - A[2])
+            # on stairs the trailing (stance) foot rises on its toes (only on straight steps)
+            rises = HEEL_RISE_RAD if abs(dz0) > 0.05 and yaw1 == yaw else (0.0,)
+            for rise in rises:
+                A_end = toe_pivot(exo, A, x1[None, :], np.array([beta0]), np.array([beta0 - rise]))[0] if rise else A
+                a1, dz = float((new.ankle - A_end) @ x1), float(new.ankle[2] - A_end[2])
+                pitch1 = CLIMB_LEAN_RAD if dz > 0.05 else np.radians(2.0)
+                knee_max = DESCENT_KNEE_MAX_RAD if dz < -0.05 else STANCE_KNEE_MAX_RAD
+                pelvis_opts = end_pelvis_options(exo, a1, dz, pitch1, (beta0 - rise, new.pitch), knee_max)
+                if not pelvis_opts:
+                    continue
+                plan = _SwingPlan(
+                    stance=stance, A=A.copy(), stance_pitch=(beta0, beta0 - rise), yaw=(yaw, yaw1),
+                    pitch=(pitch, pitch1), f=(f0, 0.0), h=(h0, 0.0), a=(a0, a1),
+                    z=(float(sw.ankle[2]), float(new.ankle[2])), swing_pitch=(sw.pitch, new.pitch),
+                )  # fmt: skip
+                for lag, dip in SWING_SHAPES:
+                    plan.lag, plan.dip = lag, dip
+                    apex = swing_apex_m(exo, pl.terrain, plan, clearance_m=route.clearance_m)
+                    found = _first_feasible(exo, plan, apex, f0, h0, pelvis_opts[:8])
+                    if found:
+                        f1, h1 = found
+                        found = (new, A_end, beta0 - rise, f1, h1, pitch1, plan, apex)
+                        break
+                if found:
+                    break
+            if found:
+                break
+        if found is None:
+            raise GaitError(f"no reachable foothold for foot_{swing} ahead of ({A[0]:.2f}, {A[1]:.2f}) at t={t:.2f} s")
+        new, A_end, beta1, f1, h1, pitch1, plan, apex = found
+        if first_plan is None:
+            first_plan = plan
+            if route.still_s > 0:
+                segs.append(still_segment(exo, plan, 0.0, route.still_s, at_end=False))
+                t = route.still_s
+        segs.append(plan.segment(t, t + route.swing_s, apex))
+        sole = new.ankle - exo.sole_height_m * np.array([-np.sin(new.pitch) * x1[0], -np.sin(new.pitch) * x1[1], np.cos(new.pitch)])
+        steps.append(Footstep(swing, t, t + route.swing_s, sole, float(yaw1), new.surface))
+        t += route.swing_s
+        hold = route.double_support_s if not final else route.still_s
+        if hold > 0:
+            segs.append(still_segment(exo, plan, t, t + hold, at_end=True))
+            t += hold
+        ylat = np.array([-np.sin(yaw1), np.cos(yaw1), 0.0])
+        pelvis = A_end + f1 * x1 - sg * 0.5 * w * ylat
+        pelvis[2] = A_end[2] + h1
+        feet[stance] = _Foot(A_end, beta1, feet[stance].surface)
+        feet[swing], yaw, pitch = new, yaw1, pitch1
+        swing = stance
+        if final:
+            done = True
+            break
+    if not done:
+        raise GaitError(f"route not finished within route.max_steps={route.max_steps} steps")
+    motion = Motion(
+        exo, segs, events={"liftoff_s": steps[0].liftoff_s, "end_s": t}, footsteps=tuple(steps), stance_side="l"
+    )
+    check_feasible(motion)
+    return motion
+
+
+def _first_feasible(
+    exo: ExoSpec, plan: _SwingPlan, apex: float, f0: float, h0: float, options: list[tuple[float, float]]
+) -> tuple[float, float] | None:
+    """The first pelvis end pose (f, h) whose whole swing the legs can follow."""
+    for f1, h1 in options:
+        plan.f, plan.h = (f0, f1), (h0, h1)
+        try:
+            Motion(exo, [plan.segment(0.0, 1.0, apex)]).state(np.linspace(0.0, 1.0, 101))
+        except GaitError:
+            continue
+        return f1, h1
+    return None
+
+
+def _choose(
+    pl: _Planner, route: Route, A: np.ndarray, sg: float, yaw: float, a_nom: float,
+    feet: dict[str, _Foot], stance: str, swing: str, final: bool,
+) -> list[tuple[_Foot, float]]:  # fmt: skip
+    """Footholds for the swing foot with their distance ``a`` ahead of the stance ankle, best first."""
+    S_A = feet[stance].surface
+    z_A = float(A[2])
+    trailing_low = abs(float(feet[swing].ankle[2]) - z_A) > 0.05
+    if not final and not (route.stairs == "step-to" and trailing_low):
+        got = pl.place(A, sg, yaw, a_nom)  # the nominal step, when it lands at about the same level
+        if got is not None and abs(got[0].ankle[2] - z_A) <= 0.03 + abs(a_nom) * np.tan(np.radians(25.0)):
+            return [(got[0], a_nom)]
+    grid = np.round(np.arange(-0.15, max(0.8, 2.0 * route.step_length_m) + 1e-9, 0.01), 6)
+    cands: list[tuple[float, _Foot]] = []
+    for a in grid:
+        got = pl.place(A, sg, yaw, float(a))
+        if got is not None and abs(got[0].ankle[2] - z_A) <= 0.35:
+            cands.append((float(a), got[0]))
+
+    def nearest(target: float, pool: list[tuple[float, _Foot]]) -> list[tuple[_Foot, float]]:
+        if not pool:
+            return []
+        a, f = min(pool, key=lambda c: abs(c[0] - target))
+        return [(f, a)]
+
+    same_level = [c for c in cands if abs(c[1].ankle[2] - z_A) <= 0.03 + abs(c[0]) * np.tan(np.radians(25.0))]
+    # step-to: the trailing foot joins the leading one on its step
+    if final or (route.stairs == "step-to" and trailing_low):
+        return nearest(0.0, [c for c in cands if c[1].surface == S_A])
+    nominal = nearest(a_nom, same_level)
+    if nominal and abs(nominal[0][1] - a_nom) < 0.005:
+        return nominal
+    out: list[tuple[_Foot, float]] = []
+    ahead = [c for c in cands if c[0] > 0.05 and c[1].surface != S_A]
+    if ahead:
+        target = ahead[0][1].surface
+        run = [c for c in ahead if c[1].surface == target]
+        lo, hi = run[0][0], run[-1][0]
+        if hi - lo < 0.25:  # a tread: centre the foot on it
+            out += nearest(0.5 * (lo + hi), run)
+        else:
+            out += nearest(float(np.clip(a_nom, lo + 0.05, hi)), run)
+    # or a shorter step up to the edge, when the next surface is out of reach
+    short = [c for c in same_level if 0.05 < c[0] <= a_nom + 1e-9]
+    if short:
+        out += [(short[-1][1], short[-1][0])]
+    return out
