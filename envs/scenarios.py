@@ -35,7 +35,7 @@ PARAMS: dict[str, ParamSpec] = {
     "distance_m": ParamSpec(0.305, 0.15, 0.8, "m", "perpendicular distance from the climbing foot's toe tip to the first riser (paper's L)"),
     "user_height_m": ParamSpec(1.75, 1.55, 1.95, "m", "user's standing height (scales every segment)"),
     "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
-    "duration_s": ParamSpec(2.0, 1.2, 6.0, "s", "episode length: 0.3 s still, the swing, 0.3 s after touch-down"),
+    "duration_s": ParamSpec(3.0, 1.2, 6.0, "s", "episode length: 0.3 s still, the swing, 0.3 s after touch-down (a 2.4 s climbing swing by default, as slow exoskeleton gaits are [A])"),
     "tof_noise_m": ParamSpec(1.5e-3, 0.0, 0.05, "m", "ToF static range noise, standard deviation"),
     "tof_rate_hz": ParamSpec(50.0, 1.0, 100.0, "Hz", "ToF ranging rate"),
     "tof_latency_s": ParamSpec(0.0, 0.0, 0.1, "s", "ToF delivery latency"),
