@@ -1,1 +1,14 @@
-"""exobench.envs"""
+"""exobench.envs: gait, sensors, simulation loop, sessions and the gymnasium environments.
+
+Importing the package registers ``exobench/StairClimb-v0`` with gymnasium by string entry point
+(the environment module, and MuJoCo with it, is imported only by ``gymnasium.make``).
+"""
+
+import gymnasium
+
+if "exobench/StairClimb-v0" not in gymnasium.registry:
+    gymnasium.register(
+        id="exobench/StairClimb-v0",
+        entry_point="exobench.envs.stair_climb_env:StairClimbEnv",
+        max_episode_steps=12,
+    )
