@@ -19,13 +19,19 @@ by their side: for the right leg ``tof_r_lat`` is "r" and ``tof_r_med`` is "l"; 
 
 ``assignments`` hold one entry per ToF frame received (of any sensor, in arrival order), so
 they line up with the episode's ToF ground truth; unused readings have index -2 and a NaN
-point. ``compute_time_s`` holds, per used point, the ``time.perf_counter`` time spent on its
-kinematics and on ``Assign`` (RTLS); for the batch baseline it is the kinematics time plus an
-equal share of the time spent in ``finalize``.
+point. ``compute_time_s`` holds, per used point, the time (``time.perf_counter_ns``) spent on
+the work the paper times per point: the point's forward kinematics from the latest encoder and
+IMU states (computed lazily, so a new state costs the first point that uses it) and
+``Assign``/``SurfUpdate`` (RTLS); frame checks and bookkeeping are outside it. For the batch
+baseline it is the kinematics time plus an equal share of the time spent in ``finalize``.
+
+The online estimate that ``process`` returns is rebuilt only after a point was used, and only
+the planes that changed are read out again (RTLS).
 """
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
@@ -38,7 +44,7 @@ from exobench.core.estimates import PlaneEstimate, PointAssignment, StaircaseEst
 from exobench.core.frames import Frame, ImuSample, JointState, StreamStats, ToFReading, TofStatus
 
 from .readout import MIN_TREAD_NZ, orient_normal, riser_height_m, tread_depth_m
-from .rtls import RtlsPlane
+from .rtls import PlaneFit, RtlsPlane
 from .staircase import FLAGS, StaircaseAlgorithm, StaircaseParams
 from .tof_kinematics import ESTIMATOR_FRAME, TofKinematics
 
@@ -94,6 +100,16 @@ def ransac_plane(
     return best
 
 
+def _floats(values: Any) -> list[float]:
+    """A state vector (array or sequence) as a flat list of Python floats.
+
+    Frame checks run on every encoder and IMU frame; plain floats keep them cheap.
+    """
+    if isinstance(values, np.ndarray) and values.dtype == np.float64:
+        return values.ravel().tolist()
+    return np.asarray(values, dtype=float).ravel().tolist()
+
+
 def _check_common(cfg: Any) -> None:
     if cfg.leg not in ("l", "r"):
         raise ConfigError("leg", cfg.leg, "'l' or 'r'")
@@ -126,9 +142,9 @@ class _StairsPipeline:
         self._kin = TofKinematics(calibration, stance_side=cfg.stance_side, imu_sensor_id=cfg.imu_sensor_id)
         self._stats = StreamStats(extra={"n_ignored": 0, "n_bad_range": 0, "n_bad_state": 0, "n_used": 0})
         self._last_stamp: dict[str, float] = {}
-        self._readings: list[tuple[float, str, np.ndarray, int]] = []  # stamp, sensor, point, uid
+        self._readings: list[tuple[float, str, tuple[float, float, float] | None, int]] = []  # stamp, sensor, point, uid
         self._uid_stamp: list[float] = []
-        self._times: list[float] = []
+        self._times_ns: list[float] = []  # ns per used point
         self._reset_estimator()
 
     def process(self, frame: Frame) -> StaircaseEstimate | None:
@@ -157,22 +173,22 @@ class _StairsPipeline:
     def _in_order(self, frame: Frame) -> bool:
         stamp = float(frame.stamp_s)
         last = self._last_stamp.get(frame.sensor_id)
-        if not np.isfinite(stamp) or (last is not None and stamp < last):
+        if not math.isfinite(stamp) or (last is not None and stamp < last):
             self._stats.n_out_of_order += 1
             return False
         self._last_stamp[frame.sensor_id] = stamp
         return True
 
     def _valid_joints(self, frame: JointState) -> bool:
-        q = np.asarray(frame.position_rad, dtype=float).ravel()
-        if len(q) != len(frame.names) or not np.all(np.isfinite(q)):
+        q = _floats(frame.position_rad)
+        if len(q) != len(frame.names) or not all(map(math.isfinite, q)):
             self._stats.extra["n_bad_state"] += 1
             return False
         return True
 
     def _valid_imu(self, frame: ImuSample) -> bool:
-        q = np.asarray(frame.quat_wxyz, dtype=float).ravel()
-        if q.shape != (4,) or not np.all(np.isfinite(q)) or not 0.5 < float(np.linalg.norm(q)) < 1.5:
+        q = _floats(frame.quat_wxyz)
+        if len(q) != 4 or not all(map(math.isfinite, q)) or not 0.5 < math.hypot(*q) < 1.5:
             self._stats.extra["n_bad_state"] += 1
             return False
         return True
@@ -180,11 +196,10 @@ class _StairsPipeline:
     def _tof(self, frame: ToFReading) -> None:
         st = self._stats
         sid = frame.sensor_id
-        nan3 = np.full(3, np.nan)
         flag = self._flags.get(sid)
         if flag is None:
             st.extra["n_ignored"] += 1
-            self._readings.append((frame.stamp_s, sid, nan3, -1))
+            self._readings.append((frame.stamp_s, sid, None, -1))
             return
         try:
             r = float(frame.range_m)
@@ -194,29 +209,32 @@ class _StairsPipeline:
             pass
         elif frame.status != TofStatus.VALID:
             st.n_no_return += 1
-        elif not np.isfinite(r):
+        elif not math.isfinite(r):
             st.n_nan += 1
         elif r < 0.0:
             st.extra["n_bad_range"] += 1
         elif not self._kin.has_state:
             st.n_without_state += 1
         else:
-            t0 = time.perf_counter()
-            p = self._kin.point(sid, r)
             uid = len(self._uid_stamp)
+            kin, consume, clock = self._kin, self._consume, time.perf_counter_ns
+            t0 = clock()
+            p = kin.point_xyz(sid, r)
+            consume(uid, p, flag)
+            t1 = clock()
+            self._times_ns.append(t1 - t0)
             self._uid_stamp.append(float(frame.stamp_s))
-            self._consume(uid, p, flag)
-            self._times.append(time.perf_counter() - t0)
             self._readings.append((frame.stamp_s, sid, p, uid))
             st.extra["n_used"] += 1
             return
-        self._readings.append((frame.stamp_s, sid, nan3, -1))
+        self._readings.append((frame.stamp_s, sid, None, -1))
 
     # --- estimator hooks ---
     def _reset_estimator(self) -> None:
         raise NotImplementedError
 
-    def _consume(self, uid: int, p: np.ndarray, flag: str) -> None:
+    def _consume(self, uid: int, p: tuple[float, float, float], flag: str) -> None:
+        """Take the used point ``uid`` (its work is timed per point)."""
         raise NotImplementedError
 
     def _online(self) -> StaircaseEstimate | None:
@@ -226,36 +244,58 @@ class _StairsPipeline:
         raise NotImplementedError
 
     # --- read-out ---
-    def _plane(self, index: int, plane: RtlsPlane, counts: dict[str, int], ok: bool, ok_uid: int | None) -> PlaneEstimate:
+    def _plane(self, index: int, plane: PlaneFit, counts: dict[str, int], ok: bool, ok_uid: int | None) -> PlaneEstimate:
+        centroid = plane.centroid
         return PlaneEstimate(
             index=index,
-            normal=orient_normal(plane.normal, plane.centroid),
-            centroid=plane.centroid,
+            normal=orient_normal(plane.normal, centroid),
+            centroid=centroid,
             n_points={self._sensor_of_flag[f]: int(counts[f]) for f in FLAGS},
             sigma_m=float(plane.sigma_m),
             reliable=bool(ok),
             reliable_stamp_s=None if ok_uid is None else self._uid_stamp[ok_uid],
         )
 
-    def _estimate(self, planes: list[PlaneEstimate], surface_of_uid: np.ndarray | None, extra: dict[str, Any]) -> StaircaseEstimate:
+    def _estimate(
+        self,
+        planes: list[PlaneEstimate],
+        surface_of_uid: np.ndarray | None,
+        extra: dict[str, Any],
+        readout: tuple[float, float] | None = None,
+    ) -> StaircaseEstimate:
+        """The estimate; with ``surface_of_uid`` (final) also the assignments and the timings.
+
+        ``readout`` is ``(riser_height_m, tread_depth_m)`` when the caller already has it.
+        """
         assignments: tuple[PointAssignment, ...] = ()
         if surface_of_uid is not None:
+            where = surface_of_uid.tolist()
             assignments = tuple(
-                PointAssignment(stamp_s=s, sensor_id=sid, point=p, surface_index=int(surface_of_uid[u]) if u >= 0 else -2)
+                PointAssignment(
+                    stamp_s=s,
+                    sensor_id=sid,
+                    point=np.full(3, np.nan) if p is None else np.array(p, dtype=float),
+                    surface_index=where[u] if u >= 0 else -2,
+                )
                 for s, sid, p, u in self._readings
             )
         stats: dict[str, Any] = self._stats.as_dict()
         stats.update(extra)
         stats["config"] = dict(self._config_dict)
+        if readout is None:
+            readout = (riser_height_m(planes), tread_depth_m(planes))
         return StaircaseEstimate(
             planes=tuple(planes),
-            riser_height_m=riser_height_m(planes),
-            tread_depth_m=tread_depth_m(planes),
+            riser_height_m=readout[0],
+            tread_depth_m=readout[1],
             assignments=assignments,
             stats=stats,
-            compute_time_s=np.array(self._times, dtype=float) if surface_of_uid is not None else np.zeros(0),
+            compute_time_s=self._compute_time_s() if surface_of_uid is not None else np.zeros(0),
             frame_id=ESTIMATOR_FRAME,
         )
+
+    def _compute_time_s(self) -> np.ndarray:
+        return np.array(self._times_ns, dtype=float) * 1e-9
 
 
 class RtlsStairs(_StairsPipeline):
@@ -310,33 +350,51 @@ class RtlsStairs(_StairsPipeline):
 
     def _reset_estimator(self) -> None:
         self.algorithm = StaircaseAlgorithm(self.config.params(self.htvr))
+        self._assign = self.algorithm.assign
         self._cache: StaircaseEstimate | None = None
+        self._stale = True
+        # read-outs kept between online estimates: per surface (version, ok) -> PlaneEstimate,
+        # and the riser/tread read-out of the reliable planes it was computed from
+        self._plane_memo: dict[int, tuple[tuple[int, bool], PlaneEstimate]] = {}
+        self._readout_memo: tuple[tuple[PlaneEstimate, ...], tuple[float, float]] | None = None
 
-    def _consume(self, uid: int, p: np.ndarray, flag: str) -> None:
+    def _consume(self, uid: int, p: tuple[float, float, float], flag: str) -> None:
         # the algorithm numbers its points in arrival order, like the pipeline's used readings
-        self.algorithm.assign(p, flag)
-        self._cache = None
+        self._assign(p, flag)
+        self._stale = True
 
     def _planes(self) -> list[PlaneEstimate]:
         out = []
+        memo = self._plane_memo
         for S in self.algorithm.surfaces:
             if S.plane.n >= 3:
-                out.append(self._plane(S.index, S.plane, S.n_by_flag, S.ok, S.reliable_uid))
+                key = (S.plane.version, S.ok)
+                hit = memo.get(S.index)
+                if hit is None or hit[0] != key:
+                    hit = memo[S.index] = (key, self._plane(S.index, S.plane, S.n_by_flag, S.ok, S.reliable_uid))
+                out.append(hit[1])
         return out
+
+    def _readout(self, planes: list[PlaneEstimate]) -> tuple[float, float]:
+        reliable = tuple(p for p in planes if p.reliable)
+        memo = self._readout_memo
+        if memo is None or len(memo[0]) != len(reliable) or any(a is not b for a, b in zip(memo[0], reliable, strict=True)):
+            memo = self._readout_memo = (reliable, (riser_height_m(reliable), tread_depth_m(reliable)))
+        return memo[1]
 
     def _extra(self) -> dict[str, Any]:
         return {**self.algorithm.counts, "current_id": self.algorithm.current_id}
 
     def _online(self) -> StaircaseEstimate | None:
-        if self._cache is None:
+        if self._stale:
+            self._stale = False
             planes = self._planes()
-            if not planes:
-                return None
-            self._cache = self._estimate(planes, None, self._extra())
+            self._cache = self._estimate(planes, None, self._extra(), self._readout(planes)) if planes else None
         return self._cache
 
     def _finalize(self) -> StaircaseEstimate:
-        return self._estimate(self._planes(), self.algorithm.point_surfaces(), self._extra())
+        planes = self._planes()
+        return self._estimate(planes, self.algorithm.point_surfaces(), self._extra(), self._readout(planes))
 
 
 class RtlsHtvrStairs(RtlsStairs):
@@ -411,7 +469,7 @@ class BatchRansacStairs(_StairsPipeline):
         self._point_flags: list[str] = []
         self._result: StaircaseEstimate | None = None
 
-    def _consume(self, uid: int, p: np.ndarray, flag: str) -> None:
+    def _consume(self, uid: int, p: tuple[float, float, float], flag: str) -> None:
         self._points.append(p)
         self._point_flags.append(flag)
         self._result = None
@@ -419,7 +477,7 @@ class BatchRansacStairs(_StairsPipeline):
     def _finalize(self) -> StaircaseEstimate:
         if self._result is not None:
             return self._result
-        t0 = time.perf_counter()
+        t0 = time.perf_counter_ns()
         pts = np.array(self._points, dtype=float).reshape(-1, 3)
         flags = np.array(self._point_flags)
         groups = self._ransac(pts, flags)
@@ -435,8 +493,8 @@ class BatchRansacStairs(_StairsPipeline):
             counts = {f: int(np.sum(flags[idx] == f)) for f in FLAGS}
             ok_uid = self._reliable_uid(idx, flags)
             planes.append(self._plane(index, fit, counts, ok_uid is not None, ok_uid))
-        share = (time.perf_counter() - t0) / max(len(pts), 1)
-        self._times = [t + share for t in self._times]
+        share_ns = (time.perf_counter_ns() - t0) / max(len(pts), 1)
+        self._times_ns = [t + share_ns for t in self._times_ns]
         self._result = self._estimate(planes, where, {"n_planes_found": len(groups)})
         return self._result
 

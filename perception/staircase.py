@@ -37,6 +37,10 @@ documented here):
   taken to the planes before any move; moved points leave ``S_{id-1}.B`` and enter the plane of
   S_id (eq. 15-16) but not its ``B``: they have just been checked against S_id.
 - ``ok`` never goes back to false (the listing only ever sets it).
+- The normal and ``sigma_n`` of a plane are computed once per change, when first needed, and at
+  the latest at the end of the ``SurfUpdate`` that changed it (Sec. IV-B: ``AddToSurf`` computes
+  ``n*``), so the eigen-decomposition is part of the work of the point that caused it and a
+  later read-out of the planes costs no decomposition.
 - The test ``|d| <= sigma_n`` allows 1e-12 m of round-off: for exactly coplanar points both
   sides are ~1e-17 m and the bare comparison would drop points at random.
 - Only ``n_surfaces`` (5) surfaces exist: a switch beyond S4 stops the algorithm, and every later
@@ -125,11 +129,15 @@ class Surface:
     @property
     def e_z(self) -> float:
         """Height of the centroid; 0 for an empty surface (the zeroed structure)."""
-        return float(self.plane.centroid[2]) if self.plane.n else 0.0
+        return self.plane.centroid_z() if self.plane.n else 0.0
 
 
 class StaircaseAlgorithm:
-    """Algorithm 1 on a stream of points, general or HTVR (see the module docstring)."""
+    """Algorithm 1 on a stream of points, general or HTVR (see the module docstring).
+
+    Points are kept as tuples of floats: the work per point is a few dozen scalar operations,
+    which plain Python does faster than numpy calls on 3-vectors.
+    """
 
     def __init__(self, params: StaircaseParams | None = None) -> None:
         self.params = params or StaircaseParams()
@@ -141,7 +149,7 @@ class StaircaseAlgorithm:
         self.surfaces: tuple[Surface, ...] = tuple(Surface(i, make_plane(k)) for i, k in enumerate(kinds))
         self.current_id = 0
         self._queues: dict[str, deque[int]] = {f: deque() for f in FLAGS}
-        self._points: list[np.ndarray] = []
+        self._points: list[tuple[float, float, float]] = []
         self._flags: list[str] = []
         self._where: list[int] = []
         self._call_uid = -1
@@ -163,29 +171,37 @@ class StaircaseAlgorithm:
 
     def points(self) -> np.ndarray:
         """Every point received so far, shape (N, 3)."""
-        return np.array(self._points).reshape(-1, 3)
+        return np.array(self._points, dtype=float).reshape(-1, 3)
 
     # --- Algorithm 1 ---
-    def _register(self, p: np.ndarray, flag: str) -> int:
+    def _register(self, p: np.ndarray | tuple[float, float, float], flag: str) -> int:
         if flag not in FLAGS:
             raise ConfigError("flag", flag, "'r' or 'l'")
+        if type(p) is not tuple:
+            p = np.asarray(p, dtype=float).reshape(3).tolist()
+        x, y, z = p
         uid = len(self._points)
-        self._points.append(np.array(p, dtype=float).reshape(3))
+        self._points.append((float(x), float(y), float(z)))
         self._flags.append(flag)
         self._where.append(-1)
         self._call_uid = uid
         return uid
 
-    def assign(self, p: np.ndarray, flag: str) -> int:
-        """``Assign(p, Q_f, S, f, id)``; returns the id given to ``p`` (its arrival index)."""
+    def assign(self, p: np.ndarray | tuple[float, float, float], flag: str) -> int:
+        """``Assign(p, Q_f, S, f, id)``; returns the id given to ``p`` (its arrival index).
+
+        ``p`` is a point (3,), as an array or a tuple of floats.
+        """
         uid = self._register(p, flag)
         Q = self._queues[flag]
         if len(Q) >= self.params.queue_q:
-            zs = [float(self._points[u][2]) for u in Q]
-            z_bar = sum(zs) / len(zs)
-            sigma_z = math.sqrt(sum((z - z_bar) ** 2 for z in zs) / len(zs))
+            pts = self._points
+            zs = [pts[u][2] for u in Q]
+            n = len(zs)
+            z_bar = sum(zs) / n
+            sigma_z = math.sqrt(sum([(z - z_bar) ** 2 for z in zs]) / n)
             qu = Q.popleft()
-            self._decide(qu, float(self._points[qu][2]), z_bar, sigma_z)
+            self._decide(qu, pts[qu][2], z_bar, sigma_z)
         Q.append(uid)
         return uid
 
@@ -216,7 +232,7 @@ class StaircaseAlgorithm:
             return
         self._surf_update(qu, self.surfaces[target])
 
-    def surf_update(self, p: np.ndarray, flag: str, index: int) -> int:
+    def surf_update(self, p: np.ndarray | tuple[float, float, float], flag: str, index: int) -> int:
         """``SurfUpdate(p, S_index, f)`` on a new point, bypassing ``Assign``; returns its id.
 
         For callers that assign points by other means, and for testing the update on its own.
@@ -230,28 +246,35 @@ class StaircaseAlgorithm:
     def _surf_update(self, qu: int, S: Surface) -> None:
         """``SurfUpdate(q, S_id, f)`` (lines 19-30)."""
         p = self.params
-        self.counts["n_assigned"] += 1
-        if len(S.buffer) >= p.buffer_b:
-            r = S.buffer.popleft()
-            d = S.plane.distance(self._points[r])
-            if not (abs(d) <= S.plane.sigma_m + _ROUNDOFF_M):
+        counts = self.counts
+        counts["n_assigned"] += 1
+        plane, B = S.plane, S.buffer
+        if len(B) >= p.buffer_b:
+            r = B.popleft()
+            x, y, z = self._points[r]
+            if not (abs(plane.distance3(x, y, z)) <= plane.fit3()[3] + _ROUNDOFF_M):
                 self._remove_from_surf(r, S)
-                self.counts["n_removed"] += 1
-        S.buffer.append(qu)
+                counts["n_removed"] += 1
+        B.append(qu)
         self._add_to_surf(qu, S)
-        if not S.ok and all(S.n_by_flag[f] >= p.reliable_n for f in FLAGS):
-            S.ok = True
-            S.reliable_uid = self._call_uid
-        if S.index > 0 and S.ok:
+        if not S.ok:
+            nb, need = S.n_by_flag, p.reliable_n
+            if nb["r"] >= need and nb["l"] >= need:  # N points of each sensor (FLAGS)
+                S.ok = True
+                S.reliable_uid = self._call_uid
+        if S.ok and S.index > 0:
             self._shift(self.surfaces[S.index - 1], S)
+        S.plane.fit3()  # AddToSurf computes n* (Sec. IV-B): the fit is part of this update
 
     def _add_to_surf(self, u: int, S: Surface) -> None:
-        S.plane.add(self._points[u])
+        x, y, z = self._points[u]
+        S.plane.add3(x, y, z)
         S.n_by_flag[self._flags[u]] += 1
         self._where[u] = S.index
 
     def _remove_from_surf(self, u: int, S: Surface) -> None:
-        S.plane.remove(self._points[u])
+        x, y, z = self._points[u]
+        S.plane.remove3(x, y, z)
         S.n_by_flag[self._flags[u]] -= 1
         self._where[u] = -1
 
@@ -259,12 +282,23 @@ class StaircaseAlgorithm:
         """``Shift(S_{id-1}, S_id)``: move points of ``prev.B`` that are closer to ``cur``."""
         if not prev.buffer:
             return
-        pts = np.array([self._points[u] for u in prev.buffer])
-        d_prev = np.abs((pts - prev.plane.centroid) @ prev.plane.normal)
-        d_cur = np.abs((pts - cur.plane.centroid) @ cur.plane.normal)
-        move = [u for u, a, b in zip(prev.buffer, d_prev, d_cur, strict=True) if b < a]
+        # distances to both planes as they are before any move
+        pnx, pny, pnz, _ = prev.plane.fit3()
+        pex, pey, pez = prev.plane.centroid3()
+        cnx, cny, cnz, _ = cur.plane.fit3()
+        cex, cey, cez = cur.plane.centroid3()
+        pts = self._points
+        move = []
+        for u in prev.buffer:
+            x, y, z = pts[u]
+            d_prev = abs((x - pex) * pnx + (y - pey) * pny + (z - pez) * pnz)
+            d_cur = abs((x - cex) * cnx + (y - cey) * cny + (z - cez) * cnz)
+            if d_cur < d_prev:
+                move.append(u)
         for u in move:
             prev.buffer.remove(u)
             self._remove_from_surf(u, prev)
             self._add_to_surf(u, cur)
+        if move:
+            prev.plane.fit3()
         self.counts["n_shifted"] += len(move)

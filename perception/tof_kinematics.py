@@ -10,22 +10,103 @@ gravity-aligned world, origin on the ground right below the stance ankle joint (
 
 ``p_b_*``/``R_b_*`` come from the URDF in the calibration (loaded with pinocchio) at the latest
 encoder angles (joints absent from the encoder state stay at 0) composed with the sensor mounts
-of the calibration. Forward kinematics runs once per new encoder state; each point then costs a
-few 3-vector operations.
+of the calibration.
+
+Speed: encoder states arrive faster than ToF readings, so the kinematics is lazy: a new encoder
+state or IMU orientation is only stored, and the first point that needs it computes what that
+point needs (cached until the next state), so the cost is paid per point, where the estimator's
+timing sees it. The per-point path (:meth:`TofKinematics.point_xyz`) walks, in plain Python
+floats, only the joint chains between the base link and the links that carry the point's
+sensor, the IMU and the stance ankle: the constant transforms of those chains are taken from the
+pinocchio model once, so each point costs a few rotations of 3-vectors about the joint axes
+instead of a full ``forwardKinematics`` on numpy arrays. Revolute (also continuous) and
+prismatic joints are handled this way, and the chains are checked against pinocchio when built;
+a model with other joint types, or a base link that moves with the joints, falls back to
+pinocchio's forward kinematics. The pose methods (:meth:`TofKinematics.T_base_sensor`, ...) use
+pinocchio.
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
 from exobench.core.calibration import Calibration
 from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.core.frames import ImuSample, JointState
-from exobench.core.transforms import quat_wxyz_to_matrix
 
 __all__ = ["ESTIMATOR_FRAME", "TofKinematics"]
 
 ESTIMATOR_FRAME = "stance_ground"
+
+# a chain step: ("c", R (9 floats, row-major) or None for identity, t (3 floats)) is a constant
+# transform; ("r", joint name, axis (3 floats)) a revolute joint; ("a", joint name, (i, j, sign))
+# a revolute joint about +-axis k (rotating coordinates i, j); ("p", joint name, axis) prismatic.
+_Step = tuple
+
+
+def _compile_chain(steps: list[_Step], points: list[list[float]], dirs: list[list[float]]) -> Callable[..., tuple[float, ...]]:
+    """Straight-line Python for mapping constant vectors through ``steps`` to the base frame.
+
+    Returns ``f(angles)`` (joint positions by name, 0 when missing) -> the mapped ``points``
+    (rotated and translated) then ``dirs`` (rotated), 3 floats each. The chain is written out
+    once with its constants inlined because a generic loop over steps and vectors costs several
+    times the arithmetic (the same reason ``dataclasses`` generates its methods).
+    """
+    vecs = [*points, *dirs]
+    n_pts = len(points)
+    lines = ["def chain(angles):"]
+    for i, (x, y, z) in enumerate(vecs):
+        lines.append(f"    x{i}, y{i}, z{i} = {float(x)!r}, {float(y)!r}, {float(z)!r}")
+    for kind, a, b in steps:
+        if kind == "c":
+            tx, ty, tz = (float(v) for v in b)
+            for i in range(len(vecs)):
+                tr = (f" + {tx!r}", f" + {ty!r}", f" + {tz!r}") if i < n_pts else ("", "", "")
+                if a is not None:
+                    r = [repr(float(v)) for v in a]
+                    lines.append(
+                        f"    x{i}, y{i}, z{i} = {r[0]} * x{i} + {r[1]} * y{i} + {r[2]} * z{i}{tr[0]}, "
+                        f"{r[3]} * x{i} + {r[4]} * y{i} + {r[5]} * z{i}{tr[1]}, "
+                        f"{r[6]} * x{i} + {r[7]} * y{i} + {r[8]} * z{i}{tr[2]}"
+                    )
+                elif i < n_pts and (tx, ty, tz) != (0.0, 0.0, 0.0):
+                    lines.append(f"    x{i}, y{i}, z{i} = x{i}{tr[0]}, y{i}{tr[1]}, z{i}{tr[2]}")
+        elif kind == "a":  # about +-axis k: coordinates (i, j) rotate
+            i_ax, j_ax, sign = b
+            lines.append(f"    q = angles.get({a!r}, 0.0)")
+            lines.append("    c, s = cos(q), sin(q)")
+            for i in range(len(vecs)):
+                u, w = ("xyz"[i_ax] + str(i)), ("xyz"[j_ax] + str(i))
+                if sign > 0:
+                    lines.append(f"    {u}, {w} = c * {u} - s * {w}, s * {u} + c * {w}")
+                else:
+                    lines.append(f"    {u}, {w} = c * {u} + s * {w}, c * {w} - s * {u}")
+        elif kind == "r":  # Rodrigues about the unit axis k
+            kx, ky, kz = (repr(float(v)) for v in b)
+            lines.append(f"    q = angles.get({a!r}, 0.0)")
+            lines.append("    c, s = cos(q), sin(q)")
+            lines.append("    omc = 1.0 - c")
+            for i in range(len(vecs)):
+                x, y, z = f"x{i}", f"y{i}", f"z{i}"
+                lines.append(f"    d = ({kx} * {x} + {ky} * {y} + {kz} * {z}) * omc")
+                lines.append(
+                    f"    {x}, {y}, {z} = c * {x} + s * ({ky} * {z} - {kz} * {y}) + d * {kx}, "
+                    f"c * {y} + s * ({kz} * {x} - {kx} * {z}) + d * {ky}, "
+                    f"c * {z} + s * ({kx} * {y} - {ky} * {x}) + d * {kz}"
+                )
+        else:  # prismatic along the unit axis k
+            kx, ky, kz = (repr(float(v)) for v in b)
+            lines.append(f"    qp = angles.get({a!r}, 0.0)")
+            for i in range(n_pts):
+                lines.append(f"    x{i}, y{i}, z{i} = x{i} + qp * {kx}, y{i} + qp * {ky}, z{i} + qp * {kz}")
+    lines.append("    return (" + "".join(f"x{i}, y{i}, z{i}, " for i in range(len(vecs))) + ")")
+    namespace: dict[str, Any] = {"cos": math.cos, "sin": math.sin}
+    exec(compile("\n".join(lines), "<tof_kinematics chain>", "exec"), namespace)  # noqa: S102
+    return namespace["chain"]
 
 
 class TofKinematics:
@@ -46,9 +127,9 @@ class TofKinematics:
         self._pin = pin
         self.calibration = calibration
         self.stance_side = stance_side
+        self._sole_m = float(calibration.sole_height_m)
         self.model = pin.buildModelFromXML(calibration.robot_urdf)
         self.data = self.model.createData()
-        self._q = self._zero_q()
         self._q_index: dict[str, tuple[int, int]] = {}
         for j in range(1, self.model.njoints):
             jm = self.model.joints[j]
@@ -66,25 +147,24 @@ class TofKinematics:
         self._imu_id = imu_sensor_id
         self._mount_fids = {sid: self._body_frame(m.parent_link) for sid, m in self._mounts.items()}
         self._parent_fids = sorted(set(self._mount_fids.values()))
-        self._R_world_imu: np.ndarray | None = None
+        # state: encoder angles by joint name, IMU orientation as a quaternion or a matrix
+        self._angles: dict[str, float] = {}
         self._have_joints = False
-        self._fk_dirty = True
-        self._sensor_cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # base frame: (p, beam)
-        self._p_b_ankle = np.zeros(3)
-        self._R_world_b: np.ndarray | None = None
+        self._quat: tuple[float, float, float, float] | None = None
+        self._R_wi: tuple[float, ...] | None = None  # R_world_imu, 9 floats row-major
         self.joint_stamp_s = float("-inf")
         self.imu_stamp_s = float("-inf")
-
-    def _zero_q(self) -> np.ndarray:
-        """Configuration with every joint at angle 0 (continuous joints as cos 1, sin 0)."""
-        q = np.array(self._pin.neutral(self.model), dtype=float)
-        for j in range(1, self.model.njoints):
-            jm = self.model.joints[j]
-            if jm.nq == 2:
-                q[jm.idx_q : jm.idx_q + 2] = (1.0, 0.0)
-            elif jm.nq == 1:
-                q[jm.idx_q] = 0.0
-        return q
+        # pinocchio path (pose methods, fallback)
+        self._fk_dirty = True
+        self._sensor_cache: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        self._p_b_ankle = np.zeros(3)
+        self._R_world_b: np.ndarray | None = None
+        # fast path: per-state caches, cleared by new states
+        self._vec_cache: dict[str, tuple[float, ...]] = {}  # sensor -> p_b_sensor - p_b_ankle, beam_b
+        self._ankle_b: tuple[float, ...] | None = None
+        self._R_wb: tuple[float, ...] | None = None
+        self._R_b_imu: tuple[float, ...] | None = None
+        self._fast = self._build_chains()
 
     def _body_frame(self, link: str) -> int:
         if not self.model.existBodyName(link):
@@ -96,43 +176,259 @@ class TofKinematics:
     @property
     def has_state(self) -> bool:
         """True once both an encoder state and an IMU orientation were received."""
-        return self._have_joints and self._R_world_imu is not None
+        return self._have_joints and (self._quat is not None or self._R_wi is not None)
 
     def set_joints(self, positions_rad: dict[str, float]) -> None:
         """Set encoder angles by joint name; unknown names are ignored, missing ones keep 0."""
-        q = self._zero_q()
-        for name, value in positions_rad.items():
-            idx = self._q_index.get(name)
-            if idx is None:
-                continue
-            i, nq = idx
-            if nq == 1:
-                q[i] = value
-            else:
-                q[i : i + 2] = (np.cos(value), np.sin(value))
-        self._q = q
+        known = self._q_index
+        self._angles = {name: float(v) for name, v in positions_rad.items() if name in known}
         self._have_joints = True
-        self._fk_dirty = True
+        self._joints_changed()
 
     def update_joints(self, state: JointState) -> None:
         """Take the encoder angles of a :class:`JointState`."""
-        self.set_joints(dict(zip(state.names, np.asarray(state.position_rad, dtype=float).ravel(), strict=False)))
+        pos = state.position_rad
+        values = pos.ravel().tolist() if isinstance(pos, np.ndarray) else [float(v) for v in pos]
+        self.set_joints(dict(zip(state.names, values, strict=False)))
         self.joint_stamp_s = float(state.stamp_s)
 
     def set_orientation(self, R_world_imu: np.ndarray) -> None:
         """Set the IMU orientation ``R_world_imu`` (3x3)."""
-        self._R_world_imu = np.asarray(R_world_imu, dtype=float).reshape(3, 3)
-        self._R_world_b = None
+        self._R_wi = tuple(np.asarray(R_world_imu, dtype=float).reshape(9).tolist())
+        self._quat = None
+        self._imu_changed()
 
     def update_imu(self, sample: ImuSample) -> None:
-        """Take the orientation of an :class:`ImuSample` (``quat_wxyz`` is ``R_world_imu``)."""
-        self.set_orientation(quat_wxyz_to_matrix(sample.quat_wxyz))
+        """Take the orientation of an :class:`ImuSample` (``quat_wxyz`` is ``R_world_imu``).
+
+        Only stored: the rotation matrix is formed when a point needs it.
+        """
+        w, x, y, z = np.asarray(sample.quat_wxyz, dtype=float).reshape(4).tolist()
+        self._quat = (w, x, y, z)
+        self._R_wi = None
+        self._imu_changed()
         self.imu_stamp_s = float(sample.stamp_s)
 
-    # --- kinematics ---
+    def _joints_changed(self) -> None:
+        self._fk_dirty = True
+        self._vec_cache = {}
+        self._ankle_b = None
+        if self._imu_moves:
+            self._R_wb = None
+            self._R_b_imu = None
+
+    def _imu_changed(self) -> None:
+        self._R_world_b = None
+        self._R_wb = None
+
+    def _R_world_imu9(self) -> tuple[float, ...]:
+        """``R_world_imu`` (9 floats) of the latest orientation (normalised quaternion)."""
+        R = self._R_wi
+        if R is None:
+            w, x, y, z = self._quat  # type: ignore[misc]
+            norm = math.sqrt(w * w + x * x + y * y + z * z)
+            w, x, y, z = w / norm, x / norm, y / norm, z / norm
+            R = self._R_wi = (
+                1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
+            )  # fmt: skip
+        return R
+
+    # --- chains of the fast path ---
+    def _se3(self, M: object) -> tuple[tuple[float, ...] | None, tuple[float, float, float]]:
+        R = np.asarray(M.rotation, dtype=float)  # type: ignore[attr-defined]
+        t = tuple(np.asarray(M.translation, dtype=float).tolist())  # type: ignore[attr-defined]
+        return (None if np.array_equal(R, np.eye(3)) else tuple(R.reshape(9).tolist())), t  # type: ignore[return-value]
+
+    def _motion_step(self, j: int) -> _Step | None:
+        """The chain step of joint ``j``, None for a joint type the fast path does not handle."""
+        jm = self.model.joints[j]
+        if jm.nv != 1 or jm.nq not in (1, 2):
+            return None
+        jd = jm.createData()
+        q0 = np.zeros(jm.nq)
+        if jm.nq == 2:
+            q0[0] = 1.0
+        jm.calc(jd, q0)
+        S = np.asarray(jd.S, dtype=float).ravel()  # (linear, angular)
+        lin, ang = S[:3], S[3:]
+        name = self.model.names[j]
+        if np.all(lin == 0.0) and abs(np.linalg.norm(ang) - 1.0) < 1e-12:
+            nz = np.flatnonzero(ang)
+            if len(nz) == 1 and abs(ang[nz[0]]) == 1.0:
+                k = int(nz[0])
+                return ("a", name, ((k + 1) % 3, (k + 2) % 3, float(ang[k])))
+            return ("r", name, tuple(ang.tolist()))
+        if np.all(ang == 0.0) and abs(np.linalg.norm(lin) - 1.0) < 1e-12 and jm.nq == 1:
+            return ("p", name, tuple(lin.tolist()))
+        return None
+
+    def _chain(self, joint: int) -> list[_Step] | None:
+        """Steps mapping vectors of joint ``joint``'s frame (after its motion) to the base frame."""
+        model = self.model
+        base = model.frames[self._base_fid]
+        if base.parentJoint != 0:
+            return None  # the base moves with the joints: not handled by the fast path
+        T_base_universe = base.placement.inverse()
+        steps: list[_Step] = []
+        j = joint
+        while j > 0:
+            m = self._motion_step(j)
+            if m is None:
+                return None
+            steps.append(m)
+            placement = model.jointPlacements[j]
+            j = model.parents[j]
+            if j == 0:
+                placement = T_base_universe * placement
+            steps.append(("c", *self._se3(placement)))
+        if joint == 0:
+            steps.append(("c", *self._se3(T_base_universe)))
+        return steps
+
+    def _build_chains(self) -> bool:
+        """Compile the chains of the IMU, the stance ankle and the ToF mounts; check them.
+
+        Other mounts are compiled when a point of theirs is first asked for. False (use
+        pinocchio for everything) when one of these chains cannot be compiled or disagrees with
+        pinocchio.
+        """
+        model = self.model
+        self._imu_moves = True
+        self._mount_fn: dict[str, Callable[..., tuple[float, ...]] | None] = {}  # -> p_b_sensor, beam_b
+        imu_frame = model.frames[self._mount_fids[self._imu_id]]
+        chain = self._chain(imu_frame.parentJoint)
+        if chain is None:
+            return False
+        T = imu_frame.placement.homogeneous @ np.asarray(self._mounts[self._imu_id].T_parent_sensor, dtype=float)
+        self._imu_fn = _compile_chain(chain, [], T[:3, :3].T.tolist())  # -> columns of R_b_imu
+        self._imu_moves = any(step[0] != "c" for step in chain)
+        kind, idx = self._ankle
+        if kind == "joint":
+            chain, leaf = self._chain(idx), [0.0, 0.0, 0.0]
+        else:
+            frame = model.frames[idx]
+            chain, leaf = self._chain(frame.parentJoint), np.asarray(frame.placement.translation).tolist()
+        if chain is None:
+            return False
+        self._ankle_fn = _compile_chain(chain, [leaf], [])
+        checks = [
+            (lambda: self._ankle_fn(self._angles), lambda: self._p_b_ankle),
+            (
+                lambda: np.reshape(self._imu_fn(self._angles), (3, 3)).T.ravel(),
+                lambda: self.T_base_sensor(self._imu_id)[:3, :3].ravel(),
+            ),
+        ]
+        for sid in (m.sensor_id for m in self._mounts.values() if m.kind == "tof"):
+            fn = self._mount_fn[sid] = self._compile_mount(sid)
+            if fn is None:
+                return False
+            checks.append(self._mount_check(sid, fn))
+        return self._agrees(checks)
+
+    def _compile_mount(self, sensor_id: str) -> Callable[..., tuple[float, ...]] | None:
+        """Chain of a mount's position and +z axis in the base frame, None if not compilable."""
+        frame = self.model.frames[self._mount_fids[sensor_id]]
+        chain = self._chain(frame.parentJoint)
+        if chain is None:
+            return None
+        T = frame.placement.homogeneous @ np.asarray(self._mounts[sensor_id].T_parent_sensor, dtype=float)
+        return _compile_chain(chain, [T[:3, 3].tolist()], [T[:3, 2].tolist()])
+
+    def _mount_check(self, sensor_id: str, fn: Callable[..., tuple[float, ...]]) -> tuple[Callable[[], Any], Callable[[], Any]]:
+        def slow() -> list[float]:
+            T = self.T_base_sensor(sensor_id)
+            return [*T[:3, 3], *T[:3, 2]]
+
+        return (lambda: fn(self._angles)), slow
+
+    def _agrees(self, checks: list[tuple[Callable[[], Any], Callable[[], Any]]]) -> bool:
+        """Whether each (compiled, pinocchio) pair agrees to 1e-9 at a few random configurations."""
+        rng = np.random.default_rng(0)
+        saved = (self._angles, self._have_joints)
+        ok = True
+        for _ in range(3):
+            self.set_joints({name: float(rng.uniform(-1.0, 1.0)) for name in self._q_index})
+            self._forward()
+            ok = ok and all(np.allclose(fast(), slow(), rtol=0.0, atol=1e-9) for fast, slow in checks)
+        self._angles, self._have_joints = saved
+        self._joints_changed()
+        return bool(ok)
+
+    def _mount_function(self, sensor_id: str) -> Callable[..., tuple[float, ...]] | None:
+        """The compiled chain of a mount (compiled and checked on first use); None: pinocchio."""
+        try:
+            return self._mount_fn[sensor_id]
+        except KeyError:
+            pass
+        if sensor_id not in self._mounts:
+            raise UnknownNameError("sensor", sensor_id, self._mounts)
+        fn = self._compile_mount(sensor_id)
+        if fn is not None and not self._agrees([self._mount_check(sensor_id, fn)]):
+            fn = None
+        self._mount_fn[sensor_id] = fn
+        return fn
+
+    def _ankle_vec(self) -> tuple[float, ...]:
+        """``p_b_ankle`` at the current encoder angles (fast path, cached per state)."""
+        a = self._ankle_b
+        if a is None:
+            a = self._ankle_b = self._ankle_fn(self._angles)
+        return a
+
+    def _R_world_base9(self) -> tuple[float, ...]:
+        """``R_world_b = R_world_imu @ R_b_imu^T`` (9 floats, fast path, cached per state)."""
+        R = self._R_wb
+        if R is None:
+            C = self._R_b_imu
+            if C is None:
+                # C[3k + j] = R_b_imu[j][k]: column k of R_b_imu is IMU axis k in the base frame
+                C = self._R_b_imu = self._imu_fn(self._angles)
+            a0, a1, a2, a3, a4, a5, a6, a7, a8 = self._R_world_imu9()
+            c0, c1, c2, c3, c4, c5, c6, c7, c8 = C
+            # (R_world_imu @ R_b_imu^T)[i][j] = sum_k R_world_imu[i][k] R_b_imu[j][k]
+            R = self._R_wb = (
+                a0 * c0 + a1 * c3 + a2 * c6, a0 * c1 + a1 * c4 + a2 * c7, a0 * c2 + a1 * c5 + a2 * c8,
+                a3 * c0 + a4 * c3 + a5 * c6, a3 * c1 + a4 * c4 + a5 * c7, a3 * c2 + a4 * c5 + a5 * c8,
+                a6 * c0 + a7 * c3 + a8 * c6, a6 * c1 + a7 * c4 + a8 * c7, a6 * c2 + a7 * c5 + a8 * c8,
+            )  # fmt: skip
+        return R
+
+    def _sensor_vecs(self, sensor_id: str) -> tuple[float, ...]:
+        """``p_b_sensor - p_b_ankle`` and the beam ``R_b_sensor[:, 2]`` (6 floats, cached per state)."""
+        v = self._vec_cache.get(sensor_id)
+        if v is None:
+            fn = self._mount_function(sensor_id)
+            if fn is None:
+                px, py, pz, bx, by, bz = self._pin_vecs(sensor_id)
+            else:
+                px, py, pz, bx, by, bz = fn(self._angles)
+            ax, ay, az = self._ankle_vec()
+            v = self._vec_cache[sensor_id] = (px - ax, py - ay, pz - az, bx, by, bz)
+        return v
+
+    # --- kinematics (pinocchio) ---
+    def _pin_q(self) -> np.ndarray:
+        """Pinocchio configuration of the current angles (continuous joints as cos, sin)."""
+        q = np.array(self._pin.neutral(self.model), dtype=float)
+        for j in range(1, self.model.njoints):
+            jm = self.model.joints[j]
+            if jm.nq == 2:
+                q[jm.idx_q : jm.idx_q + 2] = (1.0, 0.0)
+            elif jm.nq == 1:
+                q[jm.idx_q] = 0.0
+        for name, value in self._angles.items():
+            i, nq = self._q_index[name]
+            if nq == 1:
+                q[i] = value
+            else:
+                q[i : i + 2] = (np.cos(value), np.sin(value))
+        return q
+
     def _forward(self) -> None:
         pin = self._pin
-        pin.forwardKinematics(self.model, self.data, self._q)
+        pin.forwardKinematics(self.model, self.data, self._pin_q())
         pin.updateFramePlacements(self.model, self.data)
         base = self.data.oMf[self._base_fid]
         R_ob, p_ob = np.array(base.rotation), np.array(base.translation)  # universe <- base
@@ -160,13 +456,13 @@ class TofKinematics:
 
     def R_world_base(self) -> np.ndarray:
         """``R_world_b = R_world_imu @ R_b_imu^T`` at the current state."""
-        if self._R_world_imu is None:
+        if self._quat is None and self._R_wi is None:
             raise ValueError("no IMU orientation yet")
         if self._fk_dirty:
             self._forward()
         if self._R_world_b is None:
             R_b_imu = self.T_base_sensor(self._imu_id)[:3, :3]
-            self._R_world_b = self._R_world_imu @ R_b_imu.T
+            self._R_world_b = np.array(self._R_world_imu9()).reshape(3, 3) @ R_b_imu.T
         return self._R_world_b
 
     def T_estimator_sensor(self, sensor_id: str) -> np.ndarray:
@@ -175,13 +471,15 @@ class TofKinematics:
         T_bs = self.T_base_sensor(sensor_id)
         T = np.eye(4)
         T[:3, :3] = R @ T_bs[:3, :3]
-        T[:3, 3] = R @ (T_bs[:3, 3] - self._p_b_ankle) + np.array([0.0, 0.0, self.calibration.sole_height_m])
+        T[:3, 3] = R @ (T_bs[:3, 3] - self._p_b_ankle) + np.array([0.0, 0.0, self._sole_m])
         return T
 
-    def point(self, sensor_id: str, range_m: float) -> np.ndarray:
-        """Point hit by the beam of ``sensor_id`` at ``range_m``, in ``stance_ground``, (3,)."""
-        if not self.has_state:
-            raise ValueError("no encoder or IMU state yet")
+    def _pin_vecs(self, sensor_id: str) -> list[float]:
+        """``p_b_sensor`` and the beam ``R_b_sensor[:, 2]`` by pinocchio (6 floats)."""
+        T = self.T_base_sensor(sensor_id)
+        return [*T[:3, 3].tolist(), *T[:3, 2].tolist()]
+
+    def _point_pin(self, sensor_id: str, range_m: float) -> np.ndarray:
         R = self.R_world_base()
         cached = self._sensor_cache.get(sensor_id)
         if cached is None:
@@ -190,5 +488,23 @@ class TofKinematics:
             self._sensor_cache[sensor_id] = cached
         p_b, beam_b = cached
         p = R @ (p_b + float(range_m) * beam_b)
-        p[2] += self.calibration.sole_height_m
+        p[2] += self._sole_m
         return p
+
+    # --- points ---
+    def point_xyz(self, sensor_id: str, range_m: float) -> tuple[float, float, float]:
+        """Point hit by the beam of ``sensor_id`` at ``range_m``, in ``stance_ground``, as floats."""
+        if not self.has_state:
+            raise ValueError("no encoder or IMU state yet")
+        if not self._fast:
+            x, y, z = self._point_pin(sensor_id, range_m).tolist()
+            return x, y, z
+        px, py, pz, bx, by, bz = self._sensor_vecs(sensor_id)
+        r = float(range_m)
+        vx, vy, vz = px + r * bx, py + r * by, pz + r * bz
+        a0, a1, a2, a3, a4, a5, a6, a7, a8 = self._R_world_base9()
+        return a0 * vx + a1 * vy + a2 * vz, a3 * vx + a4 * vy + a5 * vz, a6 * vx + a7 * vy + a8 * vz + self._sole_m
+
+    def point(self, sensor_id: str, range_m: float) -> np.ndarray:
+        """Point hit by the beam of ``sensor_id`` at ``range_m``, in ``stance_ground``, (3,)."""
+        return np.array(self.point_xyz(sensor_id, range_m))

@@ -91,12 +91,20 @@ def tiny_calibration(joints=JOINTS, mounts=MOUNTS):
 
 
 def chain_T(link, q, joints=JOINTS):
-    """T_pelvis_link at joint angles q (dict) by composing the URDF joints in numpy."""
+    """T_pelvis_link at joint angles q (dict) by composing the URDF joints in numpy.
+
+    A floating joint stays at its neutral pose (the encoders do not report it).
+    """
     by_child = {j[2]: j for j in joints}
     T = np.eye(4)
     while link != "pelvis":
         name, parent, _, xyz, rpy, axis, kind = by_child[link]
-        motion = _T(np.eye(3), q.get(name, 0.0) * np.asarray(axis, float)) if kind == "prismatic" else _T(_rot(axis, q.get(name, 0.0)), np.zeros(3))
+        if kind == "floating":
+            motion = np.eye(4)
+        elif kind == "prismatic":
+            motion = _T(np.eye(3), q.get(name, 0.0) * np.asarray(axis, float))
+        else:
+            motion = _T(_rot(axis, q.get(name, 0.0)), np.zeros(3))
         T = _T(_rpy(*rpy), xyz) @ motion @ T
         link = parent
     return T
@@ -199,3 +207,46 @@ def test_with_the_exoskeleton_calibration_of_models():
         for sid in ("tof_r_med", "tof_r_lat"):
             r = float(rng.uniform(0.04, 2.0))
             np.testing.assert_allclose(kin.point(sid, r), expected_point(cal, q, R_wi, sid, r, "l", joints=joints), atol=1e-9, rtol=0)
+
+
+def test_joint_types_without_a_compiled_chain_use_pinocchio():
+    # the calf sensors ride on a floating joint: the float chains do not handle it
+    joints = JOINTS + [("float_r", "shank_r", "calf_r", (0.0, 0.01, -0.1), (0.0, 0.02, 0.0), (0, 0, 1), "floating")]
+    mounts = tuple(
+        SensorMount(m.sensor_id, m.kind, "calf_r" if m.parent_link == "shank_r" else m.parent_link, m.T_parent_sensor)
+        for m in MOUNTS
+    )
+    cal = tiny_calibration(joints, mounts)
+    kin = TofKinematics(cal, stance_side="l")
+    rng = np.random.default_rng(8)
+    for _ in range(5):
+        q = {j[0]: float(rng.uniform(-1.0, 1.0)) for j in JOINTS}
+        R_wi = _random_rotation(rng)
+        kin.set_joints(q)
+        kin.set_orientation(R_wi)
+        for sid in ("tof_r_med", "tof_l_lat"):
+            r = float(rng.uniform(0.04, 2.0))
+            want = expected_point(cal, q, R_wi, sid, r, "l", joints=joints)
+            np.testing.assert_allclose(kin.point(sid, r), want, atol=1e-9, rtol=0)
+            assert kin.point_xyz(sid, r) == tuple(kin.point(sid, r))
+
+
+def test_points_follow_new_states_and_cover_every_mount():
+    """Lazy kinematics: each new encoder or IMU state is used by the next point, for any mount."""
+    cal = tiny_calibration()
+    kin = TofKinematics(cal, stance_side="r")
+    rng = np.random.default_rng(9)
+    q = {j[0]: float(rng.uniform(-1.0, 1.0)) for j in JOINTS}
+    R_wi = _random_rotation(rng)
+    kin.set_joints(q)
+    kin.update_imu(ImuSample(0.0, "imu_trunk", _quat_wxyz(R_wi), np.zeros(3), np.zeros(3)))
+    for step in range(6):
+        for sid in [m.sensor_id for m in MOUNTS]:  # the IMU mounts too: any mount's +z axis
+            want = expected_point(cal, q, R_wi, sid, 0.3, "r")
+            np.testing.assert_allclose(kin.point(sid, 0.3), want, atol=1e-9, rtol=0)
+        if step % 2:
+            q = dict(q, knee_r=q["knee_r"] + 0.1, hip_l=q["hip_l"] - 0.05)
+            kin.update_joints(JointState(0.01 * step, "encoders", tuple(q), np.array(list(q.values()))))
+        else:
+            R_wi = _rot([0.0, 0.0, 1.0], 0.1) @ R_wi
+            kin.update_imu(ImuSample(0.01 * step, "imu_trunk", _quat_wxyz(R_wi), np.zeros(3), np.zeros(3)))
