@@ -74,10 +74,10 @@ class ExoSpec:
     user_height_m: float = 1.75
     user_mass_kg: float = 75.0
     exo_mass_kg: float = 14.0
-    tof_height_m: float = 0.26
+    tof_height_m: float = 0.32
     tof_forward_m: float = 0.06
     tof_separation_m: float = 0.08
-    tof_pitch_deg: float = 34.0
+    tof_pitch_deg: float = 46.0
     tof_toe_out_deg: float = 4.0
     camera_pitch_deg: float = 30.0
 

@@ -1,0 +1,65 @@
+"""The stairs track meets the issue's accuracy targets on a small suite run through the CLI.
+
+Scored against the simulator's exact ground truth; the thresholds are the published figures
+of the staircase paper (S2 alpha < 3 deg and d < 3 mm in cases A and B, touch-down elevation
+error < 1 cm in every pose, riser and tread errors below 5 %) and, with every sensor noise
+off, the tighter alpha < 0.5 deg.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from exobench.benchmarks.cli import cli
+
+NOISE_OFF = ["tof_noise_m=0", "imu_noise_scale=0", "imu_orientation_deg=0", "encoder_noise_rad=0"]
+
+
+def _run(tmp_path, name, sets=()):
+    out = tmp_path / name
+    args = ["run", "quick", "--pipeline", "rtls", "--pipeline", "rtls-htvr", "--out", str(out), "--no-report"]
+    for s in sets:
+        args += ["--set", s]
+    result = CliRunner().invoke(cli, args, catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    return [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+
+
+@pytest.fixture(scope="module")
+def noisy(tmp_path_factory):
+    return _run(tmp_path_factory.mktemp("targets"), "noisy")
+
+
+def test_every_episode_identifies_s2_and_touchdown_error_below_1cm(noisy):
+    assert len(noisy) == 12
+    for r in noisy:
+        m = r["metrics"]
+        assert not m["failed"], (r["episode"], r["pipeline"], m.get("failure"))
+        assert abs(m["touchdown_error_m"]) < 0.01, (r["episode"], r["pipeline"])
+
+
+def test_cases_a_and_b_meet_the_published_s2_figures(noisy):
+    for r in noisy:
+        if r["episode"].split("/")[0] in ("A", "B"):
+            m = r["metrics"]
+            assert m["alpha_deg_S2"] < 3.0 and abs(m["d_m_S2"]) < 3e-3, (r["episode"], r["pipeline"])
+
+
+def test_riser_and_tread_errors_below_5_percent_on_average(noisy):
+    for pipe in ("rtls", "rtls-htvr"):
+        rows = [r["metrics"] for r in noisy if r["pipeline"] == pipe]
+        risers = [m["riser_error_pct"] for m in rows if m["riser_error_pct"] is not None]
+        treads = [m["tread_error_pct"] for m in rows if m["tread_error_pct"] is not None]
+        assert len(risers) >= 5 and sum(risers) / len(risers) < 5.0, pipe
+        assert len(treads) >= 3 and sum(treads) / len(treads) < 5.0, pipe
+
+
+def test_without_noise_s2_orientation_is_within_half_a_degree(tmp_path):
+    for r in _run(tmp_path, "quiet", NOISE_OFF):
+        m = r["metrics"]
+        assert not m["failed"], (r["episode"], r["pipeline"])
+        assert m["alpha_deg_S2"] < 0.5 and abs(m["d_m_S2"]) < 1e-3, (r["episode"], r["pipeline"])
+        assert m["riser_error_pct"] is None or m["riser_error_pct"] < 5.0
