@@ -45,13 +45,16 @@ def _surface_streams(episode: Episode) -> tuple[list[np.ndarray], np.ndarray]:
     return streams, np.asarray(est.compute_time_s, dtype=float)
 
 
-def _time_sequence(pts: np.ndarray) -> tuple[list[float], list[float]]:
-    """Per point: seconds of the recursive update and of a batch refit on all points so far."""
+def _time_sequence(pts: np.ndarray, first: int = 0) -> tuple[list[float], list[float]]:
+    """Per point from ``first`` on: seconds of the recursive update and of a batch refit on all
+    points so far (the points before ``first`` are added untimed)."""
     from exobench.perception.rtls import RtlsPlane
 
     rec_t, batch_t = [], []
     plane = RtlsPlane()
-    for k in range(len(pts)):
+    for p in pts[:first]:
+        plane.add(p)
+    for k in range(first, len(pts)):
         t0 = time.perf_counter()
         plane.add(pts[k])
         _ = plane.normal, plane.sigma_m
@@ -72,27 +75,11 @@ def _scaling(sizes: tuple[int, ...] = (100, 1000, 10000), probes: int = 50) -> d
     points a surface has collected (the protocol's surfaces hold about 10-100; a slow approach,
     a faster sensor or a longer stair hold more).
     """
-    from exobench.perception.rtls import RtlsPlane
-
     rng = np.random.default_rng(0)
     out = {}
     for n in sizes:
         pts = np.column_stack([rng.uniform(0, 0.3, n), rng.uniform(-0.1, 0.1, n), 0.162 + rng.normal(0, 1.5e-3, n)])
-        plane = RtlsPlane()
-        for p in pts[: n - probes]:
-            plane.add(p)
-        rec, bat = [], []
-        for k in range(n - probes, n):
-            t0 = time.perf_counter()
-            plane.add(pts[k])
-            _ = plane.normal, plane.sigma_m
-            rec.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
-            P = pts[: k + 1]
-            c = P.mean(axis=0)
-            _, sv, vt = np.linalg.svd(P - c, full_matrices=False)
-            _ = vt[-1], sv[-1] / np.sqrt(k + 1)
-            bat.append(time.perf_counter() - t0)
+        rec, bat = _time_sequence(pts, first=n - probes)
         r, b = float(np.median(rec) * 1e6), float(np.median(bat) * 1e6)
         out[str(n)] = {"rtls_us": r, "batch_us": b, "batch_over_rtls": b / r}
     return out
