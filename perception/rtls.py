@@ -36,6 +36,7 @@ numpy expression ``V - outer(m, m) / n`` and decomposed by the same LAPACK routi
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 
 import numpy as np
 
@@ -65,7 +66,7 @@ def _eigh_function():
 _eigh = _eigh_function()
 
 
-class PlaneFit:
+class PlaneFit(ABC):
     """Common recursion: count, reference point, first and second moments of ``p - c``.
 
     Subclasses choose which coordinates enter the scatter (``_dims``), update the second moments
@@ -83,18 +84,21 @@ class PlaneFit:
         self._cache: tuple[float, float, float, float] | None = None  # nx, ny, nz, sigma
 
     # --- subclass hooks ---
+    @abstractmethod
     def _clear_moments(self) -> None:
-        raise NotImplementedError
+        """Subclass hook (see the class docstring)."""
 
+    @abstractmethod
     def _moments(self, dx: float, dy: float, dz: float, sign: float) -> None:
-        raise NotImplementedError
+        """Subclass hook (see the class docstring)."""
 
+    @abstractmethod
     def _solve(self) -> tuple[float, float, float, float]:
-        raise NotImplementedError
+        """Subclass hook (see the class docstring)."""
 
+    @abstractmethod
     def scatter(self) -> np.ndarray:
         """``M_p^T M_p = V - n e e^T`` (eq. 11) over the fitted coordinates, reference-shifted."""
-        raise NotImplementedError
 
     # --- recursions (eq. 15-18) ---
     def add3(self, x: float, y: float, z: float) -> None:
