@@ -4,16 +4,12 @@ from __future__ import annotations
 
 import json
 
-import pytest
 from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
 from exobench.benchmarks.results import json_safe, read_records
 from exobench.benchmarks.runner import TIMING_METRICS, execute, plan_run, run_pipelines
 from exobench.benchmarks.tracks.stairs import CASES, StairsTrack
-
-pytest.importorskip("exobench.envs.sim")
-pytest.importorskip("exobench.perception.pipelines")
 
 
 def _invoke(args):
