@@ -63,6 +63,8 @@ class ToFConfig:
         fov_deg: full cone angle, deg (27). n_cone_rays: 1 = the central ray only (the paper's
             model); more = a cone of sub-rays mixed by return strength (cos(incidence) / r^2).
         resolution_m: output quantisation, m (1e-3: the ULD API reports millimetres; 0 = off).
+        sigma_limit_m: with a cone, readings whose sub-ranges spread more than this are flagged
+            SIGMA_FAIL (the range is still reported) [A: 0.05].
     """
 
     rate_hz: float = 50.0
@@ -74,6 +76,7 @@ class ToFConfig:
     fov_deg: float = 27.0
     n_cone_rays: int = 1
     resolution_m: float = 1e-3
+    sigma_limit_m: float = 0.05
 
     def __post_init__(self) -> None:
         _common("tof", self.rate_hz, self.latency_s, self.dropout_prob)
@@ -83,6 +86,7 @@ class ToFConfig:
         check_range("tof.fov_deg", self.fov_deg, 0.0, 90.0)
         object.__setattr__(self, "n_cone_rays", _int("tof.n_cone_rays", self.n_cone_rays, 1, 256))
         check_range("tof.resolution_m", self.resolution_m, 0.0, 0.05)
+        check_range("tof.sigma_limit_m", self.sigma_limit_m, 0.0, 1.0, low_open=True)
 
 
 @dataclass(frozen=True)
