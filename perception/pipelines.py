@@ -48,7 +48,16 @@ from .rtls import PlaneFit, RtlsPlane
 from .staircase import FLAGS, StaircaseAlgorithm, StaircaseParams
 from .tof_kinematics import ESTIMATOR_FRAME, TofKinematics
 
-__all__ = ["BatchRansacStairs", "RtlsHtvrStairs", "RtlsStairs", "ransac_plane", "sensor_flags"]
+__all__ = [
+    "BatchRansacStairs",
+    "RtlsHtvrStairs",
+    "RtlsStairs",
+    "ScanCloud",
+    "connected_ransac_plane",
+    "connected_support",
+    "sensor_flags",
+    "tls_plane",
+]
 
 
 def sensor_flags(leg: str) -> dict[str, str]:
@@ -60,44 +69,254 @@ def sensor_flags(leg: str) -> dict[str, str]:
     raise ConfigError("leg", leg, "'l' or 'r'")
 
 
-def ransac_plane(
-    points: np.ndarray,
+# --- batch baseline: connected sequential RANSAC on the two beams' scans ----------------------
+@dataclass(frozen=True, eq=False)
+class ScanCloud:
+    """The points of two scanning beams, in arrival order, with what connectivity needs.
+
+    Attributes:
+        points: (N, 3) points.
+        sensor: (N,) beam of each point, 0 or 1.
+        stamps_s: (N,) arrival stamps, non-decreasing per beam.
+        seq: (N,) position of each point in its own beam's sequence (scan order).
+        by_sensor: per beam, the indices of its points in scan order.
+        cell: (N,) id of the point's (beam, voxel) cell for voxels of ``voxel_m``: support is
+            counted in distinct cells, as after a voxel-grid down-sampling, so that the dense
+            spot a beam leaves while it barely moves (the still phase, the end of the swing)
+            weighs no more than a few points of a swept surface.
+    """
+
+    points: np.ndarray
+    sensor: np.ndarray
+    stamps_s: np.ndarray
+    seq: np.ndarray
+    by_sensor: tuple[np.ndarray, np.ndarray]
+    cell: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, sensor: np.ndarray, stamps_s: np.ndarray, voxel_m: float = 0.005) -> ScanCloud:
+        P = np.asarray(points, dtype=float).reshape(-1, 3)
+        s = np.asarray(sensor, dtype=int).reshape(-1)
+        t = np.asarray(stamps_s, dtype=float).reshape(-1)
+        if not len(s) == len(t) == len(P) or not np.all((s == 0) | (s == 1)):
+            raise ConfigError("sensor", f"{len(s)} beams, {len(t)} stamps, {len(P)} points", "one beam (0 or 1) and one stamp per point")
+        check_range("voxel_m", voxel_m, 0.0, None, low_open=True)
+        by = (np.flatnonzero(s == 0), np.flatnonzero(s == 1))
+        seq = np.zeros(len(P), dtype=int)
+        for idx in by:
+            seq[idx] = np.arange(len(idx))
+        keys = np.column_stack([s, np.floor(P / voxel_m).astype(np.int64)]) if len(P) else np.zeros((0, 4), dtype=np.int64)
+        cell = np.unique(keys, axis=0, return_inverse=True)[1].reshape(-1)
+        return cls(P, s, t, seq, by, cell)
+
+    def score(self, indices: np.ndarray) -> int:
+        """Support of the points ``indices``: the number of distinct (beam, voxel) cells."""
+        return len(np.unique(self.cell[indices]))
+
+    def cell_means(self, indices: np.ndarray) -> np.ndarray:
+        """(M, 3) mean of the points ``indices`` in each of their M cells: a voxel-grid
+        down-sampling, which weighs a spot the beam dwelt on like a few swept points."""
+        idx = np.asarray(indices, dtype=int)
+        cells, inv = np.unique(self.cell[idx], return_inverse=True)
+        out = np.zeros((len(cells), 3))
+        np.add.at(out, inv.reshape(-1), self.points[idx])
+        return out / np.bincount(inv.reshape(-1), minlength=len(cells))[:, None]
+
+
+def tls_plane(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Total least squares plane of (N >= 3, 3) points: unit normal, centroid, sigma of distances."""
+    P = np.asarray(points, dtype=float)
+    c = P.mean(axis=0)
+    w, U = np.linalg.eigh((P - c).T @ (P - c))
+    return U[:, 0], c, float(math.sqrt(max(w[0], 0.0) / len(P)))
+
+
+def connected_support(
+    cloud: ScanCloud,
+    inliers: np.ndarray,
+    *,
+    min_run: int,
+    max_gap: int,
+    link_radius_m: float,
+    min_score: int = 1,
+) -> np.ndarray:
+    """Indices (ascending) of the largest connected cluster among the inliers of a plane.
+
+    ``inliers`` is a boolean mask over the cloud. Each beam's inliers are split into runs that
+    are contiguous in its scan order (at most ``max_gap`` of its readings missing inside a run);
+    runs shorter than ``min_run`` are dropped. Runs (of either beam) closer than
+    ``link_radius_m`` at their nearest points are connected; the cluster of connected runs
+    with the highest :meth:`ScanCloud.score` that holds runs of both beams wins (ties: the
+    earliest). The radius must bridge the spacing of the two beams' tracks on a surface and
+    stay below the gap between a tread and the level below it: the accidental planes of a
+    two-beam scan -- through the stair corners, along one beam's own (nearly planar) sweep,
+    or "rolled" through one beam's track on a tread and the other's on the level below --
+    then give only short runs, runs of one beam, or runs too far apart. Empty when no
+    cluster reaches ``min_score``.
+    """
+    runs: list[np.ndarray] = []
+    beams: list[int] = []
+    for b, by in enumerate(cloud.by_sensor):
+        idx = by[inliers[by]]
+        cut = np.flatnonzero(np.diff(cloud.seq[idx]) > max_gap + 1) + 1
+        for r in np.split(idx, cut):
+            if len(r) >= min_run:
+                runs.append(r)
+                beams.append(b)
+    if len(set(beams)) < 2 or cloud.score(np.concatenate(runs)) < min_score:
+        return np.zeros(0, dtype=int)
+    pts = cloud.points[np.concatenate(runs)]
+    starts = np.cumsum([0] + [len(r) for r in runs[:-1]])
+    d2 = np.sum((pts[:, None, :] - pts[None, :, :]) ** 2, axis=2)
+    d2 = np.minimum.reduceat(np.minimum.reduceat(d2, starts, axis=0), starts, axis=1)
+    near = d2 <= link_radius_m**2
+    cluster = list(range(len(runs)))  # union-find over the runs
+    for a, b in zip(*np.nonzero(np.triu(near, 1)), strict=True):
+        ra, rb = _root(cluster, int(a)), _root(cluster, int(b))
+        cluster[max(ra, rb)] = min(ra, rb)
+    best, best_score = np.zeros(0, dtype=int), max(min_score, 1) - 1
+    roots = [_root(cluster, k) for k in range(len(runs))]
+    for root in sorted(set(roots)):
+        members = [k for k in range(len(runs)) if roots[k] == root]
+        if len({beams[k] for k in members}) < 2:
+            continue
+        idx = np.sort(np.concatenate([runs[k] for k in members]))
+        score = cloud.score(idx)
+        if score > best_score:
+            best, best_score = idx, score
+    return best
+
+
+def _root(parent: list[int], k: int) -> int:
+    while parent[k] != k:
+        parent[k] = parent[parent[k]]
+        k = parent[k]
+    return k
+
+
+def _local_samples(cloud: ScanCloud, active: np.ndarray, rng: np.random.Generator, k: int, window: int) -> np.ndarray:
+    """(m <= k, 3) index triples: a random active point, an active point of the same beam within
+    ``window`` readings in scan order, and an active point of the other beam within ``window``
+    readings of the same moment (NAPSAC-style local sampling; invalid draws are dropped)."""
+    pool = np.flatnonzero(active)
+    i = pool[rng.integers(0, len(pool), size=k)]
+    off = np.stack(
+        [rng.integers(1, window + 1, size=k) * np.where(rng.random(k) < 0.5, -1, 1), rng.integers(-window, window + 1, size=k)],
+        axis=1,
+    )
+    s = cloud.sensor[i]
+    j = np.full(k, -1)
+    m = np.full(k, -1)
+    for b in (0, 1):
+        sel = s == b
+        same, other = cloud.by_sensor[b], cloud.by_sensor[1 - b]
+        pj = cloud.seq[i[sel]] + off[sel, 0]
+        ok = (pj >= 0) & (pj < len(same))
+        j[np.flatnonzero(sel)[ok]] = same[pj[ok]]
+        if len(other):
+            pm = np.searchsorted(cloud.stamps_s[other], cloud.stamps_s[i[sel]]) + off[sel, 1]
+            ok = (pm >= 0) & (pm < len(other))
+            m[np.flatnonzero(sel)[ok]] = other[pm[ok]]
+    good = (j >= 0) & (m >= 0)
+    good[good] &= active[j[good]] & active[m[good]]
+    return np.stack([i, j, m], axis=1)[good]
+
+
+def _run_cells_bound(
+    cloud: ScanCloud, act: np.ndarray, inside: np.ndarray, min_run: int, max_gap: int, link: np.ndarray
+) -> np.ndarray:
+    """An upper bound of the score of every hypothesis at once (see :func:`connected_support`).
+
+    ``inside`` holds the inlier masks (columns) of the hypotheses over the points ``act``;
+    ``link`` says which points of beam 0 and beam 1 (rows, columns; in the order of ``act``)
+    are within the link radius. The bound is the number of distinct cells of the inliers in
+    runs of at least ``min_run``, or 0 when no such run of one beam is near one of the other.
+    """
+    k = inside.shape[1]
+    n_cells = int(cloud.cell.max()) + 1 if len(cloud.cell) else 1
+    keys, kept_masks = [], []
+    for b in (0, 1):
+        rows = np.flatnonzero(cloud.sensor[act] == b)
+        col, pos = np.nonzero(inside[rows].T)  # by hypothesis, then scan order
+        seq = cloud.seq[act[rows[pos]]]
+        kept = np.zeros(len(col), dtype=bool)
+        if len(col):
+            run = np.cumsum(np.r_[True, (np.diff(col) != 0) | (np.diff(seq) > max_gap + 1)]) - 1
+            kept = np.bincount(run)[run] >= min_run
+        mask = np.zeros((k, len(rows)))
+        mask[col[kept], pos[kept]] = 1.0
+        kept_masks.append(mask)
+        keys.append(col[kept].astype(np.int64) * n_cells + cloud.cell[act[rows[pos[kept]]]])
+    linked = np.einsum("ij,ij->i", kept_masks[0] @ link, kept_masks[1]) > 0
+    cols = np.unique(np.concatenate(keys)) // n_cells
+    return np.where(linked, np.bincount(cols, minlength=k), 0)
+
+
+def connected_ransac_plane(
+    cloud: ScanCloud,
+    active: np.ndarray,
+    *,
     threshold_m: float,
     iterations: int,
     rng: np.random.Generator,
-    labels: np.ndarray | None = None,
-    min_per_label: int = 0,
-) -> np.ndarray:
-    """Indices of the inliers of the best plane found by RANSAC on ``points`` (N, 3).
+    window: int,
+    min_run: int,
+    max_gap: int,
+    link_radius_m: float,
+    min_score: int = 1,
+    refine_iterations: int = 5,
+) -> tuple[np.ndarray, int]:
+    """The connected support of the best plane among the ``active`` points, and its score.
 
-    Each iteration fits a plane through 3 random points and counts the points closer than
-    ``threshold_m``; the first plane with the most inliers wins (deterministic for a seeded
-    ``rng``). Degenerate samples are skipped. With ``labels`` (one per point), a plane counts
-    only if it has at least ``min_per_label`` inliers of every label: a single ToF beam sweeps
-    a plane of its own (its points on ground, riser and tread are nearly coplanar), which only
-    the other sensor's points can rule out, as Sec. II of the paper explains.
+    RANSAC with local sampling (:func:`_local_samples`); a hypothesis scores the size, in
+    distinct cells (:meth:`ScanCloud.score`), of its :func:`connected_support` among the active
+    points within ``threshold_m``, not its raw inlier count. Every new best is refined
+    (LO-RANSAC): a TLS fit on its support, new inliers, new support, until the support stops
+    growing (at most ``refine_iterations`` times).
+    Hypotheses scoring below ``min_score`` are not examined; none found gives ``([], 0)``.
+    Deterministic for a seeded ``rng``: hypotheses are drawn in chunks and examined in the
+    order of their inliers' distinct cells (ties by draw order), which bound the score.
     """
-    P = np.asarray(points, dtype=float)
-    masks = [] if labels is None else [np.asarray(labels) == v for v in np.unique(labels)]
-    best, best_count = np.zeros(0, dtype=int), 0
+    P = cloud.points
+    support_kw = {"min_run": min_run, "max_gap": max_gap, "link_radius_m": link_radius_m}
+    best, best_score = np.zeros(0, dtype=int), max(min_score, 1) - 1
+    if np.count_nonzero(active) < 3:
+        return best, 0
+
+    def support_of(normal: np.ndarray, point: np.ndarray, need: int) -> np.ndarray:
+        inliers = active & (np.abs((P - point) @ normal) <= threshold_m)
+        return connected_support(cloud, inliers, min_score=need, **support_kw)
+
+    act = np.flatnonzero(active)
+    beam = cloud.sensor[act]
+    d2 = np.sum((P[act[beam == 0], None, :] - P[None, act[beam == 1], :]) ** 2, axis=2)
+    link = (d2 <= link_radius_m**2).astype(float)
     for start in range(0, iterations, 256):  # chunks bound the (N x chunk) distance matrix
-        k = min(256, iterations - start)
-        idx = rng.integers(0, len(P), size=(k, 3))
-        a, b, c = P[idx[:, 0]], P[idx[:, 1]], P[idx[:, 2]]
+        tri = _local_samples(cloud, active, rng, min(256, iterations - start), window)
+        if not len(tri):
+            continue
+        a, b, c = P[tri[:, 0]], P[tri[:, 1]], P[tri[:, 2]]
         n = np.cross(b - a, c - a)
         norm = np.linalg.norm(n, axis=1)
-        ok = norm > 1e-12
-        if not np.any(ok):
-            continue
+        ok = norm > 1e-9
         n, a = n[ok] / norm[ok, None], a[ok]
-        inside = np.abs(P @ n.T - np.sum(n * a, axis=1)) <= threshold_m
-        counts = inside.sum(axis=0)
-        for m in masks:
-            counts = np.where(inside[m].sum(axis=0) >= min_per_label, counts, 0)
-        j = int(np.argmax(counts))
-        if counts[j] > best_count:
-            best, best_count = np.flatnonzero(inside[:, j]), int(counts[j])
-    return best
+        inside = np.abs(P[act] @ n.T - np.sum(n * a, axis=1)) <= threshold_m
+        bound = _run_cells_bound(cloud, act, inside, min_run, max_gap, link)
+        for h in np.argsort(-bound, kind="stable"):
+            if bound[h] <= best_score:
+                break
+            sup = support_of(n[h], a[h], best_score + 1)
+            if not len(sup):
+                continue
+            score = cloud.score(sup)
+            for _ in range(refine_iterations):  # local optimisation of the new best
+                normal, centroid, _s = tls_plane(cloud.cell_means(sup))
+                grown = support_of(normal, centroid, score + 1)
+                if not len(grown):
+                    break
+                sup, score = grown, cloud.score(grown)
+            best, best_score = sup, score
+    return (best, best_score) if len(best) else (best, 0)
 
 
 def _floats(values: Any) -> list[float]:
@@ -405,18 +624,40 @@ class RtlsHtvrStairs(RtlsStairs):
 
 
 class BatchRansacStairs(_StairsPipeline):
-    """Offline baseline: all points, sequential RANSAC planes at ``finalize``, same read-out.
+    """Offline baseline: all points kept, planes segmented at ``finalize``, same read-out.
 
-    Planes are extracted one after the other by RANSAC (:func:`ransac_plane`, seeded numpy; or
-    Open3D's ``segment_plane`` with ``backend="open3d"``) until fewer than ``min_plane_points``
-    points remain or ``max_planes`` planes were found; each is refitted by TLS on its inliers. Labelling follows
-    Algorithm 1's ordering: treads (``|n_z| >= cos 45 deg``) in ascending height, a new tread
-    index (0, 2, 4) whenever a plane lies more than ``th_pl_m`` above the current tread level
-    (which starts at the ground, z = 0), otherwise merged into the current one; a riser takes
-    the index after the highest tread level below its mean height. Planes with the same index
-    are merged and refitted; indices above 4 are dropped. A plane is reliable with at least
-    ``reliable_n`` inliers of each sensor; its reliable time is the stamp of the point that
-    completed that count.
+    The dense offline comparison of the paper (Sec. V-C), done as point-cloud segmentation is:
+
+    1. Sequential RANSAC (:func:`connected_ransac_plane`, seeded numpy): each plane is the best
+       hypothesis by its *connected* support -- the largest cluster of inlier runs that are
+       contiguous in each beam's scan order, linked within ``link_radius_m`` and holding both
+       beams (:func:`connected_support`), counted in distinct voxels of ``voxel_m`` -- so that
+       planes through the stair corners, along one beam's sweep, or through one beam's track on
+       a tread and the other's on the level below, which hold many inliers, lose against real
+       surfaces; each new best is refined by TLS fits on its support (LO-RANSAC). Its support
+       leaves the pool; extraction stops after ``max_planes`` planes or when the best support
+       is below ``min_plane_cells``.
+    2. Labels in walking order (:meth:`_label`): planes with ``|n_z| >= cos 45 deg`` are treads,
+       taken by ascending height; a tread opens a new level (index 0, 2, 4) when it lies more
+       than ``th_pl_m`` above the current level (which starts at the ground, z = 0 of
+       ``stance_ground``), else it joins the current level. A riser takes the index between the
+       two tread levels its centroid height lies between: ``2 k + 1`` for the ``k``-th level
+       below it, with the level heights spaced by the first tread's height when upper levels
+       were not seen. Indices above 4 are not reported.
+    3. Planes of the same index are merged. Every used point goes to the nearest extracted
+       plane within ``distance_threshold_m`` (``-1`` when there is none or that plane has no
+       index) and the planes are refitted by TLS on the voxel means
+       (:meth:`ScanCloud.cell_means`) of the points near them alone, until the assignment is
+       stable (:meth:`_refine`): voxel means keep a spot the beam dwelt on just beyond an edge
+       from tilting a plane towards it. The reported plane is the TLS fit of the points of
+       its index that are near no other plane (all of them when fewer than 3).
+
+    Reliability: a plane is reliable with at least ``reliable_n`` points of each sensor. The
+    method is offline -- nothing is known before the last point is in -- so
+    ``reliable_stamp_s`` is the stamp of the last used point (the end of the stream) for every
+    reliable plane; the stamp at which a plane's ``reliable_n``-th point of each sensor arrived
+    is reported in ``stats["data_complete_stamp_s"]`` (key ``"S<i>"``). ``process`` returns
+    None.
     """
 
     name: ClassVar[str] = "batch-ransac"
@@ -427,18 +668,26 @@ class BatchRansacStairs(_StairsPipeline):
 
         Attributes:
             leg, stance_side, imu_sensor_id: as for :class:`RtlsStairs.Config`.
-            th_pl_m: minimum riser height separating two tread levels (paper: 0.13 m).
-            reliable_n: inliers needed from each sensor for a reliable plane.
-            distance_threshold_m: RANSAC inlier distance (about 3 sigma of 1.5 mm noise).
-            ransac_iterations: RANSAC iterations per plane.
-            min_plane_points: smallest plane accepted.
-            min_points_per_sensor: inliers a RANSAC plane needs from each of the two sensors
-                (numpy backend): one beam's sweep is itself nearly planar.
+            th_pl_m: smallest riser height separating two tread levels (paper: 0.13 m).
+            reliable_n: points needed from each sensor for a reliable plane (as RTLS's ``N``).
+            distance_threshold_m: inlier distance of RANSAC and of the final assignment, about
+                3 sigma of the 1.5 mm ToF noise.
+            ransac_iterations: hypotheses drawn per plane.
+            sample_window: readings around a sample's first point, in scan order, from which
+                its other two points are drawn (its own beam, the other beam).
+            min_run_points: shortest run of one beam's inliers, contiguous in scan order, that
+                counts as support.
+            max_run_gap: readings of a beam that may be missing (not inliers) inside a run.
+            link_radius_m: runs of inliers closer than this are connected (:func:`connected_support`):
+                above the spacing of the two beams' tracks on a surface (0.11-0.14 m here), below
+                the distance from a tread to the level below (a riser, 0.15 m or more).
+            voxel_m: edge of the voxels in which support is counted (:class:`ScanCloud`).
+            min_plane_cells: smallest support of an extracted plane, in distinct cells.
             max_planes: most planes extracted.
-            seed: seed of the RANSAC sampling.
-            backend: ``"numpy"`` (seeded, bit-for-bit reproducible) or ``"open3d"``
-                (``PointCloud.segment_plane``; seeded, but its multi-threaded sampling varies
-                from run to run).
+            refine_iterations: rounds of assigning the points to their nearest plane and
+                refitting the planes after the extraction (:meth:`_refine`).
+            seed: seed of the RANSAC sampling (``numpy.random.default_rng``); same input and
+                config give the same estimate.
         """
 
         leg: str = "r"
@@ -448,24 +697,37 @@ class BatchRansacStairs(_StairsPipeline):
         reliable_n: int = 5
         distance_threshold_m: float = 0.005
         ransac_iterations: int = 1000
-        min_plane_points: int = 10
-        min_points_per_sensor: int = 3
+        sample_window: int = 8
+        min_run_points: int = 3
+        max_run_gap: int = 2
+        link_radius_m: float = 0.16
+        voxel_m: float = 0.005
+        min_plane_cells: int = 6
         max_planes: int = 8
+        refine_iterations: int = 10
         seed: int = 0
-        backend: str = "numpy"
 
         def __post_init__(self) -> None:
             _check_common(self)
-            if self.backend not in ("numpy", "open3d"):
-                raise ConfigError("backend", self.backend, "'numpy' or 'open3d'")
             check_range("distance_threshold_m", self.distance_threshold_m, 0.0, 1.0, low_open=True)
-            for name, low in (("ransac_iterations", 1), ("min_plane_points", 3), ("min_points_per_sensor", 0), ("max_planes", 1), ("seed", 0)):
+            check_range("link_radius_m", self.link_radius_m, 0.0, 10.0, low_open=True)
+            check_range("voxel_m", self.voxel_m, 0.0, 1.0, low_open=True)
+            for name, low in (
+                ("ransac_iterations", 1),
+                ("sample_window", 1),
+                ("min_run_points", 2),
+                ("max_run_gap", 0),
+                ("min_plane_cells", 3),
+                ("max_planes", 1),
+                ("refine_iterations", 0),
+                ("seed", 0),
+            ):
                 v = getattr(self, name)
                 if isinstance(v, bool) or not isinstance(v, int) or v < low:
                     raise ConfigError(name, v, f"an integer >= {low}")
 
     def _reset_estimator(self) -> None:
-        self._points: list[np.ndarray] = []
+        self._points: list[tuple[float, float, float]] = []
         self._point_flags: list[str] = []
         self._result: StaircaseEstimate | None = None
 
@@ -478,27 +740,73 @@ class BatchRansacStairs(_StairsPipeline):
         if self._result is not None:
             return self._result
         t0 = time.perf_counter_ns()
+        cfg = self.config
         pts = np.array(self._points, dtype=float).reshape(-1, 3)
-        flags = np.array(self._point_flags)
-        groups = self._ransac(pts, flags)
-        labels = self._label(pts, groups)
-        where = np.full(len(pts), -1, dtype=int)
-        planes = []
-        for index in sorted(labels):
-            idx = np.sort(labels[index])
-            where[idx] = index
+        flags = np.array(self._point_flags, dtype=str)
+        cloud = ScanCloud.of(pts, flags == FLAGS[1], np.array(self._uid_stamp, dtype=float), cfg.voxel_m)
+        groups = self._segment(cloud)
+        labels = self._label([tls_plane(cloud.cell_means(g)) for g in groups])
+        # one plane per label (pieces of a surface merged), the unlabelled ones kept apart
+        members: dict[int, list[np.ndarray]] = {}
+        for k, g in enumerate(groups):
+            members.setdefault(labels.get(k, -1 - k), []).append(g)
+        keys = sorted(members, key=lambda i: (i < 0, abs(i)))
+        fits = [tls_plane(cloud.cell_means(np.concatenate(members[i])))[:2] for i in keys]
+        near, unique = self._refine(cloud, fits)
+        label_of = np.array([max(i, -1) for i in keys] + [-1])
+        where = label_of[near]
+        planes, complete = [], {}
+        last_uid = len(pts) - 1
+        for index in sorted(set(where[where >= 0].tolist())):
+            idx = np.flatnonzero(where == index)
+            used = idx[unique[idx]] if np.count_nonzero(unique[idx]) >= 3 else idx
             fit = RtlsPlane()
-            for k in idx:
+            for k in used:
                 fit.add(pts[k])
             counts = {f: int(np.sum(flags[idx] == f)) for f in FLAGS}
-            ok_uid = self._reliable_uid(idx, flags)
-            planes.append(self._plane(index, fit, counts, ok_uid is not None, ok_uid))
+            done = self._complete_uid(idx, flags)
+            if done is not None:
+                complete[f"S{index}"] = self._uid_stamp[done]
+            ok_uid = last_uid if done is not None else None
+            planes.append(self._plane(index, fit, counts, done is not None, ok_uid))
         share_ns = (time.perf_counter_ns() - t0) / max(len(pts), 1)
         self._times_ns = [t + share_ns for t in self._times_ns]
-        self._result = self._estimate(planes, where, {"n_planes_found": len(groups)})
+        extra = {"n_planes_found": len(groups), "data_complete_stamp_s": complete}
+        self._result = self._estimate(planes, where, extra)
         return self._result
 
-    def _reliable_uid(self, idx: np.ndarray, flags: np.ndarray) -> int | None:
+    def _refine(self, cloud: ScanCloud, fits: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+        """Assign every point to its nearest plane within the threshold and refit, until stable.
+
+        Returns, per point, the index of its plane in ``fits`` (``len(fits)`` for none) and
+        whether it lies within the threshold of that plane only. Fits use only such points
+        (their voxel means): those near the intersection of two planes (the stair edges) are
+        ambiguous and would tilt both planes towards each other. ``fits`` is updated in place.
+        """
+        thr = self.config.distance_threshold_m
+        pts, beam = cloud.points, cloud.sensor
+        near = np.full(len(pts), len(fits))
+        unique = np.zeros(len(pts), dtype=bool)
+        if not fits or not len(pts):
+            return near, unique
+        for _ in range(self.config.refine_iterations + 1):
+            dist = np.abs(np.stack([(pts - c) @ n for n, c in fits], axis=1))
+            order = np.argsort(dist, axis=1, kind="stable")
+            d1 = dist[np.arange(len(pts)), order[:, 0]]
+            d2 = dist[np.arange(len(pts)), order[:, 1]] if len(fits) > 1 else np.full(len(pts), np.inf)
+            new = np.where(d1 <= thr, order[:, 0], len(fits))
+            unique = (d1 <= thr) & (d2 > thr)
+            if np.array_equal(new, near):
+                break
+            near = new
+            for k in range(len(fits)):
+                sel = (near == k) & unique
+                if all(np.count_nonzero(sel & (beam == b)) >= 2 for b in (0, 1)):
+                    fits[k] = tls_plane(cloud.cell_means(np.flatnonzero(sel)))[:2]
+        return near, unique
+
+    def _complete_uid(self, idx: np.ndarray, flags: np.ndarray) -> int | None:
+        """The point (in arrival order) that gave the plane its ``reliable_n``-th of each sensor."""
         seen = dict.fromkeys(FLAGS, 0)
         for k in idx:  # idx is sorted, i.e. in arrival order
             seen[str(flags[k])] += 1
@@ -506,49 +814,50 @@ class BatchRansacStairs(_StairsPipeline):
                 return int(k)
         return None
 
-    def _ransac(self, pts: np.ndarray, flags: np.ndarray) -> list[np.ndarray]:
+    def _segment(self, cloud: ScanCloud) -> list[np.ndarray]:
+        """Sequential connected RANSAC: the supports of the extracted planes, in order."""
         cfg = self.config
-        groups: list[np.ndarray] = []
-        remaining = np.arange(len(pts))
-        if cfg.backend == "open3d":
-            import open3d as o3d
-
-            o3d.utility.random.seed(cfg.seed)
         rng = np.random.default_rng(cfg.seed)
-        while len(remaining) >= cfg.min_plane_points and len(groups) < cfg.max_planes:
-            if cfg.backend == "open3d":
-                pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts[remaining]))
-                _, inl = pcd.segment_plane(
-                    distance_threshold=cfg.distance_threshold_m, ransac_n=3, num_iterations=cfg.ransac_iterations
-                )
-                inliers = np.asarray(inl, dtype=int)
-            else:
-                inliers = ransac_plane(
-                    pts[remaining], cfg.distance_threshold_m, cfg.ransac_iterations, rng, flags[remaining], cfg.min_points_per_sensor
-                )
-            if len(inliers) < cfg.min_plane_points:
+        active = np.ones(len(cloud.points), dtype=bool)
+        groups: list[np.ndarray] = []
+        while np.count_nonzero(active) >= cfg.min_plane_cells and len(groups) < cfg.max_planes:
+            support, score = connected_ransac_plane(
+                cloud,
+                active,
+                threshold_m=cfg.distance_threshold_m,
+                iterations=cfg.ransac_iterations,
+                rng=rng,
+                window=cfg.sample_window,
+                min_run=cfg.min_run_points,
+                max_gap=cfg.max_run_gap,
+                link_radius_m=cfg.link_radius_m,
+                min_score=cfg.min_plane_cells,
+            )
+            if score < cfg.min_plane_cells:
                 break
-            groups.append(remaining[inliers])
-            remaining = np.delete(remaining, inliers)
+            groups.append(support)
+            active[support] = False
         return groups
 
-    def _label(self, pts: np.ndarray, groups: list[np.ndarray]) -> dict[int, np.ndarray]:
-        treads, risers = [], []
-        for g in groups:
-            fit = RtlsPlane()
-            for k in g:
-                fit.add(pts[k])
-            (treads if abs(fit.normal[2]) >= MIN_TREAD_NZ else risers).append((float(fit.centroid[2]), g))
-        labels: dict[int, list[np.ndarray]] = {}
-        levels: list[tuple[int, float]] = []  # (index, height of the level)
+    def _label(self, fits: list[tuple[np.ndarray, np.ndarray, float]]) -> dict[int, int]:
+        """Surface index (0..4) of each extracted plane (by position in ``fits``) that has one."""
+        th_pl = self.config.th_pl_m
+        treads = sorted((float(c[2]), k) for k, (n, c, _s) in enumerate(fits) if abs(n[2]) >= MIN_TREAD_NZ)
+        risers = [(float(c[2]), k) for k, (n, c, _s) in enumerate(fits) if abs(n[2]) < MIN_TREAD_NZ]
+        labels: dict[int, int] = {}
+        levels: dict[int, float] = {0: 0.0}  # tread index -> height of its level (ground at z = 0)
         index, level_z = 0, 0.0
-        for z, g in sorted(treads, key=lambda t: t[0]):
-            if z > level_z + self.config.th_pl_m:
+        for z, k in treads:
+            if z > level_z + th_pl:
                 index, level_z = index + 2, z
-            if not levels or levels[-1][0] != index:
-                levels.append((index, level_z))
-            labels.setdefault(index, []).append(g)
-        for z, g in risers:
-            below = [i for i, lz in levels if lz < z]
-            labels.setdefault((max(below) if below else 0) + 1, []).append(g)
-        return {i: np.concatenate(gs) for i, gs in labels.items() if i <= 4}
+                levels[index] = z
+            labels[k] = index
+        # level heights for the risers: seen levels, the rest spaced like the first step above
+        step = next((z / (i // 2) for i, z in sorted(levels.items()) if i > 0), None)
+        for z, k in risers:
+            below = [i for i, lz in levels.items() if lz < z]
+            i = max(below) if below else 0
+            if step is not None and step > th_pl:
+                i = max(i, 2 * int(math.floor(z / step)))
+            labels[k] = i + 1
+        return {k: i for k, i in labels.items() if i <= 4}
