@@ -105,13 +105,57 @@ class ContactSample:
     in_contact: bool
 
 
-Frame = ToFReading | ImuSample | JointState | ContactSample
+@dataclass(frozen=True, eq=False)
+class LidarScan:
+    """One LiDAR sweep, points in the sensor frame at their own firing time (not deskewed).
+
+    Attributes:
+        stamp_s: delivery time of the sweep, s (end of the sweep plus latency).
+        sensor_id: mount id, e.g. ``"lidar_trunk"``.
+        points_xyz: returns in the sensor frame (x forward, y left, z up), m; shape (N, 3).
+        intensity: calibrated reflectivity byte 0-255 (0-100 diffuse, 101-255 retro), (N,).
+        ring: laser channel index, (N,) int.
+        time_offset_s: firing time of each point relative to the start of the sweep, s, (N,).
+        sweep_start_s: time the sweep started, s.
+    """
+
+    stamp_s: float
+    sensor_id: str
+    points_xyz: np.ndarray
+    intensity: np.ndarray
+    ring: np.ndarray
+    time_offset_s: np.ndarray
+    sweep_start_s: float
+
+
+@dataclass(frozen=True, eq=False)
+class RgbdFrame:
+    """One RGB-D image pair, registered to the depth camera's optical frame.
+
+    Attributes:
+        stamp_s: delivery time, s.
+        sensor_id: mount id, e.g. ``"rgbd_head"``.
+        rgb: colour image, (H, W, 3) uint8.
+        depth_m: depth along the optical axis (z), float32 metres, (H, W); 0 where invalid.
+        K: 3x3 pinhole intrinsics of both images (pixels).
+    """
+
+    stamp_s: float
+    sensor_id: str
+    rgb: np.ndarray
+    depth_m: np.ndarray
+    K: np.ndarray
+
+
+Frame = ToFReading | ImuSample | JointState | ContactSample | LidarScan | RgbdFrame
 
 FRAME_TYPES: dict[str, type] = {
     "tof": ToFReading,
     "imu": ImuSample,
     "joints": JointState,
     "contact": ContactSample,
+    "lidar": LidarScan,
+    "rgbd": RgbdFrame,
 }
 
 

@@ -66,13 +66,19 @@ class SceneTruth:
         surfaces: every planar surface.
         geom_surfaces: for each named geom, the ids of the surfaces it contributes to.
         params: the builder's validated parameters (riser_m, tread_m, yaw_deg, ...).
-        kind: ``"staircase"``, ``"ramp"``, ``"course"`` or ``"level"``.
+        kind: ``"staircase"``, ``"ramp"``, ``"course"``, ``"level"`` or ``"office"``.
+        geom_materials: material name of each world geom (see ``exobench.models.materials``);
+            geoms not listed are of the default diffuse material.
+        objects: objects of interest (furniture, people, ...), each a dict with at least
+            ``name``, ``class``, ``T_world_object`` (4x4 list) and ``geom_names``.
     """
 
     surfaces: tuple[PlanarSurface, ...]
     geom_surfaces: dict[str, tuple[int, ...]]
     params: dict[str, Any] = field(default_factory=dict)
     kind: str = "level"
+    geom_materials: dict[str, str] = field(default_factory=dict)
+    objects: tuple[dict[str, Any], ...] = ()
 
     def surface(self, surface_id: int) -> PlanarSurface:
         for s in self.surfaces:

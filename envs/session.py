@@ -93,6 +93,8 @@ def frame_to_dict(frame: Frame) -> dict[str, Any]:
         d.update(names=list(frame.names), position_rad=_arr(frame.position_rad))
     elif isinstance(frame, ContactSample):
         d.update(force_n=_f(frame.force_n), in_contact=bool(frame.in_contact))
+    else:  # image and scan streams need a binary layout; format version 1 has none yet
+        raise SessionError(f"session format {VERSION} cannot store {kind!r} frames yet; valid: tof, imu, joints, contact")
     return d
 
 
@@ -175,6 +177,8 @@ def truth_to_dict(t: EpisodeTruth) -> dict[str, Any]:
             "params": _plain(t.scene.params),
             "surfaces": [_surface_to_dict(s) for s in t.scene.surfaces],
             "geom_surfaces": {k: list(v) for k, v in t.scene.geom_surfaces.items()},
+            "geom_materials": dict(t.scene.geom_materials),
+            "objects": _plain(list(t.scene.objects)),
         },
         "T_world_estimator": _arr(t.T_world_estimator),
         "stance_side": t.stance_side,
@@ -211,6 +215,8 @@ def truth_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...]) -> EpisodeTrut
         geom_surfaces={k: tuple(v) for k, v in sc["geom_surfaces"].items()},
         params=dict(sc["params"]),
         kind=sc["kind"],
+        geom_materials=dict(sc.get("geom_materials", {})),
+        objects=tuple(sc.get("objects", ())),
     )
     return EpisodeTruth(
         scene=scene,
