@@ -7,4 +7,10 @@ Modules (import them directly; this package imports nothing heavy):
 - ``tof_kinematics``: ToF beam hit points by forward kinematics (pinocchio) in ``stance_ground``.
 - ``readout``: riser height and tread depth from estimated planes.
 - ``pipelines``: the stairs-track pipelines ``rtls``, ``rtls-htvr`` and ``batch-ransac``.
+- ``intensity_filter``: LiDAR intensity filters (none, threshold, naive and normal ground-aware).
+- ``scan_context`` / ``gaussian_scan_context``: Scan Context++ and Gaussian Scan Context place
+  recognition on scans and submaps.
+
+Not yet registered as pipelines or scored by a track (later LiDAR tracks):
+``intensity_filter``, ``scan_context``, ``gaussian_scan_context``.
 """
