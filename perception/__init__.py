@@ -10,7 +10,10 @@ Modules (import them directly; this package imports nothing heavy):
 - ``intensity_filter``: LiDAR intensity filters (none, threshold, naive and normal ground-aware).
 - ``scan_context`` / ``gaussian_scan_context``: Scan Context++ and Gaussian Scan Context place
   recognition on scans and submaps.
+- ``footprint``: gait division by heel strikes and next-footprint prediction (seeds/002 eq. 16-18).
+- ``plane_tracking``: plane set update by IoU with scores (seeds/002 eq. 23).
 
 Not yet registered as pipelines or scored by a track (later LiDAR tracks):
-``intensity_filter``, ``scan_context``, ``gaussian_scan_context``.
+``intensity_filter``, ``scan_context``, ``gaussian_scan_context``, ``footprint``,
+``plane_tracking``.
 """
