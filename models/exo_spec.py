@@ -215,8 +215,9 @@ class ExoSpec:
         return "pelvis", make_T(np.eye(3), np.array([-0.12, 0.0, 0.45 * self.trunk_m]))
 
     def lidar_mount(self) -> tuple[str, np.ndarray]:
-        """Trunk LiDAR: on a mast behind the head, level, z up [A]."""
-        return "pelvis", make_T(np.eye(3), np.array([-0.15, 0.0, self.trunk_m + 0.15]))
+        """Trunk LiDAR: on a backpack mast 10 cm above the top of the head, level, z up [A]
+        (lower, the user's head blocks a fifth of a VLP-16's beams)."""
+        return "pelvis", make_T(np.eye(3), np.array([-0.12, 0.0, self.trunk_m + self.head_m + 0.10]))
 
     def rgbd_mount(self, sensor_id: str) -> tuple[str, np.ndarray]:
         """Camera mounts, optical frame (z forward, x right, y down) [A]."""

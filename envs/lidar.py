@@ -1,0 +1,391 @@
+"""Scanning LiDAR (Velodyne VLP-16 by default) by MuJoCo ray casting, with ground truth per point.
+
+One call of :meth:`LidarSensor.scan` simulates one sweep: every ray of the
+:class:`~exobench.envs.lidar_pattern.LidarPattern` is cast with ``mj_multiRay`` from the sensor
+pose at its firing time (``pose_at``, so a sensor that moves during the sweep sees the world
+distorted as a walking person's LiDAR does; the points carry their firing time for deskewing).
+Glass and mirrors follow :mod:`exobench.envs.lidar_optics`. Points are in the sensor frame at
+their firing time, in firing order, with range noise, 2 mm range resolution and an intensity
+byte from the Lambertian return strength (or the range-compensated reflectivity, see
+``LidarConfig.intensity_mode``); returns below the detection threshold or outside the range
+limits are dropped.
+
+Timing model: each firing block has its own pose (``pose_blocks = 0``; the lasers of a block
+share it, exact to within the 37 us a VLP-16 block takes), or blocks share one pose in
+``pose_blocks`` groups when ``pose_at`` is expensive. Casting: ``mj_multiRay`` casts many rays
+from one point and costs about 0.1 ms per call in a furnished scene, so the firings of each
+``cast_period_s`` window are cast from one origin (the window's middle firing) along their exact
+directions, and each range is then moved to the ray's own origin on the plane of the face hit:
+``r = (p - o) . n / (u . n)``. That is exact on planar faces; only beams within the window's
+motion (about 1 mm at walking speed) of a silhouette edge, or on curved geoms (error ~ d^2 / R),
+differ from casting every firing from its own origin (``cast_period_s = 0``, slower). A static
+sensor is cast in one call. The world geometry is frozen at the state of ``data`` for the sweep
+(the scene is static; exoskeleton geoms keep the pose they had in ``data``).
+
+Random streams (``sensor_rngs``): range noise from the noise generator, sweep and point dropout
+from the dropout generator, glass/mirror events from a third generator keyed
+``"<sensor_id>/optics"``. The number of draws per sweep is fixed by the pattern, so what the scene
+contains never shifts the streams.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from exobench.core import ConfigError, LidarScan, SceneTruth, check_range
+from exobench.models.materials import KINDS, LidarMaterial
+
+from .lidar_optics import (
+    RETRO_CODE,
+    GeomOptics,
+    ReturnKind,
+    follow_beams,
+    geom_optics,
+    intensity_byte,
+    return_signal,
+)
+from .lidar_pattern import LidarPattern, RayTable
+from .sensor_config import sensor_rngs
+from .terrain import inside_polygon
+from .tof import EXO_GROUP, WORLD_GROUP
+
+INTENSITY_MODES = ("signal", "reflectivity")
+
+PoseFn = Callable[[np.ndarray], np.ndarray]
+"""``pose_at(times_s) -> T_world_sensor``: absolute times (K,) to poses (K, 4, 4)."""
+
+__all__ = ["LidarConfig", "LidarPattern", "LidarSensor", "LidarTruth", "PoseFn", "ReturnKind"]
+
+
+@dataclass(frozen=True)
+class LidarConfig:
+    """A LiDAR's pattern, noise, detection and optics switches (SENSORS.md; [A] = assumption).
+
+    Attributes:
+        pattern: channels, timing and range limits (default VLP-16 at 10 Hz).
+        range_noise_m: standard deviation of the range noise, m [A: 0.015, reading the data
+            sheet's +-3 cm accuracy as two sigma].
+        resolution_m: range quantisation, m (0.002: the VLP-16 packet distance unit; 0 = off).
+        detection_threshold: returns whose signal (intensity scale, unclipped) is below are
+            dropped [A: 1.0, so white is seen frontally to 100 m, concrete to about 66 m].
+        ref_reflectivity / ref_range_m: a surface of ``ref_reflectivity`` at ``ref_range_m``,
+            frontal, has signal 100 (0.8 white at 10 m).
+        intensity_mode: ``"signal"``: the byte is the Lambertian signal (cos / r^2; bright
+            surfaces nearer than about 10 m saturate at 100); ``"reflectivity"``: the byte is the
+            range-compensated calibrated reflectivity ``100 * rho * |cos(incidence)|`` (how the
+            VLP-16 reports it). Detection uses the signal in both.
+        latency_s: delivery delay after the end of the sweep, s [A: 0].
+        dropout_prob: probability a whole sweep is lost [A: 0].
+        point_dropout_prob: probability a return is lost [A: 0].
+        glass: model glass (transmission, pane reflection, ghosts); off = panes are opaque
+            weak reflectors (what most simulators do).
+        mirrors: model specular reflection of mirror materials (ghosts); off = opaque.
+        max_interactions: glass/mirror events followed per beam.
+        pose_blocks: firing blocks share a pose in this many groups per sweep (0 = one pose per
+            firing block, exact; fewer = fewer ``pose_at`` times, the motion within a group is
+            ignored).
+        cast_period_s: firings within this window are cast from one origin and their ranges
+            moved to their own origins on the face hit (see the module docstring) [A: 1 ms];
+            0 = one ``mj_multiRay`` call per firing block.
+        materials: extra or replacement materials by name (on top of ``models.materials``).
+    """
+
+    pattern: LidarPattern = field(default_factory=LidarPattern.vlp16)
+    range_noise_m: float = 0.015
+    resolution_m: float = 0.002
+    detection_threshold: float = 1.0
+    ref_reflectivity: float = 0.8
+    ref_range_m: float = 10.0
+    intensity_mode: str = "reflectivity"
+    latency_s: float = 0.0
+    dropout_prob: float = 0.0
+    point_dropout_prob: float = 0.0
+    glass: bool = True
+    mirrors: bool = True
+    max_interactions: int = 3
+    pose_blocks: int = 0
+    cast_period_s: float = 1e-3
+    materials: tuple[LidarMaterial, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.pattern, LidarPattern):
+            raise ConfigError("lidar.pattern", self.pattern, "a LidarPattern")
+        check_range("lidar.range_noise_m", self.range_noise_m, 0.0, 1.0)
+        check_range("lidar.resolution_m", self.resolution_m, 0.0, 0.1)
+        check_range("lidar.detection_threshold", self.detection_threshold, 0.0, 255.0)
+        check_range("lidar.ref_reflectivity", self.ref_reflectivity, 0.0, 1.0, low_open=True)
+        check_range("lidar.ref_range_m", self.ref_range_m, 0.0, 1000.0, low_open=True)
+        if self.intensity_mode not in INTENSITY_MODES:
+            raise ConfigError("lidar.intensity_mode", self.intensity_mode, " or ".join(INTENSITY_MODES))
+        check_range("lidar.latency_s", self.latency_s, 0.0, 1.0)
+        check_range("lidar.cast_period_s", self.cast_period_s, 0.0, 1.0)
+        check_range("lidar.dropout_prob", self.dropout_prob, 0.0, 1.0, high_open=True)
+        check_range("lidar.point_dropout_prob", self.point_dropout_prob, 0.0, 1.0, high_open=True)
+        for name in ("glass", "mirrors"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"lidar.{name}", getattr(self, name), "True or False")
+        for name, high in (("max_interactions", 16), ("pose_blocks", 10**7)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= high:
+                raise ConfigError(f"lidar.{name}", v, f"an integer in [0, {high}]")
+        mats = tuple(self.materials)
+        for m in mats:
+            if not isinstance(m, LidarMaterial) or m.kind not in KINDS:
+                raise ConfigError("lidar.materials", m, f"LidarMaterial of kind {', '.join(KINDS)}")
+            check_range(f"lidar.materials.{m.name}.reflectivity", m.reflectivity, 0.0, 1.0)
+            check_range(f"lidar.materials.{m.name}.transmission", m.transmission, 0.0, 1.0)
+            check_range(f"lidar.materials.{m.name}.specular", m.specular, 0.0, 1.0 - m.transmission)
+        object.__setattr__(self, "materials", mats)
+
+    def material_overrides(self) -> Mapping[str, LidarMaterial]:
+        return {m.name: m for m in self.materials}
+
+    def calibration_params(self) -> dict[str, object]:
+        """What a pipeline may know about the sensor (for ``exo_calibration``)."""
+        p = self.pattern
+        return {
+            "pattern": p.name, "vertical_angles_deg": list(p.vertical_angles_deg),
+            "firing_order": list(p.firing_order), "azimuth_step_deg": p.azimuth_step_deg,
+            "rate_hz": p.rate_hz, "firing_period_s": p.firing_period_s, "min_range_m": p.min_range_m,
+            "max_range_m": p.max_range_m, "noise_sigma_m": self.range_noise_m,
+            "resolution_m": self.resolution_m, "latency_s": self.latency_s,
+            "intensity_mode": self.intensity_mode,
+        }  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class LidarTruth:
+    """Ground truth of one :class:`LidarScan`, point by point (same order, same length N).
+
+    Attributes:
+        stamp_s, sensor_id: as the scan.
+        true_range_m: noise-free distance along the original ray at which the point lies, m
+            (for a ghost the total reflected path length).
+        hit_w: the surface point that returned the light, world frame, (N, 3) (for a ghost the
+            real surface seen in the mirror, not where the point appears).
+        geom_id: MuJoCo geom of that surface, (N,).
+        surface_id: ``SceneTruth`` surface of that point, -1 if none, (N,).
+        material: material name of that surface, (N,) str.
+        kind: :class:`ReturnKind` code, (N,).
+        via_geom_id: the glass / mirror geom the beam crossed or bounced on, -1 if none, (N,).
+        signal: unclipped return strength on the intensity scale, (N,).
+        origin_w / dir_w: the original ray in the world at its firing pose, (N, 3).
+    """
+
+    stamp_s: float
+    sensor_id: str
+    true_range_m: np.ndarray
+    hit_w: np.ndarray
+    geom_id: np.ndarray
+    surface_id: np.ndarray
+    material: np.ndarray
+    kind: np.ndarray
+    via_geom_id: np.ndarray
+    signal: np.ndarray
+    origin_w: np.ndarray
+    dir_w: np.ndarray
+
+    @property
+    def genuine(self) -> np.ndarray:
+        """Points on a real surface along the straight ray (directly or through glass)."""
+        return (self.kind == ReturnKind.GENUINE) | (self.kind == ReturnKind.THROUGH_GLASS)
+
+
+class LidarSensor:
+    """One LiDAR. Call :meth:`scan` once per sweep (sweeps start at ``k / rate_hz``)."""
+
+    def __init__(self, sensor_id: str, config: LidarConfig, model: object, seed: int) -> None:
+        import mujoco
+
+        self.sensor_id, self.config = sensor_id, config
+        site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, sensor_id)
+        # the mount's own body (the trunk) would block the beams; without a site nothing is excluded
+        self.body_exclude = int(model.site_bodyid[site]) if site >= 0 else -1  # type: ignore[attr-defined]
+        self.group = np.zeros(6, dtype=np.uint8)
+        self.group[[WORLD_GROUP, EXO_GROUP]] = 1
+        ngeom = int(model.ngeom)  # type: ignore[attr-defined]
+        self.geom_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or "" for g in range(ngeom)]
+        self.noise_rng, self.drop_rng = sensor_rngs(seed, sensor_id)
+        self.optics_rng = sensor_rngs(seed, f"{sensor_id}/optics")[0]
+        pat = config.pattern
+        self._static_rays = pat.rays(0.0) if pat.scan_kind == "spinning" else None
+        self._optics_cache: tuple[SceneTruth, GeomOptics] | None = None
+
+    def rays(self, sweep_start_s: float) -> RayTable:
+        return self._static_rays if self._static_rays is not None else self.config.pattern.rays(sweep_start_s)
+
+    def _blocks(self, rays: RayTable) -> tuple[np.ndarray, np.ndarray]:
+        """(first ray index of each pose group + end, time offset of each group's pose)."""
+        F = len(rays.firing_time_s)
+        nb = self.config.pose_blocks
+        nb = F if nb == 0 or nb >= F else nb
+        first_firing = (np.arange(nb) * F) // nb
+        last_firing = np.append(first_firing[1:], F) - 1
+        starts = np.searchsorted(rays.firing, first_firing)
+        t_pose = 0.5 * (rays.firing_time_s[first_firing] + rays.firing_time_s[last_firing])
+        return np.append(starts, len(rays)), t_pose
+
+    def scan(
+        self,
+        model: object,
+        data: object,
+        pose_at: PoseFn | np.ndarray,
+        sweep_start_s: float,
+        truth: SceneTruth,
+    ) -> tuple[LidarScan, LidarTruth] | None:
+        """Simulate the sweep starting at ``sweep_start_s``; None when the sweep is dropped.
+
+        Args:
+            model, data: the MuJoCo model and a data whose kinematics are current (geom poses).
+            pose_at: ``T_world_sensor`` at absolute times (K,) -> (K, 4, 4), or one fixed 4x4 pose.
+            sweep_start_s: time of the sweep's first firing, s.
+            truth: the scene's ground truth (surfaces and materials).
+        """
+
+        c, pat = self.config, self.config.pattern
+        rays = self.rays(sweep_start_s)
+        n = len(rays)
+        # fixed-size draws first: the streams do not depend on what the beams hit
+        z = self.noise_rng.standard_normal(n)
+        u_opt = self.optics_rng.random((n, c.max_interactions))
+        sweep_lost = self.drop_rng.random() < c.dropout_prob
+        u_drop = self.drop_rng.random(n)
+        if sweep_lost:
+            return None
+
+        bounds, t_pose = self._blocks(rays)
+        T = _poses(pose_at, sweep_start_s + t_pose)
+        block = np.repeat(np.arange(len(t_pose)), np.diff(bounds))
+        dirs_w = np.ascontiguousarray(np.einsum("nij,nj->ni", T[block, :3, :3], rays.dirs_s))
+        origins_w = T[block, :3, 3]
+        gid, dist, nrm = self._cast(model, data, rays, origins_w, dirs_w)
+
+        optics = self._optics(truth)
+        beams = follow_beams(
+            model, data, self.group, origins_w, dirs_w, gid, dist, nrm.reshape(-1, 3), optics, u_opt,
+            glass=c.glass, mirrors=c.mirrors,
+        )  # fmt: skip
+        ok = beams.geom >= 0
+        g = np.where(ok, beams.geom, 0)
+        path = np.where(ok, beams.path_m, 1.0)
+        signal = return_signal(optics.reflectivity[g], beams.cos_inc, path, c.ref_reflectivity, c.ref_range_m)
+        ok &= (path >= pat.min_range_m) & (path <= pat.max_range_m) & (signal >= c.detection_threshold)
+        ok &= u_drop >= c.point_dropout_prob
+        idx = np.flatnonzero(ok)
+        level = signal if c.intensity_mode == "signal" else 100.0 * optics.reflectivity[g] * beams.cos_inc
+
+        r_m = path[idx] + c.range_noise_m * z[idx]
+        if c.resolution_m > 0.0:
+            r_m = np.round(r_m / c.resolution_m) * c.resolution_m
+        r_m = np.maximum(r_m, 0.0)
+        gk = g[idx]
+        stamp = float(sweep_start_s) + pat.sweep_period_s + c.latency_s
+        scan = LidarScan(
+            stamp_s=stamp,
+            sensor_id=self.sensor_id,
+            points_xyz=r_m[:, None] * rays.dirs_s[idx],
+            intensity=intensity_byte(level[idx], optics.kind[gk] == RETRO_CODE),
+            ring=rays.channel[idx].astype(np.uint16),
+            time_offset_s=rays.time_offset_s[idx].copy(),
+            sweep_start_s=float(sweep_start_s),
+        )
+        surface = self._label(truth, gk, beams.hit_w[idx])
+        lt = LidarTruth(
+            stamp_s=stamp,
+            sensor_id=self.sensor_id,
+            true_range_m=path[idx],
+            hit_w=beams.hit_w[idx],
+            geom_id=gk,
+            surface_id=surface,
+            material=optics.name[gk],
+            kind=beams.kind[idx],
+            via_geom_id=beams.via_geom[idx],
+            signal=signal[idx],
+            origin_w=origins_w[idx],
+            dir_w=dirs_w[idx],
+        )
+        return scan, lt
+
+    def _cast(
+        self, model: object, data: object, rays: RayTable, origins_w: np.ndarray, dirs_w: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Primary hits of every ray from its own origin: (geom, distance, normal), -1 if none."""
+        import mujoco
+
+        n = len(rays)
+        period = self.config.cast_period_s
+        key = np.floor(rays.firing_time_s[rays.firing] / period + 1e-9) if period > 0 else rays.firing
+        starts = np.flatnonzero(np.append(True, key[1:] != key[:-1]))
+        ends = np.append(starts[1:], n)
+        o_cast = origins_w[(starts + ends) // 2]
+        # neighbouring windows cast from the same point (a sensor that does not move) share a call
+        keep = np.append(True, np.any(o_cast[1:] != o_cast[:-1], axis=1))
+        starts, o_cast = starts[keep], o_cast[keep]
+        ends = np.append(starts[1:], n)
+        gid = np.full(n, -1, dtype=np.int32)
+        dist = np.full(n, -1.0)
+        nrm = np.zeros(3 * n)
+        flat = dirs_w.reshape(-1)
+        max_r = self.config.pattern.max_range_m + 1.0
+        for o, s, e in zip(o_cast, starts, ends):
+            mujoco.mj_multiRay(
+                model, data, o, flat[3 * s : 3 * e], self.group, 1, self.body_exclude,
+                gid[s:e], dist[s:e], nrm[3 * s : 3 * e], e - s, max_r,
+            )  # fmt: skip
+        nrm = nrm.reshape(-1, 3)
+        # move each range from the cast origin to the ray's own origin, on the plane of the face hit
+        o_ray = np.repeat(o_cast, ends - starts, axis=0)
+        delta = o_ray - origins_w
+        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & np.any(delta != 0.0, axis=1))
+        if len(fix):
+            u, nv, dl = dirs_w[fix], nrm[fix], delta[fix]
+            un = np.einsum("ij,ij->i", u, nv)
+            grazing = np.abs(un) < 1e-6
+            r = dist[fix] + np.einsum("ij,ij->i", dl, nv) / np.where(grazing, 1.0, un)
+            r = np.where(grazing, dist[fix] + np.einsum("ij,ij->i", dl, u), r)
+            gid[fix] = np.where(r >= 0.0, gid[fix], -1)
+            dist[fix] = np.where(r >= 0.0, r, -1.0)
+        return gid, dist, nrm
+
+    def _label(self, truth: SceneTruth, geom: np.ndarray, hit_w: np.ndarray, tol_m: float = 1e-4) -> np.ndarray:
+        """Surface id of each hit, as ``SceneTruth.surface_of_hit`` decides it, one geom at a time."""
+        out = np.full(len(geom), -1, dtype=np.int64)
+        surfaces = {sf.surface_id: sf for sf in truth.surfaces}
+        order = np.argsort(geom, kind="stable")
+        ids, first = np.unique(geom[order], return_index=True)
+        for g, a, b in zip(ids, first, np.append(first[1:], len(order))):
+            sids = truth.geom_surfaces.get(self.geom_names[g], ())
+            if not sids:
+                continue
+            rows = order[a:b]
+            p = hit_w[rows]
+            best = np.full(len(rows), -1, dtype=np.int64)
+            best_d = np.full(len(rows), tol_m)
+            for sid in sids:
+                sf = surfaces[sid]
+                d = np.abs((p - sf.point_w) @ sf.normal_w)
+                cand = np.flatnonzero(d <= best_d)
+                if len(cand):
+                    inside = inside_polygon(sf.polygon_w, sf.normal_w, p[cand], tol_m)
+                    win = cand[inside]
+                    best[win], best_d[win] = sid, d[win]
+            out[rows] = best
+        return out
+
+    def _optics(self, truth: SceneTruth) -> GeomOptics:
+        if self._optics_cache is None or self._optics_cache[0] is not truth:
+            self._optics_cache = (truth, geom_optics(self.geom_names, truth, self.config.material_overrides()))
+        return self._optics_cache[1]
+
+
+def _poses(pose_at: PoseFn | np.ndarray, times_s: np.ndarray) -> np.ndarray:
+    if callable(pose_at):
+        T = np.asarray(pose_at(times_s), dtype=float)
+    else:
+        T = np.broadcast_to(np.asarray(pose_at, dtype=float), (len(times_s), 4, 4))
+    if T.shape != (len(times_s), 4, 4) or not np.all(np.isfinite(T)):
+        raise ConfigError("lidar.pose_at", T.shape, f"finite poses of shape ({len(times_s)}, 4, 4)")
+    return T

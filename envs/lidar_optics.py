@@ -1,0 +1,200 @@
+"""What a LiDAR beam does at a surface: material lookup, glass and mirror paths, return strength.
+
+Per geom, the material named in ``SceneTruth.geom_materials`` (``exobench.models.materials``)
+gives a reflectivity, a kind, a transmission and a specular fraction. A beam that hits
+
+* glass: passes through with probability ``transmission`` (both faces of the pane; the next
+  surface behind is returned, kind THROUGH_GLASS), else is mirrored with probability ``specular``
+  (a ghost, below), else returns weakly from the pane itself (kind GLASS);
+* a mirror (mirrors, polished metal and floors): is mirrored with probability ``specular``, else
+  returns from the surface like any other (kind GENUINE);
+* anything else: returns (kind GENUINE, or RETRO-bright for retro-reflectors).
+
+A mirrored beam follows the reflected direction; what it hits is reported along the *original*
+ray at the total path length (a ghost: the mirror image of the real surface). Up to
+``max_interactions`` glass/mirror events are followed per beam; then the surface reached returns.
+Secondary rays start at different points, so they are cast one by one with ``mj_ray`` (only the
+few beams that meet glass or mirrors; the primary rays are batched).
+
+Return strength (Lambertian, HELIOS++ / RobotecGPULidar): ``signal = 100 * (rho / rho_ref) *
+|cos(incidence)| * (r_ref / path)^2``, with rho the reflectivity of the surface that returns the
+light, the incidence at that surface and the total path length; ``rho_ref`` = 0.8 (white) at
+``r_ref`` = 10 m frontal gives 100. The intensity byte is ``min(level, 100)`` for diffuse
+surfaces and ``101 + min(level, 154)`` for retro-reflectors (VLS-128 convention), where the level
+is the signal itself or, range-compensated, ``100 * rho * |cos|`` (see ``LidarConfig``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+
+from exobench.core import SceneTruth
+from exobench.models.materials import DEFAULT_MATERIAL, KINDS, LidarMaterial, material
+
+KIND_CODE = {k: i for i, k in enumerate(KINDS)}  # diffuse 0, glass 1, mirror 2, retro 3
+_GLASS, _MIRROR, _RETRO = KIND_CODE["glass"], KIND_CODE["mirror"], KIND_CODE["retro"]
+EPS_M = 1e-6  # secondary rays start this far along their direction, beyond the surface left
+
+
+class ReturnKind(IntEnum):
+    """What produced a LiDAR point (ground truth)."""
+
+    GENUINE = 0  # a real surface on the straight ray
+    GLASS = 1  # the weak reflection of a glass pane itself
+    GHOST = 2  # a surface seen in a mirror / pane, reported along the original ray
+    THROUGH_GLASS = 3  # a real surface behind glass, on the straight ray (counts as genuine)
+
+
+@dataclass(frozen=True, eq=False)
+class GeomOptics:
+    """Material properties indexed by geom id (arrays of length ngeom)."""
+
+    name: np.ndarray  # material name per geom (str array)
+    kind: np.ndarray
+    reflectivity: np.ndarray
+    transmission: np.ndarray
+    specular: np.ndarray
+
+
+def geom_optics(geom_names: list[str], truth: SceneTruth, overrides: Mapping[str, LidarMaterial]) -> GeomOptics:
+    """Per-geom materials from the truth (unknown material names raise UnknownNameError)."""
+
+    def lookup(name: str) -> LidarMaterial:
+        return overrides[name] if name in overrides else material(name)
+
+    mats = [lookup(truth.geom_materials.get(g, DEFAULT_MATERIAL)) if g else lookup(DEFAULT_MATERIAL) for g in geom_names]
+    return GeomOptics(
+        np.array([m.name for m in mats], dtype=str),
+        np.array([KIND_CODE[m.kind] for m in mats], dtype=np.int64),
+        np.array([m.reflectivity for m in mats]),
+        np.array([m.transmission for m in mats]),
+        np.array([m.specular for m in mats]),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class BeamResult:
+    """Where each beam's returned light comes from (arrays over beams; geom -1 = no return)."""
+
+    geom: np.ndarray  # surface geom that returns the light
+    path_m: np.ndarray  # total path length, NaN without a return
+    hit_w: np.ndarray  # (N, 3) point on that surface
+    cos_inc: np.ndarray  # |cos| of the incidence at that surface
+    kind: np.ndarray  # ReturnKind
+    via_geom: np.ndarray  # last glass / mirror geom passed or reflected on, -1 if none
+
+
+def follow_beams(
+    model: object,
+    data: object,
+    geomgroup: np.ndarray,
+    origins_w: np.ndarray,
+    dirs_w: np.ndarray,
+    geom: np.ndarray,
+    dist: np.ndarray,
+    normals_w: np.ndarray,
+    optics: GeomOptics,
+    u: np.ndarray,
+    *,
+    glass: bool,
+    mirrors: bool,
+) -> BeamResult:
+    """Resolve glass and mirror events of the primary hits ``(geom, dist, normals_w)``.
+
+    ``u`` (N, max_interactions) are the uniform draws deciding each event.
+    """
+    n = len(geom)
+    geom = geom.astype(np.int64).copy()
+    hit = (geom >= 0) & (dist >= 0.0)
+    geom[~hit] = -1
+    path = np.where(hit, dist, np.nan)
+    hit_w = origins_w + np.where(hit, dist, 0.0)[:, None] * dirs_w
+    d_cur = dirs_w.copy()
+    n_cur = normals_w.copy()
+    reflected = np.zeros(n, dtype=bool)
+    transmitted = np.zeros(n, dtype=bool)
+    via = np.full(n, -1, dtype=np.int64)
+    done = ~hit  # a beam is done once its returning surface is decided
+    for j in range(u.shape[1]):
+        g = np.where(geom >= 0, geom, 0)
+        kind = np.where(geom >= 0, optics.kind[g], -1)
+        is_glass = (kind == _GLASS) & glass
+        is_mirror = (kind == _MIRROR) & mirrors
+        T = optics.transmission[g]
+        S = optics.specular[g]
+        through = ~done & is_glass & (u[:, j] < T)
+        mirror = ~done & (is_glass | is_mirror) & ~through & (u[:, j] < T + S)
+        done |= ~(through | mirror)
+        act = np.flatnonzero(through | mirror)
+        if len(act) == 0:
+            break
+        p = hit_w[act]
+        d = d_cur[act]
+        nv = n_cur[act]
+        m = mirror[act]
+        d[m] -= 2.0 * np.einsum("ij,ij->i", d[m], nv[m])[:, None] * nv[m]
+        d[m] /= np.linalg.norm(d[m], axis=1)[:, None]
+        o = p + EPS_M * d
+        r, gi, nn = cast_rays(model, data, geomgroup, o, d)
+        # a crossing beam passes every face of its pane; a mirrored one skips a grazing self-hit
+        for _ in range(8):
+            redo = np.flatnonzero((r >= 0.0) & (gi == geom[act]) & (~m | (r < 1e-6)))
+            if len(redo) == 0:
+                break
+            o[redo] += (r[redo] + EPS_M)[:, None] * d[redo]
+            r[redo], gi[redo], nn[redo] = cast_rays(model, data, geomgroup, o[redo], d[redo])
+        via[act] = geom[act]
+        lost = (r < 0.0) | (gi < 0)
+        q = o + np.where(lost, 0.0, r)[:, None] * d
+        path[act] = np.where(lost, np.nan, path[act] + np.linalg.norm(q - p, axis=1))
+        geom[act] = np.where(lost, -1, gi)
+        hit_w[act], d_cur[act], n_cur[act] = q, d, nn
+        reflected[act] |= m
+        transmitted[act] |= ~m
+
+    g = np.where(geom >= 0, geom, 0)
+    on_glass = (geom >= 0) & (optics.kind[g] == _GLASS)
+    kind = np.full(n, int(ReturnKind.GENUINE), dtype=np.int8)
+    kind[transmitted] = ReturnKind.THROUGH_GLASS
+    kind[on_glass] = ReturnKind.GLASS
+    kind[reflected] = ReturnKind.GHOST
+    cos_inc = np.abs(np.einsum("ij,ij->i", n_cur, d_cur))
+    return BeamResult(geom, path, hit_w, cos_inc, kind, via)
+
+
+def cast_rays(
+    model: object, data: object, geomgroup: np.ndarray, origins_w: np.ndarray, dirs_w: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``mj_ray`` for rays of their own origins: (distance or -1, geom or -1, normal) per ray."""
+    import mujoco
+
+    k = len(origins_w)
+    o = np.ascontiguousarray(origins_w, dtype=float)
+    d = np.ascontiguousarray(dirs_w, dtype=float)
+    r = np.empty(k)
+    gid = np.full(k, -1, dtype=np.int32)
+    nrm = np.zeros((k, 3))
+    for i in range(k):
+        r[i] = mujoco.mj_ray(model, data, o[i], d[i], geomgroup, 1, -1, gid[i : i + 1], nrm[i])
+    return r, gid.astype(np.int64), nrm
+
+
+def return_signal(
+    reflectivity: np.ndarray, cos_inc: np.ndarray, path_m: np.ndarray, ref_reflectivity: float, ref_range_m: float
+) -> np.ndarray:
+    """Lambertian return strength on the intensity scale (100 = white at the reference range, frontal)."""
+    return 100.0 * (reflectivity / ref_reflectivity) * cos_inc * (ref_range_m / path_m) ** 2
+
+
+def intensity_byte(level: np.ndarray, retro: np.ndarray) -> np.ndarray:
+    """Reflectivity byte: 0-100 diffuse, 101-255 retro-reflective."""
+    diffuse = np.minimum(level, 100.0)
+    bright = 101.0 + np.minimum(level, 154.0)
+    return np.rint(np.where(retro, bright, diffuse)).astype(np.uint8)
+
+
+RETRO_CODE = _RETRO
