@@ -1,0 +1,384 @@
+"""Floor plan of the procedural office: walls, glass, doors, windows, furniture, floors, routes (numpy only).
+
+The building is axis-aligned in the world, x along the corridors, y to the north, z up, the
+floor at z = 0 and the inside of the south-west corner at the origin. From south to north:
+
+    y = 0 .. W                south corridor (blank walls on both sides along the core:
+                              the featureless corridor)
+    slot of 0.12 m            south partition of the meeting room
+    W + t .. W + t + D        central block: service core (x from W) and meeting room (east end)
+    slot                      north partition of the meeting room
+    north corridor, W wide    where the walker starts, at its west end
+    slot                      corridor partitions of the offices (plaster or glass, with doors)
+    offices, D deep           n_offices side by side along x = 0 .. corridor_length_m
+    exterior wall             with one window per office
+
+Cross corridors (W wide) at both ends join the two long corridors, so the corridors form a
+ring around the central block (a loop for loop closure). Every interior wall stands in a 0.12 m
+slot: a plaster wall fills it, a glass partition stands in its middle (panes between 50 mm
+mullions). Doors are openings with an open leaf at 90 deg inside the room, hinged on the jamb
+nearer the room's side wall; the clear width beside the open leaf is ``door_width_m``.
+Floors and ceilings are one plane per area (corridor, room), split under the walls.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .office_furniture import (
+    Group,
+    Rect,
+    Solid,
+    cabinet,
+    couch,
+    find_spot,
+    footprint_rect,
+    meeting_table,
+    place_piece,
+    plant,
+    rotate_xy,
+    single,
+    waste_bin,
+    workstation,
+)
+from .office_params import (
+    DOOR_HEIGHT_M,
+    DOOR_JAMB_M,
+    EXT_WALL_T_M,
+    GLASS_LEAF_T_M,
+    MULLION_M,
+    WALL_T_M,
+    WOOD_LEAF_T_M,
+    OfficeParams,
+)
+
+MAX_PANE_M = 1.2  # widest glass pane between mullions [A]
+WINDOW_SILL_M, WINDOW_HEAD_M = 0.9, 2.2  # [A]
+VISIT_M = 1.5  # how far a route walks into a room past its door
+ROUTE_KEEPOUT_M = 0.5  # furniture keeps this far from a route
+
+
+@dataclass
+class Layout:
+    """Everything that was built, in the world frame (see the module docstring)."""
+
+    solids: list[Solid]
+    objects: list[dict]
+    regions: list[dict]
+    routes: dict[str, list[list[float]]]
+    start_w: list[float]
+    featureless_x_m: list[float]
+    corridor_y_m: dict[str, float]
+    extent: Rect  # outside of the exterior walls
+
+
+class _Names:
+    def __init__(self) -> None:
+        self.counts: dict[str, int] = {}
+
+    def __call__(self, prefix: str) -> str:
+        k = self.counts.get(prefix, 0)
+        self.counts[prefix] = k + 1
+        return f"{prefix}{k}"
+
+
+def _box(name: str, lo: tuple[float, float, float], hi: tuple[float, float, float], material: str, look: str,
+         kind: str) -> Solid:
+    return Solid(name, "box", tuple(0.5 * (a + b) for a, b in zip(lo, hi)), tuple(0.5 * (b - a) for a, b in zip(lo, hi)),
+                 material, look, kind)
+
+
+def _along(axis: int, u0: float, u1: float, w0: float, w1: float, z0: float, z1: float) -> tuple[tuple, tuple]:
+    """lo, hi of a box spanning u along ``axis`` (0: x, 1: y) and w across it."""
+    if axis == 0:
+        return (u0, w0, z0), (u1, w1, z1)
+    return (w0, u0, z0), (w1, u1, z1)
+
+
+def plaster_wall(name: str, axis: int, u0: float, u1: float, w0: float, w1: float, height: float,
+                 openings: list[tuple[float, float, float, float]]) -> list[Solid]:
+    """A plaster wall from u0 to u1 along ``axis``, w0..w1 thick, with openings (u0, u1, z0, z1)."""
+    out: list[Solid] = []
+    u = u0
+    parts: list[tuple[float, float, float, float]] = []
+    for a, b, z0, z1 in sorted(openings):
+        if a > u:
+            parts.append((u, a, 0.0, height))
+        if z0 > 0.0:
+            parts.append((a, b, 0.0, z0))
+        if z1 < height:
+            parts.append((a, b, z1, height))
+        u = b
+    if u < u1:
+        parts.append((u, u1, 0.0, height))
+    for i, (a, b, z0, z1) in enumerate(parts):
+        lo, hi = _along(axis, a, b, w0, w1, z0, z1)
+        out.append(_box(f"{name}_{i}", lo, hi, "plaster", "world_plaster", "wall"))
+    return out
+
+
+def glass_partition(name: str, axis: int, u0: float, u1: float, w_mid: float, height: float, glass_t: float,
+                    door: tuple[float, float] | None) -> tuple[list[Solid], list[str]]:
+    """Glass panes between square mullions from u0 to u1, centred on w_mid; a door opening (a, b)
+    gets jamb mullions, a head rail at the door height and a glass transom. Returns solids and pane names."""
+    m, gh = MULLION_M, 0.5 * glass_t
+    w0, w1 = w_mid - m / 2, w_mid + m / 2
+    posts = [(u0, u0 + m)]
+    spans: list[tuple[float, float, float]] = []  # (u0, u1, z0) of each pane
+    if door is not None:
+        posts += [(door[0] - m, door[0]), (door[1], door[1] + m)]
+    posts.append((u1 - m, u1))
+    posts.sort()
+    solids: list[Solid] = []
+    panes: list[str] = []
+    frames: list[tuple[float, float]] = list(posts)
+    for (_, a), (b, _) in zip(posts, posts[1:]):
+        if door is not None and abs(a - door[0]) < 1e-12:
+            continue  # the door opening itself
+        if b - a < 0.2:  # too narrow for a pane: a wide aluminium profile instead
+            frames.append((a, b))
+            continue
+        n = math.ceil((b - a) / MAX_PANE_M - 1e-9)
+        pw = (b - a - (n - 1) * m) / n
+        for k in range(n):
+            s0 = a + k * (pw + m)
+            spans.append((s0, s0 + pw, 0.0))
+            if k:
+                frames.append((s0 - m, s0))
+    for i, (a, b) in enumerate(sorted(frames)):
+        lo, hi = _along(axis, a, b, w0, w1, 0.0, height)
+        solids.append(_box(f"{name}_mullion{i}", lo, hi, "metal", "office_metal", "frame"))
+    if door is not None:
+        lo, hi = _along(axis, door[0], door[1], w0, w1, DOOR_HEIGHT_M, DOOR_HEIGHT_M + m)
+        solids.append(_box(f"{name}_head", lo, hi, "metal", "office_metal", "frame"))
+        if height - DOOR_HEIGHT_M - m > 0.05:
+            spans.append((door[0], door[1], DOOR_HEIGHT_M + m))
+    for i, (a, b, z0) in enumerate(spans):
+        lo, hi = _along(axis, a, b, w_mid - gh, w_mid + gh, z0, height)
+        pane = f"{name}_pane{i}"
+        solids.append(_box(pane, lo, hi, "glass", "office_glass", "glass"))
+        panes.append(pane)
+    return solids, panes
+
+
+def _door_leaf(name: str, glass: bool, hinge_u: float, leaf_dir: int, face_w: float, into: int, opening: float,
+               axis: int = 0) -> tuple[Solid, dict]:
+    """An open leaf hinged at ``hinge_u`` (the jamb), lying across the wall into the room.
+
+    ``leaf_dir`` (+1/-1): the side of the hinge the leaf thickness lies on (into the opening);
+    ``into`` (+1/-1): the direction from the wall face ``face_w`` into the room.
+    """
+    t = GLASS_LEAF_T_M if glass else WOOD_LEAF_T_M
+    ua, ub = sorted((hinge_u, hinge_u + leaf_dir * t))
+    wa, wb = sorted((face_w, face_w + into * opening))
+    lo, hi = _along(axis, ua, ub, wa, wb, 0.0, DOOR_HEIGHT_M - 0.01)
+    mat, look, kind = ("glass", "office_glass", "glass") if glass else ("wood", "office_wood", "door")
+    s = _box(name, lo, hi, mat, look, kind)
+    # object frame: x along the leaf (into the room), y its normal, origin at the bottom centre
+    c = s.centre
+    R = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]] if into > 0 else [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    T = [R[0] + [c[0]], R[1] + [c[1]], R[2] + [0.0], [0.0, 0.0, 0.0, 1.0]]
+    obj = {"name": name, "class": "door", "T_world_object": T, "size_m": [opening, t, DOOR_HEIGHT_M - 0.01],
+           "geom_names": [name], "glass": glass}
+    return s, obj
+
+
+def _place_groups(rng: np.random.Generator, names: _Names, room: Rect, room_name: str, density: float,
+                  candidates: list[tuple[Callable[[np.random.Generator], Group], bool]], keepouts: list[Rect]) -> tuple[list[Solid], list[dict]]:
+    solids: list[Solid] = []
+    objects: list[dict] = []
+    taken = list(keepouts)
+    for i, (make, against_wall) in enumerate(candidates):
+        group: Group = make(rng)
+        if rng.random() >= density and not (i == 0 and density > 0.0):  # the first is the room's main piece
+            continue
+        spot = find_spot(rng, room, group.footprint, taken, against_wall=against_wall)
+        if spot is None:
+            continue
+        k, x, y = spot
+        taken.append(footprint_rect(k, x, y, *group.footprint))
+        for piece, (ox, oy), km in group.members:
+            dx, dy = rotate_xy(k, ox, oy)
+            s, obj = place_piece(piece, names(piece.cls), (k + km) % 4, x + dx, y + dy)
+            obj["room"] = room_name
+            solids += s
+            objects.append(obj)
+    return solids, objects
+
+
+def _plane(name: str, rect: Rect, z: float, up: bool, material: str, look: str, kind: str) -> Solid:
+    x0, x1, y0, y1 = rect
+    return Solid(name, "plane", (0.5 * (x0 + x1), 0.5 * (y0 + y1), z), (0.5 * (x1 - x0), 0.5 * (y1 - y0), 0.0),
+                 material, look, kind, up)
+
+
+def build_layout(p: OfficeParams) -> Layout:
+    """Lay out the whole floor from validated parameters; deterministic in ``p`` (incl. its seed)."""
+    rng = np.random.default_rng(p.seed)
+    names = _Names()
+    W, X, D, C, t, te = p.corridor_width_m, p.corridor_length_m, p.room_depth_m, p.ceiling_m, WALL_T_M, EXT_WALL_T_M
+    dw, n = p.door_width_m, p.n_offices
+    # y of the slots and areas, south to north
+    yc0 = W + t
+    yc1 = yc0 + D
+    yn0 = yc1 + t
+    yn1 = yn0 + W
+    yo0 = yn1 + t
+    yo1 = yo0 + D
+    yS, yN = 0.5 * W, yn0 + 0.5 * W
+    xm1 = X - W - t
+    xm0 = xm1 - p.meeting_room_m
+
+    # office widths: the minimum plus a random share of what is left
+    w_min = p.office_min_width_m
+    spare = X - (n - 1) * t - n * w_min
+    widths = w_min + spare * rng.dirichlet(np.full(n, 4.0))
+    ox = []
+    x = 0.0
+    for k in range(n):
+        x1 = X if k == n - 1 else x + float(widths[k])
+        ox.append((x, x1))
+        x = x1 + t
+    # which corridor partitions are glass (offices 0..n-1, then meeting north, meeting south)
+    n_glass = int(round(p.glass_fraction * (n + 2)))
+    glass = set(int(i) for i in rng.permutation(n + 2)[:n_glass])
+
+    regions = [{"name": "corridor_n", "kind": "corridor", "rect": [0.0, X, yc1 + t / 2, yn1 + t / 2]},
+               {"name": "corridor_s", "kind": "corridor", "rect": [0.0, X, 0.0, W + t / 2]},
+               {"name": "corridor_w", "kind": "corridor", "rect": [0.0, W, W + t / 2, yc1 + t / 2]},
+               {"name": "corridor_e", "kind": "corridor", "rect": [X - W, X, W + t / 2, yc1 + t / 2]},
+               {"name": "meeting", "kind": "meeting", "rect": [xm0, X - W, W + t / 2, yc1 + t / 2],
+                "clear": [xm0, xm1, yc0, yc1]}]
+    for k, (a, b) in enumerate(ox):
+        regions.append({"name": f"office{k}", "kind": "office",
+                        "rect": [0.0 if k == 0 else a - t / 2, X if k == n - 1 else b + t / 2, yn1 + t / 2, yo1],
+                        "clear": [a, b, yo0, yo1]})
+    polished = set(int(i) for i in rng.permutation(len(regions))[:int(round(p.polished_fraction * len(regions)))])
+    solids: list[Solid] = []
+    for i, r in enumerate(regions):
+        if i in polished:
+            r["floor"], look = "polished_floor", "office_polished"
+        elif r["kind"] == "corridor":
+            r["floor"], look = "tiles", "world_floor"
+        else:
+            r["floor"], look = "carpet", "office_carpet"
+        solids.append(_plane(f"floor_{r['name']}", tuple(r["rect"]), 0.0, True, r["floor"], look, "ground"))
+    for r in regions:
+        solids.append(_plane(f"ceiling_{r['name']}", tuple(r["rect"]), C, False, "plaster", "office_ceiling", "ceiling"))
+
+    objects: list[dict] = []
+    # exterior walls (north one with windows), service core, east wall of the meeting room
+    solids.append(_box("wall_ext_w", (-te, -te, 0.0), (0.0, yo1 + te, C), "plaster", "world_plaster", "wall"))
+    solids.append(_box("wall_ext_e", (X, -te, 0.0), (X + te, yo1 + te, C), "plaster", "world_plaster", "wall"))
+    solids.append(_box("wall_ext_s", (0.0, -te, 0.0), (X, 0.0, C), "plaster", "world_plaster", "wall"))
+    windows = []
+    if p.windows:
+        head = min(WINDOW_HEAD_M, C - 0.25)
+        for a, b in ox:
+            ww = min(0.6 * (b - a), 2.4)
+            c = 0.5 * (a + b)
+            windows.append((c - ww / 2, c + ww / 2, WINDOW_SILL_M, head))
+    solids += plaster_wall("wall_ext_n", 0, 0.0, X, yo1, yo1 + te, C, windows)
+    for u0, u1, z0, z1 in windows:
+        name = names("window")
+        ym = yo1 + te / 2
+        solids.append(_box(name, (u0, ym - p.glass_thickness_m / 2, z0), (u1, ym + p.glass_thickness_m / 2, z1),
+                           "glass", "office_glass", "glass"))
+        objects.append({"name": name, "class": "window", "T_world_object": _T(0.5 * (u0 + u1), ym, z0),
+                        "size_m": [u1 - u0, p.glass_thickness_m, z1 - z0], "geom_names": [name]})
+    solids.append(_box("core", (W, W, 0.0), (xm0, yn0, C), "plaster", "world_plaster", "wall"))
+    solids.append(_box("wall_meeting_e", (xm1, W, 0.0), (X - W, yn0, C), "plaster", "world_plaster", "wall"))
+    for k in range(n - 1):
+        solids.append(_box(f"wall_side{k}", (ox[k][1], yn1, 0.0), (ox[k + 1][0], yo1, C), "plaster", "world_plaster", "wall"))
+
+    def partition(idx: int, name: str, u0: float, u1: float, slot: tuple[float, float], clear0: float, hinge_west: bool,
+                  into: int) -> tuple[list[Solid], float, float, tuple[float, float]]:
+        """A corridor partition with its door; the clear passage starts at ``clear0``.
+        Returns solids, the face the leaf rests on, the hinge jamb and the opening."""
+        is_glass = idx in glass
+        lt = GLASS_LEAF_T_M if is_glass else WOOD_LEAF_T_M
+        opening = (clear0 - lt, clear0 + dw) if hinge_west else (clear0, clear0 + dw + lt)
+        mid = 0.5 * (slot[0] + slot[1])
+        if is_glass:
+            s, panes = glass_partition(name, 0, u0, u1, mid, C, p.glass_thickness_m, opening)
+            gname = names("glass_partition")
+            objects.append({"name": gname, "class": "glass_partition", "T_world_object": _T(0.5 * (u0 + u1), mid, 0.0),
+                            "size_m": [u1 - u0, MULLION_M, C], "geom_names": [g.name for g in s]})
+            face = mid + into * MULLION_M / 2
+        else:
+            s = plaster_wall(name, 0, u0, u1, slot[0], slot[1], C, [(opening[0], opening[1], 0.0, DOOR_HEIGHT_M)])
+            face = slot[1] if into > 0 else slot[0]
+        hinge = opening[0] if hinge_west else opening[1]
+        leaf, obj = _door_leaf(names("door"), is_glass, hinge, 1 if hinge_west else -1, face, into, opening[1] - opening[0])
+        objects.append(obj)
+        return s + [leaf], face, hinge, opening
+
+    keep: dict[str, list[Rect]] = {}
+    door_x: dict[str, float] = {}
+    for k, (a, b) in enumerate(ox):
+        west = bool(rng.random() < 0.5)
+        clear0 = a + DOOR_JAMB_M + WOOD_LEAF_T_M if west else b - DOOR_JAMB_M - WOOD_LEAF_T_M - dw
+        s, face, hinge, opening = partition(k, f"wall_office{k}", a, b, (yn1, yo0), clear0, west, +1)
+        solids += s
+        dc = clear0 + dw / 2
+        door_x[f"office{k}"] = dc
+        ow = opening[1] - opening[0]
+        swing = (hinge, hinge + ow) if west else (hinge - ow, hinge)
+        visit = yo0 + min(VISIT_M, D - 0.5)
+        keep[f"office{k}"] = [(swing[0], swing[1], yo0, yo0 + ow),
+                              (dc - ROUTE_KEEPOUT_M, dc + ROUTE_KEEPOUT_M, yo0, visit + ROUTE_KEEPOUT_M)]
+    # meeting room: a door in each partition on the same clear passage, leaves on opposite jambs
+    clear0 = xm0 + DOOR_JAMB_M + WOOD_LEAF_T_M
+    dm = clear0 + dw / 2
+    door_x["meeting"] = dm
+    s, face_n, hinge_n, op_n = partition(n, "wall_meeting_n", xm0, xm1, (yc1, yn0), clear0, True, -1)
+    solids += s
+    s, face_s, hinge_s, op_s = partition(n + 1, "wall_meeting_s", xm0, xm1, (W, yc0), clear0, False, +1)
+    solids += s
+    keep["meeting"] = [(hinge_n, hinge_n + op_n[1] - op_n[0], yc1 - (op_n[1] - op_n[0]), yc1),
+                       (hinge_s - (op_s[1] - op_s[0]), hinge_s, yc0, yc0 + op_s[1] - op_s[0]),
+                       (dm - ROUTE_KEEPOUT_M, dm + ROUTE_KEEPOUT_M, yc0, yc1)]
+
+    # furniture
+    for r in regions:
+        if r["kind"] == "corridor":
+            continue
+        room = tuple(r["clear"])
+        area = (room[1] - room[0]) * (room[3] - room[2])
+        if r["kind"] == "office":
+            cands = [(workstation, True)]
+            if room[1] - room[0] >= 3.6:
+                cands.append((workstation, True))
+            if area >= 16.0:
+                cands.append((lambda g: single(couch(g)), True))
+            cands += [(lambda g: single(cabinet(g)), True), (lambda g: single(cabinet(g)), True),
+                      (lambda g: single(plant(g)), True), (lambda g: single(waste_bin(g)), True)]
+        else:
+            cands = [(meeting_table, False), (lambda g: single(couch(g)), True), (lambda g: single(cabinet(g)), True),
+                     (lambda g: single(plant(g)), True), (lambda g: single(plant(g)), True),
+                     (lambda g: single(waste_bin(g)), True)]
+        s, objs = _place_groups(rng, names, room, r["name"], p.furniture_density, cands, keep[r["name"]])
+        solids += s
+        objects += objs
+
+    # routes: a loop round the ring visiting every office (in and out again), then a second lap
+    # through the meeting room, both closing at the start; and the whole south corridor
+    S, NE, SE, SW = [W / 2, yN], [X - W / 2, yN], [X - W / 2, yS], [W / 2, yS]
+    loop = [S]
+    for k in sorted(range(n), key=lambda k: door_x[f"office{k}"]):
+        dc = door_x[f"office{k}"]
+        loop += [[dc, yN], [dc, yo0 + min(VISIT_M, D - 0.5)], [dc, yN]]
+    loop += [NE, SE, SW, S, [dm, yN], [dm, 0.5 * (yc0 + yc1)], [dm, yS], SW, S]
+    loop = [q for i, q in enumerate(loop) if i == 0 or q != loop[i - 1]]
+    routes = {"loop": loop, "corridor": [SW, SE]}
+    return Layout(solids=solids, objects=objects, regions=regions, routes=routes, start_w=[W / 2, yN, 0.0],
+                  featureless_x_m=[W, xm0], corridor_y_m={"north": yN, "south": yS},
+                  extent=(-te, X + te, -te, yo1 + te))
+
+
+def _T(x: float, y: float, z: float) -> list[list[float]]:
+    return [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]]

@@ -1,0 +1,114 @@
+"""Validated parameters of the procedural office (:func:`exobench.models.office.build_office`).
+
+:data:`OFFICE_PARAMS` lists every parameter as ``ParamSpec(default, low, high, unit, doc)`` for
+the command line; :class:`OfficeParams` checks each value against its range and then the
+combinations a building cannot have (offices narrower than their door, a meeting room longer
+than the corridor, ...), raising ``ConfigError`` naming the field, the value and what fits.
+Sizes follow ``/work/shared/SENSORS.md`` (Buildings): clear door >= 0.81 m, corridor >= 1.12 m,
+glass panes 8-12 mm and 2.4-3.0 m tall.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from exobench.core.errors import ConfigError
+
+from .world_params import ParamSpec, _from_dict, _validate
+
+# fixed building dimensions [A: typical office construction]
+WALL_T_M = 0.12  # interior partition slot (plaster stud wall; glass partitions stand in its middle)
+EXT_WALL_T_M = 0.25  # exterior wall
+DOOR_HEIGHT_M = 2.1  # door openings and leaves
+DOOR_JAMB_M = 0.15  # wall between a door opening and the room's side wall
+WOOD_LEAF_T_M = 0.04  # door leaf thickness; the open leaf narrows the opening to the clear width
+GLASS_LEAF_T_M = 0.012
+MULLION_M = 0.05  # aluminium profiles of glass partitions, square section
+OFFICE_MIN_WIDTH_M = 2.4  # narrowest cellular office [A: a desk, a chair and a door side by side]
+ROOM_DEPTH_SPARE_M = 0.6  # room depth beyond the open door leaf, to step past it
+
+OFFICE_PARAMS: dict[str, ParamSpec] = {
+    "seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the layout (office widths, door sides, glass, floors, furniture)"),
+    "n_offices": ParamSpec(6, 1, 24, "", "cellular offices along the north corridor"),
+    "corridor_width_m": ParamSpec(1.8, 1.12, 4.0, "m", "clear width of every corridor (IBC 1020.2: >= 1.12 m)"),
+    "corridor_length_m": ParamSpec(24.0, 8.0, 80.0, "m", "inside length of the building = length of the two long corridors"),
+    "room_depth_m": ParamSpec(4.0, 1.5, 10.0, "m", "clear depth of the offices and of the meeting room"),
+    "meeting_room_m": ParamSpec(6.0, 1.5, 30.0, "m", "clear length of the meeting room along the corridors"),
+    "ceiling_m": ParamSpec(2.7, 2.4, 3.0, "m", "floor to ceiling; glass partitions are this tall (2.4-3.0 m)"),
+    "door_width_m": ParamSpec(0.9, 0.81, 1.2, "m", "clear width of every door with its leaf open (ADA 404.2.3: >= 0.81 m)"),
+    "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions (offices and meeting room) that are glass"),
+    "glass_thickness_m": ParamSpec(0.010, 0.008, 0.012, "m", "thickness of glass panes (8-12 mm)"),
+    "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas (rooms and corridors) with a polished floor"),
+    "furniture_density": ParamSpec(0.8, 0.0, 1.0, "", "probability that each optional piece of furniture is placed (a room's desk or meeting table is there whenever > 0)"),
+    "windows": ParamSpec(True, None, None, "", "one window per office in the north facade", choices=(False, True)),
+}
+
+
+@dataclass(frozen=True)
+class OfficeParams:
+    """An office floor: offices, two long corridors joined at both ends, a meeting room; see :data:`OFFICE_PARAMS`."""
+
+    seed: int = OFFICE_PARAMS["seed"].default
+    n_offices: int = OFFICE_PARAMS["n_offices"].default
+    corridor_width_m: float = OFFICE_PARAMS["corridor_width_m"].default
+    corridor_length_m: float = OFFICE_PARAMS["corridor_length_m"].default
+    room_depth_m: float = OFFICE_PARAMS["room_depth_m"].default
+    meeting_room_m: float = OFFICE_PARAMS["meeting_room_m"].default
+    ceiling_m: float = OFFICE_PARAMS["ceiling_m"].default
+    door_width_m: float = OFFICE_PARAMS["door_width_m"].default
+    glass_fraction: float = OFFICE_PARAMS["glass_fraction"].default
+    glass_thickness_m: float = OFFICE_PARAMS["glass_thickness_m"].default
+    polished_fraction: float = OFFICE_PARAMS["polished_fraction"].default
+    furniture_density: float = OFFICE_PARAMS["furniture_density"].default
+    windows: bool = OFFICE_PARAMS["windows"].default
+
+    def __post_init__(self) -> None:
+        _validate(self, "office", OFFICE_PARAMS)
+        self._check_fit()
+
+    @property
+    def door_opening_m(self) -> float:
+        """Width of a door opening: the clear width plus the thickest (wooden) open leaf."""
+        return self.door_width_m + WOOD_LEAF_T_M
+
+    @property
+    def office_min_width_m(self) -> float:
+        return max(OFFICE_MIN_WIDTH_M, self.door_opening_m + 2 * DOOR_JAMB_M)
+
+    @property
+    def core_length_m(self) -> float:
+        """Length of the blank service core beside the meeting room (the featureless stretch)."""
+        W, X = self.corridor_width_m, self.corridor_length_m
+        return X - 2 * W - WALL_T_M - self.meeting_room_m
+
+    def _check_fit(self) -> None:
+        W, X, n = self.corridor_width_m, self.corridor_length_m, self.n_offices
+        swing = self.door_opening_m + ROOM_DEPTH_SPARE_M
+        if self.room_depth_m < swing:
+            raise ConfigError("office.door_width_m", self.door_width_m,
+                              f"<= {self.room_depth_m - ROOM_DEPTH_SPARE_M - WOOD_LEAF_T_M:.3f} m: the open leaf "
+                              f"({self.door_opening_m:.3f} m) plus {ROOM_DEPTH_SPARE_M} m must fit in room_depth_m = {self.room_depth_m} m")
+        need_m = 2 * DOOR_JAMB_M + self.door_opening_m + WOOD_LEAF_T_M
+        if self.meeting_room_m < need_m:
+            raise ConfigError("office.meeting_room_m", self.meeting_room_m,
+                              f">= {need_m:.3f} m (its two doors, hinged on opposite jambs, and {DOOR_JAMB_M} m of wall "
+                              f"each side)")
+        need_x = n * self.office_min_width_m + (n - 1) * WALL_T_M
+        if X < need_x:
+            raise ConfigError("office.corridor_length_m", X,
+                              f">= {need_x:.3f} m for {n} offices at least {self.office_min_width_m:.2f} m wide "
+                              f"with {WALL_T_M} m walls between them")
+        max_meeting = X - 2 * W - 2 * WALL_T_M
+        if self.meeting_room_m > max_meeting:
+            raise ConfigError("office.meeting_room_m", self.meeting_room_m,
+                              f"<= {max_meeting:.3f} m (corridor_length_m - 2 corridor_width_m - 2 walls: the "
+                              f"meeting room and the core sit between the two cross corridors)")
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> OfficeParams:
+        return _from_dict(cls, "office", OFFICE_PARAMS, values)
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
