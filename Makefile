@@ -18,8 +18,10 @@ test: $(STAMP)
 	$(VENV)/bin/python -m pytest
 
 bench: $(STAMP)
+	$(VENV)/bin/python -m pip install -q -e '.[test,bench]'
 	$(VENV)/bin/exobench bench rtls
 	$(VENV)/bin/exobench bench sim
+	$(VENV)/bin/exobench bench lidar
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

@@ -156,13 +156,13 @@ def list_() -> None:
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["rtls", "sim"]))
+@click.argument("what", type=click.Choice(["rtls", "sim", "lidar"]))
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
 def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
-    """Time the RTLS update against a batch refit (rtls) or the simulator (sim)."""
-    from .bench import bench_rtls, bench_sim, case_a_episode
+    """Time the RTLS update against a batch refit (rtls), the simulator (sim) or the LiDAR (lidar)."""
+    from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
     from .results import json_safe
 
     if what == "rtls":
@@ -173,13 +173,26 @@ def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
         else:
             episode = case_a_episode(seed)
         result = bench_rtls(episode)
+    elif what == "lidar":
+        result = bench_lidar(seed=seed)
     else:
         result = bench_sim(seed=seed)
     if as_json:
         click.echo(json.dumps(json_safe(result), indent=2))
         return
+    if what == "lidar":  # one figure per line: exobench.static.ms_per_sweep ...
+        result = _flat(result)
+    w = max(28, *(len(k) + 1 for k in result))
     for key, value in json_safe(result).items():
-        click.echo(f"{key:<28} {value:.4g}" if isinstance(value, float) else f"{key:<28} {value}")
+        click.echo(f"{key:<{w}} {value:.4g}" if isinstance(value, float) else f"{key:<{w}} {value}")
+
+
+def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested dicts as one level of dotted keys."""
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        out.update(_flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
+    return out
 
 
 @cli.command()
