@@ -1,0 +1,137 @@
+"""Office walks with the trunk LiDAR: timing, exact geometry against the truth, walking, validation."""
+
+import numpy as np
+import pytest
+
+from exobench.core import ConfigError, LidarScan, UnknownNameError
+from exobench.envs.office_sim import LIDAR_ID, OfficeScenario, SensorPose, plan_office_walk, simulate_office
+
+SHORT = dict(route="corridor", max_distance_m=2.0, lidar_noise_m=0.0, lidar_resolution_m=0.0)
+SEED = 3
+
+
+@pytest.fixture(scope="module")
+def run():
+    sc = OfficeScenario.from_dict(SHORT)
+    scene, motion = plan_office_walk(sc)
+    return sc, scene, motion, simulate_office(sc, SEED)
+
+
+def _scans(ep):
+    return [f for f in ep.frames if isinstance(f, LidarScan)]
+
+
+def test_frames_time_ordered_and_scans_at_the_rate(run):
+    sc, _, motion, ep = run
+    stamps = np.array([f.stamp_s for f in ep.frames])
+    assert np.all(np.diff(stamps) >= 0.0)
+    assert {f.sensor_id for f in ep.frames} >= {"encoders", "imu_trunk", LIDAR_ID}
+    scans = _scans(ep)
+    period = 1.0 / sc.lidar_rate_hz
+    n = int(np.floor(motion.duration_s / period + 1e-9))
+    assert len(scans) == len(ep.truth.lidar) == len(ep.truth.trajectory_w) == n > 10
+    starts = np.array([s.sweep_start_s for s in scans])
+    np.testing.assert_allclose(starts, np.arange(n) * period, atol=1e-12)
+    np.testing.assert_allclose([s.stamp_s for s in scans], starts + period, atol=1e-12)
+    for s in scans:
+        assert len(s.points_xyz) > 1000
+        assert np.all(s.time_offset_s >= 0.0) and np.all(s.time_offset_s < period)
+        assert s.stamp_s <= motion.duration_s + 1e-9
+
+
+def test_sensor_pose_matches_mujoco_kinematics(run):
+    import mujoco
+
+    _, scene, motion, ep = run
+    model = scene.model
+    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, LIDAR_ID)
+    data = mujoco.MjData(model)
+    pose = SensorPose(model, motion, LIDAR_ID)
+    for row in ep.truth.trajectory_w[::7]:
+        data.qpos[:] = motion.sample(model, row[0]).qpos[0]
+        mujoco.mj_kinematics(model, data)
+        np.testing.assert_allclose(row[1:4], data.site_xpos[site], atol=1e-9)
+        q = np.empty(4)
+        mujoco.mju_mat2Quat(q, data.site_xmat[site])
+        assert abs(abs(float(q @ row[4:])) - 1.0) < 1e-9
+        T = pose(np.array([row[0] + 0.0123]))[0]
+        data.qpos[:] = motion.sample(model, row[0] + 0.0123).qpos[0]
+        mujoco.mj_kinematics(model, data)
+        np.testing.assert_allclose(T[:3, 3], data.site_xpos[site], atol=1e-9)
+        np.testing.assert_allclose(T[:3, :3], data.site_xmat[site].reshape(3, 3), atol=1e-9)
+    np.testing.assert_allclose(ep.truth.T_world_estimator, pose(np.array([0.0]))[0], atol=1e-12)
+
+
+def test_noise_free_points_land_on_their_labelled_surfaces(run):
+    sc, scene, motion, ep = run
+    pose = SensorPose(scene.model, motion, LIDAR_ID)
+    firing_s = sc.lidar_config().pattern.firing_period_s
+    truth = ep.truth.scene
+    scans = _scans(ep)
+    checked = 0
+    for scan, lt in list(zip(scans, ep.truth.lidar))[::5]:
+        keep = lt.genuine & (lt.surface_id >= 0)
+        # each firing block is cast from the sensor pose at the block's firing time
+        t_block = scan.sweep_start_s + np.floor(scan.time_offset_s / firing_s + 1e-9) * firing_s
+        T = pose(t_block[keep])
+        p = np.einsum("nij,nj->ni", T[:, :3, :3], scan.points_xyz[keep]) + T[:, :3, 3]
+        np.testing.assert_allclose(p, lt.hit_w[keep], atol=1e-6)
+        for sid in np.unique(lt.surface_id[keep]):
+            sf = truth.surface(int(sid))
+            m = lt.surface_id[keep] == sid
+            assert np.max(np.abs((p[m] - sf.point_w) @ sf.normal_w)) < 1e-6
+        # the points' own firing times are within one block (37 us at walking speed: < 0.1 mm)
+        T_own = pose(scan.sweep_start_s + scan.time_offset_s[keep])
+        p_own = np.einsum("nij,nj->ni", T_own[:, :3, :3], scan.points_xyz[keep]) + T_own[:, :3, 3]
+        assert np.max(np.linalg.norm(p_own - p, axis=1)) < 1e-4
+        checked += int(keep.sum())
+    assert checked > 10000
+    assert {truth.surface(int(s)).kind for lt in ep.truth.lidar for s in np.unique(lt.surface_id[lt.surface_id >= 0])} >= {
+        "ground", "ceiling", "wall"
+    }
+
+
+def test_walk_stays_on_the_floor_and_follows_the_route(run):
+    from exobench.models.office import office_route
+
+    sc, scene, motion, ep = run
+    assert ep.truth.max_penetration_m <= 1e-12
+    kinds = {scene.truth.surface(f.surface_id).kind for f in motion.footsteps}
+    assert kinds == {"ground"}
+    start = np.array(office_route(scene.truth, sc.route)[0])
+    pelvis = ep.truth.body_tracks["pelvis"]
+    xy0, xy1 = pelvis[0, 1:3], pelvis[-1, 1:3]
+    np.testing.assert_allclose(xy0, start, atol=0.05)
+    assert sc.max_distance_m - 0.3 <= np.linalg.norm(xy1 - xy0) <= sc.max_distance_m + 0.05
+    traj = ep.truth.trajectory_w
+    assert np.all(np.abs(traj[:, 2] - start[1]) < 0.2)  # the corridor route is straight along x
+    assert np.all(np.diff(traj[:, 1]) >= -1e-9)
+
+
+def test_deterministic(run):
+    sc, _, _, ep = run
+    again = simulate_office(sc, SEED)
+    assert len(again.frames) == len(ep.frames)
+    for a, b in zip(again.frames, ep.frames):
+        assert type(a) is type(b) and a.stamp_s == b.stamp_s and a.sensor_id == b.sensor_id
+        if isinstance(a, LidarScan):
+            assert np.array_equal(a.points_xyz, b.points_xyz) and np.array_equal(a.intensity, b.intensity)
+    np.testing.assert_array_equal(again.truth.trajectory_w, ep.truth.trajectory_w)
+
+
+@pytest.mark.parametrize(
+    "field,value",
+    [("lidar", "hdl64"), ("route", "stairs"), ("max_distance_m", -1.0), ("lidar_rate_hz", 50.0),
+     ("n_offices", 2.5), ("step_length_m", "long"), ("lidar_noise_m", True)],
+)  # fmt: skip
+def test_invalid_values_name_the_field(field, value):
+    with pytest.raises(ConfigError) as e:
+        OfficeScenario.from_dict({field: value})
+    assert e.value.field == field
+
+
+def test_unknown_name_and_string_values():
+    with pytest.raises(UnknownNameError):
+        OfficeScenario.from_dict({"speed": 1.0})
+    sc = OfficeScenario.from_dict({"max_distance_m": "5", "n_offices": "4", "lidar": "ouster64"})
+    assert sc.max_distance_m == 5.0 and sc.n_offices == 4 and sc.lidar_config().pattern.name == "ouster64"
