@@ -26,17 +26,16 @@ look-ahead is not confused by stubs, and the polyline is cut at ``max_distance_m
 
 from __future__ import annotations
 
-import math
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from exobench.core import ConfigError, Episode, EpisodeTruth, Frame, UnknownNameError, check_range
+from exobench.core import ConfigError, Episode, EpisodeTruth, Frame
 from exobench.core.transforms import invert_T, make_T, matrix_to_quat_wxyz
 from exobench.models.exo_spec import CONTACT_IDS, ExoSpec
-from exobench.models.world_params import ParamSpec
+from exobench.models.world_params import ParamSpec, from_dict_checked, validate_fields
 
 from .gait import Motion, rot_yaw_pitch
 from .imu import ImuSensor, imu_dynamics
@@ -76,27 +75,6 @@ PARAMS: dict[str, ParamSpec] = {
 }
 
 
-def _check(name: str, value: Any) -> Any:
-    spec = PARAMS[name]
-    if spec.choices:
-        if value not in spec.choices:
-            raise ConfigError(name, value, "one of " + ", ".join(map(str, spec.choices)))
-        return value
-    if isinstance(value, bool):
-        raise ConfigError(name, value, "a number")
-    if isinstance(value, str):
-        try:
-            value = float(value.strip())
-        except ValueError:
-            raise ConfigError(name, value, "a number") from None
-    x = check_range(name, value, spec.low, spec.high, low_open=spec.low_open)
-    if isinstance(spec.default, int):
-        if x != math.floor(x):
-            raise ConfigError(name, value, f"an integer {spec.low}..{spec.high}")
-        return int(x)
-    return float(x)
-
-
 @dataclass(frozen=True)
 class OfficeScenario:
     """One office-walk episode; see :data:`PARAMS` for units, ranges and meaning."""
@@ -118,16 +96,12 @@ class OfficeScenario:
     encoder_noise_rad: float = PARAMS["encoder_noise_rad"].default
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            object.__setattr__(self, f.name, _check(f.name, getattr(self, f.name)))
+        validate_fields(self, PARAMS)
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> OfficeScenario:
         """Validated scenario from plain values (strings are converted); unknown names refused."""
-        for k in values:
-            if k not in PARAMS:
-                raise UnknownNameError("office scenario parameter", str(k), PARAMS)
-        return cls(**values)
+        return from_dict_checked(cls, "office scenario", PARAMS, values)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)

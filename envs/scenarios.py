@@ -16,12 +16,12 @@ L = 0.27 m; C turned -23 deg, L = 0.49 m.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 from typing import Any
 
 from exobench.core import ConfigError, UnknownNameError, check_range
 from exobench.models.exo_spec import ExoSpec
-from exobench.models.world_params import ParamSpec, StaircaseParams
+from exobench.models.world_params import ParamSpec, StaircaseParams, from_dict_checked, validate_fields
 
 from .sensor_config import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, ToFConfig
 
@@ -54,23 +54,6 @@ PAPER_CASES: dict[str, dict[str, float]] = {
 }
 
 
-def _check(name: str, value: Any) -> Any:
-    spec = PARAMS[name]
-    if isinstance(value, bool):
-        raise ConfigError(name, value, "a number")
-    if isinstance(value, str):
-        try:
-            value = float(value.strip())
-        except ValueError:
-            raise ConfigError(name, value, "a number") from None
-    x = check_range(name, value, spec.low, spec.high, low_open=spec.low_open)
-    if isinstance(spec.default, int):
-        if x != math.floor(x):
-            raise ConfigError(name, value, f"an integer {spec.low}..{spec.high}")
-        return int(x)
-    return x
-
-
 @dataclass(frozen=True)
 class StairScenario:
     """One stairs-track episode; see :data:`PARAMS` for units, ranges and meaning."""
@@ -95,16 +78,12 @@ class StairScenario:
     encoder_noise_rad: float = PARAMS["encoder_noise_rad"].default
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            object.__setattr__(self, f.name, _check(f.name, getattr(self, f.name)))
+        validate_fields(self, PARAMS)
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> StairScenario:
         """Validated scenario from plain values (strings are converted); unknown names refused."""
-        for k in values:
-            if k not in PARAMS:
-                raise UnknownNameError("stairs scenario parameter", str(k), PARAMS)
-        return cls(**values)
+        return from_dict_checked(cls, "stairs scenario", PARAMS, values)
 
     @classmethod
     def paper_case(cls, case: str, **overrides: Any) -> StairScenario:

@@ -15,7 +15,7 @@ from typing import Any
 
 from exobench.core.errors import ConfigError
 
-from .world_params import ParamSpec, _from_dict, _validate
+from .world_params import ParamSpec, from_dict_checked, validate_fields
 
 # fixed building dimensions [A: typical office construction]
 WALL_T_M = 0.12  # interior partition slot (plaster stud wall; glass partitions stand in its middle)
@@ -64,7 +64,7 @@ class OfficeParams:
     windows: bool = OFFICE_PARAMS["windows"].default
 
     def __post_init__(self) -> None:
-        _validate(self, "office", OFFICE_PARAMS)
+        validate_fields(self, OFFICE_PARAMS, "office")
         self._check_fit()
 
     @property
@@ -107,7 +107,7 @@ class OfficeParams:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> OfficeParams:
-        return _from_dict(cls, "office", OFFICE_PARAMS, values)
+        return from_dict_checked(cls, "office", OFFICE_PARAMS, values)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)

@@ -107,8 +107,8 @@ COURSE_PARAMS: dict[str, ParamSpec] = {
 }
 
 
-def _check_value(field: str, value: Any, spec: ParamSpec) -> Any:
-    """Validate and normalise one value against its spec."""
+def check_param(field: str, value: Any, spec: ParamSpec) -> Any:
+    """Validate and normalise one value against its spec (strings from the CLI are converted)."""
     if spec.choices:
         if isinstance(spec.default, bool):
             if not isinstance(value, bool):
@@ -125,24 +125,34 @@ def _check_value(field: str, value: Any, spec: ParamSpec) -> Any:
         if len(vals) != len(spec.default):
             raise ConfigError(field, value, f"{len(spec.default)} numbers")
         return tuple(check_range(field, v, spec.low, spec.high) for v in vals)
+    if isinstance(value, bool):
+        raise ConfigError(field, value, "a number")
+    if isinstance(value, str):
+        try:
+            value = float(value.strip())
+        except ValueError:
+            raise ConfigError(field, value, "a number") from None
     x = check_range(field, value, spec.low, spec.high, low_open=spec.low_open)
     if isinstance(spec.default, int):
-        if x != math.floor(x) or isinstance(value, bool):
+        if x != math.floor(x):
             raise ConfigError(field, value, f"an integer {spec.low}..{spec.high}")
         return int(x)
     return x
 
 
-def _validate(obj: Any, prefix: str, table: dict[str, ParamSpec]) -> None:
+def validate_fields(obj: Any, table: dict[str, ParamSpec], prefix: str = "") -> None:
+    """Check every field of a frozen dataclass that has a row in ``table``, in place."""
     for f in fields(obj):
         if f.name in table and f.name != "segments":
-            object.__setattr__(obj, f.name, _check_value(f"{prefix}.{f.name}", getattr(obj, f.name), table[f.name]))
+            name = f"{prefix}.{f.name}" if prefix else f.name
+            object.__setattr__(obj, f.name, check_param(name, getattr(obj, f.name), table[f.name]))
 
 
-def _from_dict(cls: type, kind: str, table: dict[str, ParamSpec], values: dict[str, Any]) -> Any:
+def from_dict_checked(cls: type, kind: str, table: dict[str, ParamSpec], values: dict[str, Any]) -> Any:
+    """``cls(**values)`` after refusing names that ``table`` does not know."""
     for k in values:
         if k not in table:
-            raise UnknownNameError(f"{kind} parameter", k, table)
+            raise UnknownNameError(f"{kind} parameter", str(k), table)
     return cls(**values)
 
 
@@ -162,11 +172,11 @@ class StaircaseParams:
     walls: bool = STAIRCASE_PARAMS["walls"].default
 
     def __post_init__(self) -> None:
-        _validate(self, "stairs", STAIRCASE_PARAMS)
+        validate_fields(self, STAIRCASE_PARAMS, "stairs")
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> StaircaseParams:
-        return _from_dict(cls, "staircase", STAIRCASE_PARAMS, values)
+        return from_dict_checked(cls, "staircase", STAIRCASE_PARAMS, values)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -186,7 +196,7 @@ class RampParams:
     walls: bool = RAMP_PARAMS["walls"].default
 
     def __post_init__(self) -> None:
-        _validate(self, "ramp", RAMP_PARAMS)
+        validate_fields(self, RAMP_PARAMS, "ramp")
 
     @property
     def rise_m(self) -> float:
@@ -194,7 +204,7 @@ class RampParams:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> RampParams:
-        return _from_dict(cls, "ramp", RAMP_PARAMS, values)
+        return from_dict_checked(cls, "ramp", RAMP_PARAMS, values)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -207,11 +217,11 @@ class LevelParams:
     size_m: float = LEVEL_PARAMS["size_m"].default
 
     def __post_init__(self) -> None:
-        _validate(self, "level", LEVEL_PARAMS)
+        validate_fields(self, LEVEL_PARAMS, "level")
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> LevelParams:
-        return _from_dict(cls, "level", LEVEL_PARAMS, values)
+        return from_dict_checked(cls, "level", LEVEL_PARAMS, values)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -239,7 +249,7 @@ def normalise_segments(segments: Any) -> tuple[tuple[str, dict[str, Any]], ...]:
         for k in values:
             if k not in table:
                 raise UnknownNameError(f"{kind} segment parameter", k, table)
-        clean = {k: _check_value(f"{field}.{k}", values.get(k, s.default), s) for k, s in table.items()}
+        clean = {k: check_param(f"{field}.{k}", values.get(k, s.default), s) for k, s in table.items()}
         out.append((kind, clean))
     return tuple(out)
 
@@ -257,12 +267,12 @@ class CourseParams:
     walls: bool = COURSE_PARAMS["walls"].default
 
     def __post_init__(self) -> None:
-        _validate(self, "course", COURSE_PARAMS)
+        validate_fields(self, COURSE_PARAMS, "course")
         object.__setattr__(self, "segments", normalise_segments(self.segments))
 
     @classmethod
     def from_dict(cls, values: dict[str, Any]) -> CourseParams:
-        return _from_dict(cls, "course", COURSE_PARAMS, values)
+        return from_dict_checked(cls, "course", COURSE_PARAMS, values)
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
