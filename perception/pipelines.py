@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import time
+from abc import ABC, abstractmethod
 from dataclasses import asdict, dataclass
 from typing import Any, ClassVar
 
@@ -339,7 +340,7 @@ def _check_common(cfg: Any) -> None:
         raise ConfigError("reliable_n", cfg.reliable_n, "an integer >= 1")
 
 
-class _StairsPipeline:
+class _StairsPipeline(ABC):
     """Frame handling, kinematics, bookkeeping and read-out shared by the stairs pipelines."""
 
     name: ClassVar[str]
@@ -449,18 +450,20 @@ class _StairsPipeline:
         self._readings.append((frame.stamp_s, sid, None, -1))
 
     # --- estimator hooks ---
+    @abstractmethod
     def _reset_estimator(self) -> None:
-        raise NotImplementedError
+        """Forget the estimator's state (the shared input handling is reset by the base)."""
 
+    @abstractmethod
     def _consume(self, uid: int, p: tuple[float, float, float], flag: str) -> None:
         """Take the used point ``uid`` (its work is timed per point)."""
-        raise NotImplementedError
 
     def _online(self) -> StaircaseEstimate | None:
         return None
 
+    @abstractmethod
     def _finalize(self) -> StaircaseEstimate:
-        raise NotImplementedError
+        """The final estimate of the episode."""
 
     # --- read-out ---
     def _plane(self, index: int, plane: PlaneFit, counts: dict[str, int], ok: bool, ok_uid: int | None) -> PlaneEstimate:

@@ -52,6 +52,7 @@ configurations raise :class:`exobench.core.errors.ConfigError`.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -390,7 +391,7 @@ class ContextDatabase:
 # ----------------------------------------------------------------------------- recognisers
 
 
-class PlaceRecognizer:
+class PlaceRecognizer(ABC):
     """Common driver of context descriptors: cleaning, binning, keys, database.
 
     Subclasses implement :meth:`_cells`, the value of every bin from its points.
@@ -403,8 +404,9 @@ class PlaceRecognizer:
         self.database = ContextDatabase(self.config)
 
     # subclasses: C (N_r * N_s,) from the points p4 = (x, y, z + offset, psi) and their flat bins
+    @abstractmethod
     def _cells(self, p4: np.ndarray, flat_bin: np.ndarray, n_bins: int) -> np.ndarray:
-        raise NotImplementedError
+        """Descriptor cells of the points, flattened (N_r * N_s,)."""
 
     def _needs_intensity(self) -> bool:
         return False
