@@ -50,12 +50,14 @@ def _surface_streams(episode: Episode) -> tuple[list[np.ndarray], np.ndarray]:
     return streams, np.asarray(est.compute_time_s, dtype=float)
 
 
-def _time_sequence(pts: np.ndarray, first: int = 0) -> tuple[list[float], list[float]]:
-    """Per point from ``first`` on: seconds of the recursive update and of a batch refit on all
-    points so far (the points before ``first`` are added untimed)."""
+def _time_sequence(pts: np.ndarray, first: int = 0) -> tuple[list[float], list[float], list[float]]:
+    """Per point from ``first`` on, seconds of: the recursive update (eq. 15-16 + eigen step);
+    a batch refit on all points so far with numpy (centre + SVD); and the same batch refit in
+    the recursion's own scalar arithmetic (re-accumulating ``V`` and ``e`` over all points,
+    as a device without the recursion would). The points before ``first`` are added untimed."""
     from exobench.perception.rtls import RtlsPlane
 
-    rec_t, batch_t = [], []
+    rec_t, batch_t, scalar_t = [], [], []
     plane = RtlsPlane()
     for p in pts[:first]:
         plane.add(p)
@@ -70,10 +72,16 @@ def _time_sequence(pts: np.ndarray, first: int = 0) -> tuple[list[float], list[f
         _, s, vt = np.linalg.svd(P - c, full_matrices=False)
         _ = vt[-1], s[-1] / np.sqrt(k + 1)
         batch_t.append(time.perf_counter() - t0)
-    return rec_t, batch_t
+        t0 = time.perf_counter()
+        refit = RtlsPlane()
+        for p in P:
+            refit.add(p)
+        _ = refit.normal, refit.sigma_m
+        scalar_t.append(time.perf_counter() - t0)
+    return rec_t, batch_t, scalar_t
 
 
-def _scaling(sizes: tuple[int, ...] = (100, 1000, 10000), probes: int = 50) -> dict[str, dict[str, float]]:
+def _scaling(sizes: tuple[int, ...] = (100, 1000, 10000), probes: int = 20) -> dict[str, dict[str, float]]:
     """Cost of adding the N-th point: recursion vs batch refit, for surfaces of N points.
 
     A batch refit is O(N) per point, the recursion O(1): the ratio grows with the number of
@@ -84,9 +92,9 @@ def _scaling(sizes: tuple[int, ...] = (100, 1000, 10000), probes: int = 50) -> d
     out = {}
     for n in sizes:
         pts = np.column_stack([rng.uniform(0, 0.3, n), rng.uniform(-0.1, 0.1, n), 0.162 + rng.normal(0, 1.5e-3, n)])
-        rec, bat = _time_sequence(pts, first=n - probes)
-        r, b = float(np.median(rec) * 1e6), float(np.median(bat) * 1e6)
-        out[str(n)] = {"rtls_us": r, "batch_us": b, "batch_over_rtls": b / r}
+        rec, bat, sca = _time_sequence(pts, first=n - probes)
+        r, b, c = (float(np.median(v) * 1e6) for v in (rec, bat, sca))
+        out[str(n)] = {"rtls_us": r, "batch_us": b, "batch_over_rtls": b / r, "scalar_batch_over_rtls": c / r}
     return out
 
 
@@ -101,16 +109,21 @@ def bench_rtls(episode: Episode | None = None, *, repeats: int = 5) -> dict[str,
     if not streams:
         return {"points": 0, "error": "the RTLS pipeline assigned no points on this stream"}
     whole = np.vstack(streams)
-    rec_t, batch_t, rec_w, batch_w = [], [], [], []
+    rec_t, batch_t, scalar_t, rec_w, batch_w, scalar_w = [], [], [], [], [], []
     for _ in range(repeats):
         for pts in streams:
-            r, b = _time_sequence(pts)
+            r, b, c = _time_sequence(pts)
             rec_t += r
             batch_t += b
-        r, b = _time_sequence(whole)
+            scalar_t += c
+        r, b, c = _time_sequence(whole)
         rec_w += r
         batch_w += b
-    med = {k: float(np.median(v) * 1e6) for k, v in (("r", rec_t), ("b", batch_t), ("rw", rec_w), ("bw", batch_w))}
+        scalar_w += c
+    med = {
+        k: float(np.median(v) * 1e6)
+        for k, v in (("r", rec_t), ("b", batch_t), ("c", scalar_t), ("rw", rec_w), ("bw", batch_w), ("cw", scalar_w))
+    }
     return {
         "points": int(len(whole)),
         "surfaces": len(streams),
@@ -118,9 +131,12 @@ def bench_rtls(episode: Episode | None = None, *, repeats: int = 5) -> dict[str,
         "rtls_update_median_us": med["r"],
         "batch_tls_refit_median_us": med["b"],
         "batch_over_rtls": med["b"] / med["r"],
+        "scalar_batch_refit_median_us": med["c"],
+        "scalar_batch_over_rtls": med["c"] / med["r"],
         "stream_rtls_update_median_us": med["rw"],
         "stream_batch_tls_refit_median_us": med["bw"],
         "stream_batch_over_rtls": med["bw"] / med["rw"],
+        "stream_scalar_batch_over_rtls": med["cw"] / med["rw"],
         "rtls_pipeline_median_us": float(np.median(pipeline_times) * 1e6) if pipeline_times.size else float("nan"),
         "scaling_by_surface_points": _scaling(),
         "paper_ms_per_point_cortex_m4": PAPER_MS_PER_POINT,
