@@ -1,18 +1,36 @@
 """Recorded sessions on disk: an episode's frames, calibration and (apart) ground truth.
 
-Layout of a session directory (format ``exobench-session``, version 1)::
+Layout of a session directory (format ``exobench-session``, version 2)::
 
-    meta.json            format, version, exobench version, scenario, seed, frame counts
-    calibration.json     sensor mounts, encoder joint names, robot description (URDF text)
-    frames.jsonl         every frame, time-ordered, one JSON object per line ("kind" first)
-    truth/episode.json   scene surfaces, estimator frame, touch-down, tracks, events
-    truth/tof.jsonl      ground truth of each ToF frame, in ToF frame order
+    meta.json                      format, version, exobench version, scenario, seed, frame counts
+    calibration.json               sensor mounts, encoder joint names, robot description (URDF text)
+    frames.jsonl                   every frame, time-ordered, one JSON object per line ("kind" first)
+    lidar/<sensor_id>/<k>.npz      arrays of the k-th scan of that LiDAR (k = 000000, 000001, ...)
+    rgbd/<sensor_id>/<k>.npz       arrays of the k-th image pair of that RGB-D camera
+    truth/episode.json             scene surfaces, estimator frame, touch-down, tracks, events,
+                                   LiDAR trajectory_w, number of LiDAR truths
+    truth/tof.jsonl                ground truth of each ToF frame, in ToF frame order
+    truth/lidar/<k>.npz            ground truth of the k-th LiDAR scan of the episode (all sensors)
 
-Floats are written with Python's shortest round-trip repr, so reading a session gives back the
-same float64 values bit for bit; NaN is written as ``null``. A session is written into a
-temporary sibling directory and renamed into place, so a failed write leaves nothing behind.
+Scalar frames (ToF, IMU, joints, contact) are written whole into their ``frames.jsonl`` line.
+A ``lidar`` line carries ``stamp_s``, ``sensor_id``, ``sweep_start_s``, the point count ``n``
+and a reference ``file`` (relative to the session) + ``index`` (per sensor); the file holds
+``points_xyz`` (N, 3), ``intensity`` (N,), ``ring`` (N,), ``time_offset_s`` (N,). An ``rgbd``
+line carries ``stamp_s``, ``sensor_id``, ``shape`` [H, W], ``file`` and ``index``; the file
+holds ``rgb``, ``depth_m`` and ``K``. A LiDAR truth file holds every ``LidarTruth`` field
+(``stamp_s`` and ``sensor_id`` as 0-d arrays, ``material`` as a numpy unicode array). The
+.npz files are zip-compressed numpy arrays (``np.savez_compressed``): dtypes and values come
+back exactly, object arrays are refused. :func:`iter_frames` streams: it loads a scan's file
+when its line is read.
+
+Floats in JSON are written with Python's shortest round-trip repr, so reading a session gives
+back the same float64 values bit for bit; NaN is written as ``null``. A session is written into
+a temporary sibling directory and renamed into place, so a failed write leaves nothing behind.
 A pipeline replayed on a session gets exactly the frames it would have had live, so it scores
 identically; the truth/ folder is for the harness and can be left out when sharing real logs.
+
+Versions: 1 had no binary files (LiDAR and RGB-D frames were refused) and no LiDAR truth;
+version-1 sessions are still read (their LiDAR truth is empty). Writing always gives version 2.
 """
 
 from __future__ import annotations
@@ -20,8 +38,11 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import shutil
 import tempfile
+import zipfile
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -36,7 +57,9 @@ from exobench.core import (
     Frame,
     ImuSample,
     JointState,
+    LidarScan,
     PlanarSurface,
+    RgbdFrame,
     SceneTruth,
     SensorMount,
     SessionError,
@@ -46,7 +69,16 @@ from exobench.core import (
 )
 
 FORMAT = "exobench-session"
-VERSION = 1
+VERSION = 2
+SUPPORTED_VERSIONS = (1, 2)
+LIDAR_FIELDS = ("points_xyz", "intensity", "ring", "time_offset_s")
+RGBD_FIELDS = ("rgb", "depth_m", "K")
+LIDAR_TRUTH_FIELDS = (
+    "stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",
+    "via_geom_id", "signal", "origin_w", "dir_w",
+)  # fmt: skip
+_SAFE_ID = re.compile(r"[A-Za-z0-9_\-][A-Za-z0-9_.\-]*")
+_NPZ_ERRORS = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
 
 
 def _f(x: float) -> float | None:
@@ -81,8 +113,58 @@ def _plain(value: Any) -> Any:
     return value
 
 
+# --- binary arrays ------------------------------------------------------------------------
+def _save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    for name, a in arrays.items():
+        if a.dtype.hasobject:
+            raise SessionError(f"{path.name}: array {name!r} has dtype object; sessions store plain numpy dtypes only")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+
+
+def _load_npz(root: Path, rel: str, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The named arrays of ``root/rel``; SessionError naming the file if it is missing or corrupt."""
+    if not isinstance(rel, str) or rel.startswith("/") or ".." in Path(rel).parts:
+        raise SessionError(f"{root}: binary reference {rel!r} is not a relative path inside the session")
+    path = root / rel
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [n for n in names if n not in z.files]
+            if missing:
+                raise SessionError(f"{path}: arrays {missing} missing; present: {sorted(z.files)}")
+            return {n: z[n] for n in names}
+    except FileNotFoundError:
+        raise SessionError(f"{path}: binary file missing") from None
+    except _NPZ_ERRORS as e:
+        raise SessionError(f"{path}: corrupt binary file ({type(e).__name__}: {e})") from None
+
+
+def _check_id(sensor_id: str) -> str:
+    if not isinstance(sensor_id, str) or not _SAFE_ID.fullmatch(sensor_id):
+        raise SessionError(f"sensor id {sensor_id!r} cannot name a session folder; use letters, digits, '_', '-', '.'")
+    return sensor_id
+
+
+class _BinaryStore:
+    """Writes the per-frame .npz files of one session and numbers them per sensor."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self.count: dict[tuple[str, str], int] = {}
+
+    def put(self, kind: str, sensor_id: str, arrays: dict[str, np.ndarray]) -> tuple[str, int]:
+        key = (kind, _check_id(sensor_id))
+        k = self.count.get(key, 0)
+        self.count[key] = k + 1
+        rel = f"{kind}/{sensor_id}/{k:06d}.npz"
+        _save_npz(self.root / rel, arrays)
+        return rel, k
+
+
 # --- frames ---------------------------------------------------------------------------------
-def frame_to_dict(frame: Frame) -> dict[str, Any]:
+def frame_to_dict(frame: Frame, store: _BinaryStore | None = None) -> dict[str, Any]:
+    """The ``frames.jsonl`` object of a frame; LiDAR and RGB-D arrays go to ``store``'s files."""
     kind = frame_kind(frame)
     d: dict[str, Any] = {"kind": kind, "stamp_s": frame.stamp_s, "sensor_id": frame.sensor_id}
     if isinstance(frame, ToFReading):
@@ -93,12 +175,24 @@ def frame_to_dict(frame: Frame) -> dict[str, Any]:
         d.update(names=list(frame.names), position_rad=_arr(frame.position_rad))
     elif isinstance(frame, ContactSample):
         d.update(force_n=_f(frame.force_n), in_contact=bool(frame.in_contact))
-    else:  # image and scan streams need a binary layout; format version 1 has none yet
-        raise SessionError(f"session format {VERSION} cannot store {kind!r} frames yet; valid: tof, imu, joints, contact")
+    elif store is None:
+        raise SessionError(f"{kind!r} frames are stored in binary files; write them with write_session")
+    elif isinstance(frame, LidarScan):
+        arrays = {n: np.asarray(getattr(frame, n)) for n in LIDAR_FIELDS}
+        n = len(arrays["points_xyz"])
+        if arrays["points_xyz"].shape != (n, 3) or any(arrays[f].shape != (n,) for f in LIDAR_FIELDS[1:]):
+            raise SessionError(f"LiDAR scan of {frame.sensor_id!r} at {frame.stamp_s} s: array shapes disagree")
+        rel, k = store.put("lidar", frame.sensor_id, arrays)
+        d.update(sweep_start_s=_f(frame.sweep_start_s), n=n, file=rel, index=k)
+    elif isinstance(frame, RgbdFrame):
+        arrays = {n: np.asarray(getattr(frame, n)) for n in RGBD_FIELDS}
+        rel, k = store.put("rgbd", frame.sensor_id, arrays)
+        d.update(shape=list(arrays["depth_m"].shape[:2]), file=rel, index=k)
     return d
 
 
-def frame_from_dict(d: dict[str, Any]) -> Frame:
+def frame_from_dict(d: dict[str, Any], root: str | os.PathLike | None = None) -> Frame:
+    """A frame from its ``frames.jsonl`` object; ``root`` (the session) resolves binary files."""
     kind, stamp, sid = d["kind"], float(d["stamp_s"]), d["sensor_id"]
     if kind == "tof":
         return ToFReading(stamp, sid, _unf(d["range_m"]), int(d["status"]))
@@ -108,7 +202,21 @@ def frame_from_dict(d: dict[str, Any]) -> Frame:
         return JointState(stamp, sid, tuple(d["names"]), _unarr(d["position_rad"]))
     if kind == "contact":
         return ContactSample(stamp, sid, _unf(d["force_n"]), bool(d["in_contact"]))
-    raise SessionError(f"frames.jsonl: unknown frame kind {kind!r}; valid: tof, imu, joints, contact")
+    if kind in ("lidar", "rgbd"):
+        if root is None:
+            raise SessionError(f"{kind!r} frame at {stamp} s refers to {d['file']!r}; pass the session root")
+        root = Path(root)
+        if kind == "lidar":
+            a = _load_npz(root, d["file"], LIDAR_FIELDS)
+            n = int(d["n"])
+            if a["points_xyz"].shape != (n, 3) or any(a[f].shape != (n,) for f in LIDAR_FIELDS[1:]):
+                raise SessionError(f"{root / d['file']}: array shapes do not match the {n} points of its frames.jsonl line")
+            return LidarScan(stamp, sid, a["points_xyz"], a["intensity"], a["ring"], a["time_offset_s"], _unf(d["sweep_start_s"]))
+        a = _load_npz(root, d["file"], RGBD_FIELDS)
+        if list(a["depth_m"].shape[:2]) != list(d["shape"]):
+            raise SessionError(f"{root / d['file']}: depth shape {a['depth_m'].shape} does not match {d['shape']}")
+        return RgbdFrame(stamp, sid, a["rgb"], a["depth_m"], a["K"])
+    raise SessionError(f"frames.jsonl: unknown frame kind {kind!r}; valid: tof, imu, joints, contact, lidar, rgbd")
 
 
 # --- calibration ------------------------------------------------------------------------------
@@ -187,6 +295,8 @@ def truth_to_dict(t: EpisodeTruth) -> dict[str, Any]:
         "body_tracks": {k: _arr(v) for k, v in t.body_tracks.items()},
         "max_penetration_m": _f(t.max_penetration_m),
         "events": {k: _f(v) for k, v in t.events.items()},
+        "trajectory_w": _arr(np.asarray(t.trajectory_w)),
+        "n_lidar": len(t.lidar),
     }
 
 
@@ -208,7 +318,18 @@ def _tof_truth_from_dict(d: dict[str, Any]) -> ToFTruth:
     )
 
 
-def truth_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...]) -> EpisodeTruth:
+def _lidar_truth_arrays(t: Any) -> dict[str, np.ndarray]:
+    return {n: np.asarray(getattr(t, n)) for n in LIDAR_TRUTH_FIELDS}
+
+
+def _lidar_truth_from_arrays(a: dict[str, np.ndarray]) -> Any:
+    from exobench.envs.lidar import LidarTruth
+
+    fields = {n: a[n] for n in LIDAR_TRUTH_FIELDS[2:]}
+    return LidarTruth(stamp_s=float(a["stamp_s"]), sensor_id=str(a["sensor_id"]), **fields)
+
+
+def truth_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...], lidar: tuple[Any, ...] = ()) -> EpisodeTruth:
     sc = d["scene"]
     scene = SceneTruth(
         surfaces=tuple(_surface_from_dict(s) for s in sc["surfaces"]),
@@ -228,6 +349,8 @@ def truth_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...]) -> EpisodeTrut
         body_tracks={k: _unarr(v).reshape(-1, 8) for k, v in d["body_tracks"].items()},
         max_penetration_m=_unf(d["max_penetration_m"]),
         events={k: _unf(v) for k, v in d["events"].items()},
+        lidar=lidar,
+        trajectory_w=_unarr(d.get("trajectory_w", [])).reshape(-1, 8),
     )
 
 
@@ -247,9 +370,10 @@ def write_session(episode: Episode, path: str | os.PathLike, *, include_truth: b
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
     try:
         counts: dict[str, int] = {}
+        store = _BinaryStore(tmp)
         with open(tmp / "frames.jsonl", "w") as fh:
             for fr in episode.frames:
-                d = frame_to_dict(fr)
+                d = frame_to_dict(fr, store)
                 counts[d["kind"]] = counts.get(d["kind"], 0) + 1
                 fh.write(_dump(d) + "\n")
         meta = {
@@ -269,6 +393,11 @@ def write_session(episode: Episode, path: str | os.PathLike, *, include_truth: b
             with open(tmp / "truth" / "tof.jsonl", "w") as fh:
                 for t in episode.truth.tof:
                     fh.write(_dump(_tof_truth_to_dict(t)) + "\n")
+            for k, lt in enumerate(episode.truth.lidar):
+                arrays = _lidar_truth_arrays(lt)
+                arrays["stamp_s"] = np.asarray(float(lt.stamp_s))
+                arrays["sensor_id"] = np.asarray(str(lt.sensor_id))
+                _save_npz(tmp / "truth" / "lidar" / f"{k:06d}.npz", arrays)
         os.rename(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -286,19 +415,22 @@ def read_meta(path: str | os.PathLike) -> dict[str, Any]:
         raise SessionError(f"{p / 'meta.json'}: malformed JSON ({e})") from None
     if meta.get("format") != FORMAT:
         raise SessionError(f"{p / 'meta.json'}: format {meta.get('format')!r}, expected {FORMAT!r}")
-    if meta.get("version") != VERSION:
-        raise SessionError(f"{p / 'meta.json'}: version {meta.get('version')!r} unsupported; supported: {VERSION}")
+    if meta.get("version") not in SUPPORTED_VERSIONS:
+        raise SessionError(
+            f"{p / 'meta.json'}: version {meta.get('version')!r} unsupported; supported: {list(SUPPORTED_VERSIONS)}"
+        )
     return meta
 
 
 def iter_frames(path: str | os.PathLike) -> Iterator[Frame]:
-    """Stream the frames of a session without loading them all."""
-    with open(Path(path) / "frames.jsonl") as fh:
+    """Stream the frames of a session without loading them all (a scan's file is read with its line)."""
+    root = Path(path)
+    with open(root / "frames.jsonl") as fh:
         for n, line in enumerate(fh, 1):
             if not line.strip():
                 continue
             try:
-                yield frame_from_dict(json.loads(line))
+                yield frame_from_dict(json.loads(line), root)
             except (json.JSONDecodeError, KeyError, TypeError, ValueError) as e:
                 raise SessionError(f"frames.jsonl line {n}: malformed frame ({e})") from None
 
@@ -313,5 +445,10 @@ def read_session(path: str | os.PathLike) -> Episode:
     frames = tuple(iter_frames(p))
     with open(p / "truth" / "tof.jsonl") as fh:
         tof = tuple(_tof_truth_from_dict(json.loads(line)) for line in fh if line.strip())
-    truth = truth_from_dict(json.loads((p / "truth" / "episode.json").read_text()), tof)
+    td = json.loads((p / "truth" / "episode.json").read_text())
+    lidar = tuple(
+        _lidar_truth_from_arrays(_load_npz(p, f"truth/lidar/{k:06d}.npz", LIDAR_TRUTH_FIELDS))
+        for k in range(int(td.get("n_lidar", 0)))
+    )
+    truth = truth_from_dict(td, tof, lidar)
     return Episode(scenario=meta["scenario"], seed=meta["seed"], calibration=calib, frames=frames, truth=truth)
