@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from typing import Any
 
@@ -256,8 +257,11 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
     pat = config.pattern
     dirs_s = pat.rays(0.0).dirs_s
     n_rays = len(dirs_s)
-    poses: dict[str, Any] = {"static": T0, "walking": walking}
-    sensors = {name: LidarSensor("lidar_trunk", config, model, seed) for name in poses}
+    poses: dict[str, Any] = {"static": T0, "walking": walking, "static_one_thread": T0}
+    # exobench casts on every CPU by default; mujoco-lidar's CPU backend uses one, so the
+    # single-thread figure is reported beside it for a per-core comparison
+    one = dataclasses.replace(config, cast_threads=1)
+    sensors = {name: LidarSensor("lidar_trunk", one if name.endswith("one_thread") else config, model, seed) for name in poses}
 
     def exo_sweep(name: str) -> Any:
         return lambda: sensors[name].scan(model, data, poses[name], 0.0, truth)
@@ -301,7 +305,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
             exo[name]["returns_genuine"] = int(np.count_nonzero(out[1].genuine))
             exo[name]["returns_via_glass_or_mirror"] = int(np.count_nonzero(out[1].via_geom_id >= 0))
     result["exobench"] = exo
-    result["meets_50ms_target"] = bool(max(exo[k]["ms_per_sweep"] for k in exo) < 50.0)
+    result["meets_50ms_target"] = bool(max(exo[k]["ms_per_sweep"] for k in ("static", "walking")) < 50.0)
     if lidar is None:
         return result
 
@@ -314,5 +318,6 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
     result["mujoco_lidar"] = {"version": version("mujoco-lidar"), "backend": "cpu (MjLidarCPU)", **mjl}
     result["ratio_static"] = exo["static"]["rays_per_s"] / mjl["rays_per_s"]
     result["ratio_walking"] = exo["walking"]["rays_per_s"] / mjl["rays_per_s"]
+    result["ratio_static_one_thread"] = exo["static_one_thread"]["rays_per_s"] / mjl["rays_per_s"]
     result["meets_ratio_target"] = bool(result["ratio_static"] >= 1.0)
     return result

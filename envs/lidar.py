@@ -19,7 +19,10 @@ directions, and each range is then moved to the ray's own origin on the plane of
 ``r = (p - o) . n / (u . n)``. That is exact on planar faces; only beams within the window's
 motion (about 1 mm at walking speed) of a silhouette edge, or on curved geoms (error ~ d^2 / R),
 differ from casting every firing from its own origin (``cast_period_s = 0``, slower). A static
-sensor is cast in one call. The world geometry is frozen at the state of ``data`` for the sweep
+sensor is cast in one call. The calls (or, for one call, slices of its rays) are spread over
+``cast_threads`` threads (``mj_multiRay`` releases the GIL; every ray's result is independent of
+the others, so the split never changes a result); threads other than the caller's cast on a
+scratch ``MjData`` holding a copy of the geom poses. The world geometry is frozen at the state of ``data`` for the sweep
 (the scene is static; exoskeleton geoms keep the pose they had in ``data``).
 
 Random streams (``sensor_rngs``): range noise from the noise generator, sweep and point dropout
@@ -30,7 +33,10 @@ contains never shifts the streams.
 
 from __future__ import annotations
 
+import os
+import threading
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,7 +55,6 @@ from .lidar_optics import (
 )
 from .lidar_pattern import LidarPattern, RayTable
 from .sensor_config import sensor_rngs
-from .terrain import inside_polygon
 from .tof import EXO_GROUP, WORLD_GROUP
 
 INTENSITY_MODES = ("signal", "reflectivity")
@@ -90,6 +95,8 @@ class LidarConfig:
         cast_period_s: firings within this window are cast from one origin and their ranges
             moved to their own origins on the face hit (see the module docstring) [A: 1 ms];
             0 = one ``mj_multiRay`` call per firing block.
+        cast_threads: threads casting the rays (0 = one per available CPU, at most 8; 1 = the
+            calling thread only); results do not depend on it.
         materials: extra or replacement materials by name (on top of ``models.materials``).
     """
 
@@ -108,6 +115,7 @@ class LidarConfig:
     max_interactions: int = 3
     pose_blocks: int = 0
     cast_period_s: float = 1e-3
+    cast_threads: int = 0
     materials: tuple[LidarMaterial, ...] = ()
 
     def __post_init__(self) -> None:
@@ -127,7 +135,7 @@ class LidarConfig:
         for name in ("glass", "mirrors"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"lidar.{name}", getattr(self, name), "True or False")
-        for name, high in (("max_interactions", 16), ("pose_blocks", 10**7)):
+        for name, high in (("max_interactions", 16), ("pose_blocks", 10**7), ("cast_threads", 64)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= high:
                 raise ConfigError(f"lidar.{name}", v, f"an integer in [0, {high}]")
@@ -213,6 +221,8 @@ class LidarSensor:
         pat = config.pattern
         self._static_rays = pat.rays(0.0) if pat.scan_kind == "spinning" else None
         self._optics_cache: tuple[SceneTruth, GeomOptics] | None = None
+        self._surface_cache: tuple[SceneTruth, _SurfaceTable] | None = None
+        self._scratch: tuple[object, list[object]] | None = None
 
     def rays(self, sweep_start_s: float) -> RayTable:
         return self._static_rays if self._static_rays is not None else self.config.pattern.rays(sweep_start_s)
@@ -330,11 +340,27 @@ class LidarSensor:
         nrm = np.zeros(3 * n)
         flat = dirs_w.reshape(-1)
         max_r = self.config.pattern.max_range_m + 1.0
-        for o, s, e in zip(o_cast, starts, ends):
-            mujoco.mj_multiRay(
-                model, data, o, flat[3 * s : 3 * e], self.group, 1, self.body_exclude,
-                gid[s:e], dist[s:e], nrm[3 * s : 3 * e], e - s, max_r,
-            )  # fmt: skip
+        jobs = [(o, int(s), int(e)) for o, s, e in zip(o_cast, starts, ends)]
+        k = self._n_threads(model)
+        if 1 < k and len(jobs) < k:  # few calls (a static sensor): cut them into slices of their rays
+            jobs = [(o, a, b) for o, s, e in jobs for a, b in _slices(s, e, k) if b > a]
+        groups = _partition(jobs, k)
+
+        def run(d: object, group: list[tuple[np.ndarray, int, int]]) -> None:
+            for o, s, e in group:
+                mujoco.mj_multiRay(
+                    model, d, o, flat[3 * s : 3 * e], self.group, 1, self.body_exclude,
+                    gid[s:e], dist[s:e], nrm[3 * s : 3 * e], e - s, max_r,
+                )  # fmt: skip
+
+        if len(groups) > 1:
+            scratch = self._scratch_data(model, data, len(groups) - 1)
+            futures = [_pool().submit(run, d, g) for d, g in zip(scratch, groups[1:])]
+            run(data, groups[0])
+            for f in futures:
+                f.result()
+        else:
+            run(data, jobs)
         nrm = nrm.reshape(-1, 3)
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
         o_ray = np.repeat(o_cast, ends - starts, axis=0)
@@ -350,35 +376,156 @@ class LidarSensor:
             dist[fix] = np.where(r >= 0.0, r, -1.0)
         return gid, dist, nrm
 
+    def _n_threads(self, model: object) -> int:
+        k = self.config.cast_threads or _available_cpus()
+        # flexes and skins keep ray-relevant state beyond the geom poses: cast those in one thread
+        return 1 if int(getattr(model, "nflex", 0)) > 0 else max(1, min(k, 64))
+
+    def _scratch_data(self, model: object, data: object, k: int) -> list[object]:
+        """``k`` MjData for the extra casting threads, with the geom poses of ``data``."""
+        import mujoco
+
+        if self._scratch is None or self._scratch[0] is not model:
+            self._scratch = (model, [])
+        pool = self._scratch[1]
+        while len(pool) < k:
+            pool.append(mujoco.MjData(model))
+        for d in pool[:k]:
+            for name in _POSE_FIELDS:
+                getattr(d, name)[:] = getattr(data, name)
+        return pool[:k]
+
     def _label(self, truth: SceneTruth, geom: np.ndarray, hit_w: np.ndarray, tol_m: float = 1e-4) -> np.ndarray:
-        """Surface id of each hit, as ``SceneTruth.surface_of_hit`` decides it, one geom at a time."""
-        out = np.full(len(geom), -1, dtype=np.int64)
-        surfaces = {sf.surface_id: sf for sf in truth.surfaces}
-        order = np.argsort(geom, kind="stable")
-        ids, first = np.unique(geom[order], return_index=True)
-        for g, a, b in zip(ids, first, np.append(first[1:], len(order))):
-            sids = truth.geom_surfaces.get(self.geom_names[g], ())
-            if not sids:
-                continue
-            rows = order[a:b]
-            p = hit_w[rows]
-            best = np.full(len(rows), -1, dtype=np.int64)
-            best_d = np.full(len(rows), tol_m)
-            for sid in sids:
-                sf = surfaces[sid]
-                d = np.abs((p - sf.point_w) @ sf.normal_w)
-                cand = np.flatnonzero(d <= best_d)
-                if len(cand):
-                    inside = inside_polygon(sf.polygon_w, sf.normal_w, p[cand], tol_m)
-                    win = cand[inside]
-                    best[win], best_d[win] = sid, d[win]
-            out[rows] = best
+        """Surface id of each hit, as ``SceneTruth.surface_of_hit`` decides it, all hits at once.
+
+        Of a geom's surfaces, those whose plane passes within ``tol_m`` of the point and whose
+        polygon contains it qualify; the nearest plane wins, the last listed of equally near ones
+        (the order ``surface_of_hit`` visits them in).
+        """
+        tab = self._surface_table(truth)
+        n = len(geom)
+        out = np.full(n, -1, dtype=np.int64)
+        cnt = tab.count[geom]
+        pt = np.repeat(np.arange(n), cnt)  # one row per (point, candidate surface)
+        if len(pt) == 0:
+            return out
+        slot = np.arange(len(pt)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        row = tab.cand[geom[pt], slot]
+        p = np.take(hit_w, pt, axis=0)
+        pn = np.take(tab.point_normal, row, axis=0)
+        d = np.abs(np.einsum("ij,ij->i", p - pn[:, 0], pn[:, 1]))
+        near = np.flatnonzero(d <= tol_m)
+        pt, slot, row, p, d = pt[near], slot[near], row[near], p[near], d[near]
+        # the edge test of PlanarSurface.contains: the edges not within tol_m of the point must
+        # all see it on the same side (zero-length padding edges are always within)
+        c = np.einsum("nvi,nvi->nv", p[:, None, :] - np.take(tab.edge_a, row, axis=0), np.take(tab.edge_m, row, axis=0))
+        counted = np.abs(c) > tol_m * np.take(tab.edge_len, row, axis=0)
+        ok = ~(np.any(counted & (c > 0.0), axis=1) & np.any(counted & (c < 0.0), axis=1))
+        pt, slot, row, d = pt[ok], slot[ok], row[ok], d[ok]
+        single = np.bincount(pt, minlength=n)[pt] == 1
+        out[pt[single]] = tab.sid[row[single]]
+        multi = np.flatnonzero(~single)
+        if len(multi):  # several qualify: the nearest plane, the last listed of ties
+            pts, at = np.unique(pt[multi], return_inverse=True)
+            dd = np.full((len(pts), tab.cand.shape[1]), np.inf)
+            dd[at, slot[multi]] = d[multi]
+            best = dd.min(axis=1)
+            last = dd.shape[1] - 1 - np.argmax((dd == best[:, None])[:, ::-1], axis=1)
+            out[pts] = tab.sid[tab.cand[geom[pts], last]]
         return out
+
+    def _surface_table(self, truth: SceneTruth) -> _SurfaceTable:
+        if self._surface_cache is None or self._surface_cache[0] is not truth:
+            self._surface_cache = (truth, _SurfaceTable.build(truth, self.geom_names))
+        return self._surface_cache[1]
 
     def _optics(self, truth: SceneTruth) -> GeomOptics:
         if self._optics_cache is None or self._optics_cache[0] is not truth:
             self._optics_cache = (truth, geom_optics(self.geom_names, truth, self.config.material_overrides()))
         return self._optics_cache[1]
+
+
+@dataclass(frozen=True, eq=False)
+class _SurfaceTable:
+    """A scene's surfaces as arrays, for labelling hits (rows index ``sid``).
+
+    ``cand[g, :count[g]]`` are the rows of geom ``g``'s surfaces in ``geom_surfaces`` order;
+    polygons are padded with zero-length edges, which the edge test skips.
+    """
+
+    sid: np.ndarray  # (S,) surface id of each row
+    point_normal: np.ndarray  # (S, 2, 3) a point of the plane and its normal
+    edge_a: np.ndarray  # (S, V, 3) first vertex of each edge
+    edge_m: np.ndarray  # (S, V, 3) cross(normal, edge)
+    edge_len: np.ndarray  # (S, V) edge length, m
+    cand: np.ndarray  # (ngeom, K) candidate rows per geom, padded with 0
+    count: np.ndarray  # (ngeom,)
+
+    @staticmethod
+    def build(truth: SceneTruth, geom_names: list[str]) -> _SurfaceTable:
+        surfaces = list(truth.surfaces)
+        row_of = {sf.surface_id: i for i, sf in enumerate(surfaces)}
+        S, V = len(surfaces), max((len(sf.polygon_w) for sf in surfaces), default=1)
+        edge_a, edge_m, edge_len = np.zeros((S, V, 3)), np.zeros((S, V, 3)), np.zeros((S, V))
+        for i, sf in enumerate(surfaces):
+            poly, nv = np.asarray(sf.polygon_w, dtype=float), np.asarray(sf.normal_w, dtype=float)
+            edge_a[i] = poly[-1] if len(poly) else 0.0
+            for j in range(len(poly)):
+                a, b = poly[j], poly[(j + 1) % len(poly)]
+                e = b - a
+                edge_a[i, j] = a
+                edge_m[i, j] = [nv[1] * e[2] - nv[2] * e[1], nv[2] * e[0] - nv[0] * e[2], nv[0] * e[1] - nv[1] * e[0]]
+                edge_len[i, j] = float(np.sqrt(e @ e))
+        rows = [[row_of[sid] for sid in truth.geom_surfaces.get(name, ())] for name in geom_names]
+        K = max((len(r) for r in rows), default=0)
+        cand = np.zeros((len(geom_names), max(K, 1)), dtype=np.int64)
+        for g, r in enumerate(rows):
+            cand[g, : len(r)] = r
+        return _SurfaceTable(
+            sid=np.array([sf.surface_id for sf in surfaces], dtype=np.int64),
+            point_normal=np.array([[sf.point_w, sf.normal_w] for sf in surfaces], dtype=float).reshape(S, 2, 3),
+            edge_a=edge_a, edge_m=edge_m, edge_len=edge_len, cand=cand,
+            count=np.array([len(r) for r in rows], dtype=np.int64),
+        )  # fmt: skip
+
+
+_POSE_FIELDS = ("xpos", "xmat", "xquat", "xipos", "ximat", "geom_xpos", "geom_xmat")
+"""The ``MjData`` state ``mj_multiRay`` reads (poses of bodies and geoms), copied to scratch data."""
+
+_POOL: ThreadPoolExecutor | None = None
+_POOL_LOCK = threading.Lock()
+
+
+def _pool() -> ThreadPoolExecutor:
+    """The process's casting threads (created on first use; idle threads cost nothing)."""
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None:
+            _POOL = ThreadPoolExecutor(max_workers=64, thread_name_prefix="exobench-lidar")
+        return _POOL
+
+
+def _available_cpus() -> int:
+    try:
+        k = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        k = os.cpu_count() or 1
+    return max(1, min(k, 8))
+
+
+def _slices(start: int, end: int, k: int) -> list[tuple[int, int]]:
+    cuts = start + (np.arange(k + 1) * (end - start)) // k
+    return [(int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
+
+
+def _partition(jobs: list[tuple[np.ndarray, int, int]], k: int) -> list[list[tuple[np.ndarray, int, int]]]:
+    """Consecutive groups of jobs, at most ``k``, of about equal ray counts."""
+    if k <= 1 or len(jobs) <= 1:
+        return [jobs]
+    rays = np.cumsum([e - s for _, s, e in jobs])
+    cut = np.searchsorted(rays, rays[-1] * np.arange(1, k) / k, side="right")
+    bounds = np.unique(np.concatenate([[0], cut, [len(jobs)]]))
+    return [jobs[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
 
 
 def _poses(pose_at: PoseFn | np.ndarray, times_s: np.ndarray) -> np.ndarray:

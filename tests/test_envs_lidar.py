@@ -474,3 +474,40 @@ def test_unknown_material_is_named():
     model, data, truth, _ = front_wall_scene(wall="unobtainium")
     with pytest.raises(UnknownNameError):
         LidarSensor("lidar", LidarConfig(), model, 0).scan(model, data, sensor_pose(), 0.0, truth)
+
+
+def _office_scene():
+    from exobench.models.exo_spec import ExoSpec
+    from exobench.models.office import build_office
+    from exobench.models.worlds import compose
+
+    scene = compose(build_office(), ExoSpec())
+    data = mujoco.MjData(scene.model)
+    mujoco.mj_forward(scene.model, data)
+    site = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_SITE, "lidar_trunk")
+    T0 = np.eye(4)
+    T0[:3, :3] = np.asarray(data.site_xmat[site]).reshape(3, 3)
+    T0[:3, 3] = data.site_xpos[site]
+    return scene.model, data, scene.truth, T0
+
+
+def test_threads_and_vectorised_labels_do_not_change_a_sweep():
+    model, data, truth, T0 = _office_scene()
+
+    def walking(t):
+        T = np.repeat(T0[None], len(t), axis=0)
+        T[:, :3, 3] += (0.5 * np.asarray(t))[:, None] * np.array([1.0, 0.0, 0.0])
+        return T
+
+    for pose in (T0, walking):
+        out = [LidarSensor("lidar_trunk", LidarConfig(cast_threads=k), model, 3).scan(model, data, pose, 0.0, truth) for k in (1, 3)]
+        (s1, t1), (s3, t3) = out
+        np.testing.assert_array_equal(s1.points_xyz, s3.points_xyz)
+        np.testing.assert_array_equal(t1.geom_id, t3.geom_id)
+        np.testing.assert_array_equal(t1.surface_id, t3.surface_id)
+    # the labels are SceneTruth.surface_of_hit's, point by point
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, int(g)) or "" for g in t1.geom_id]
+    idx = np.arange(0, len(names), 7)
+    expected = [truth.surface_of_hit(names[i], t1.hit_w[i]) for i in idx]
+    np.testing.assert_array_equal(t1.surface_id[idx], expected)
+    assert np.count_nonzero(t1.surface_id >= 0) > 0.9 * len(names)
