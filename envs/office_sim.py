@@ -38,19 +38,17 @@ from exobench.models.exo_spec import CONTACT_IDS, ExoSpec
 from exobench.models.world_params import ParamSpec, from_dict_checked, validate_fields
 
 from .gait import Motion, rot_yaw_pitch
-from .imu import ImuSensor, imu_dynamics
+from .imu import ImuSensor
 from .lidar import LidarConfig, LidarPattern, LidarSensor, LidarTruth
 from .proprio import ENCODER_ID, ContactSensor, EncoderSensor, contact_forces
 from .sensor_config import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, sample_times
+from .sim import FOOT_TRACK_RATE_HZ, TRACK_RATE_HZ, step_through
 from .terrain import Terrain
 from .walk import Route, plan_walk
 
 LIDAR_ID = "lidar_trunk"
 IMU_ID = "imu_trunk"
 SENSOR_ORDER = (ENCODER_ID, IMU_ID, *CONTACT_IDS, LIDAR_ID)
-TRACKED_BODIES = ("pelvis", "thigh_l", "shank_l", "foot_l", "thigh_r", "shank_r", "foot_r", "head")
-TRACK_RATE_HZ = 50.0
-FOOT_TRACK_RATE_HZ = 100.0
 PENETRATION_RATE_HZ = 1000.0
 MIN_SEGMENT_M = 0.3  # shorter route segments are merged into the next one
 LIDAR_PATTERNS = ("vlp16", "vlp32", "ouster64", "livox")
@@ -220,30 +218,16 @@ def simulate_office(scenario: OfficeScenario, seed: int) -> Episode:
     t_imu, t_trk = sample_times(imu_cfg.rate_hz, dur), sample_times(TRACK_RATE_HZ, dur)
     t_mj = np.union1d(t_imu, t_trk)
     is_imu, is_trk = np.isin(t_mj, t_imu), np.isin(t_mj, t_trk)
-    sample = motion.sample(model, t_mj)
     imu = ImuSensor(IMU_ID, imu_cfg, model, seed)
-    body_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in TRACKED_BODIES]
-    tracks: dict[str, list[np.ndarray]] = {b: [] for b in TRACKED_BODIES}
-    data = mujoco.MjData(model)
-    for k, t in enumerate(t_mj):
-        tk = float(t)
-        if is_imu[k]:
-            imu_dynamics(model, data, sample.qpos[k], sample.qvel[k], sample.qacc[k])
-            imu.observe(model, data, tk)
-        else:
-            data.qpos[:] = sample.qpos[k]
-            mujoco.mj_kinematics(model, data)
-        if is_trk[k]:
-            for b, i in zip(TRACKED_BODIES, body_ids):
-                tracks[b].append(np.concatenate([[tk], data.xpos[i], data.xquat[i]]))
+    body_tracks = step_through(model, motion, t_mj, imu, is_imu, is_trk)
     streams[IMU_ID] = list(imu.frames())
-    body_tracks = {b: np.array(v) for b, v in tracks.items()}
     body_tracks[LIDAR_ID] = _pose_rows(t_trk, pose_at(t_trk))
 
     # LiDAR sweeps that end within the walk; the legs frozen at mid-sweep
     period = lid_cfg.pattern.sweep_period_s
     n_sweeps = int(np.floor(dur / period + 1e-9))
     lidar = LidarSensor(LIDAR_ID, lid_cfg, model, seed)
+    data = mujoco.MjData(model)
     lidar_truth: list[LidarTruth] = []
     starts: list[float] = []
     for k in range(n_sweeps):

@@ -13,6 +13,7 @@ a batch of episodes compiles each world once. Same scenario and seed, same frame
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
@@ -47,6 +48,41 @@ class Recording:
     body_tracks: dict[str, np.ndarray]
 
 
+def step_through(
+    model: object,
+    motion: Motion,
+    t_mj: np.ndarray,
+    imu: ImuSensor,
+    is_imu: np.ndarray,
+    is_trk: np.ndarray,
+    on_sample: Callable[[object, int, float], None] | None = None,
+) -> dict[str, np.ndarray]:
+    """Put MuJoCo in the motion's state at each instant of ``t_mj``: full dynamics where the IMU
+    measures (so its accelerations follow the motion), kinematics elsewhere. Calls
+    ``on_sample(data, k, t)`` at every instant and returns the tracked link poses,
+    body -> (N, 8) rows ``[t, x, y, z, qw, qx, qy, qz]`` at the ``is_trk`` instants."""
+    import mujoco
+
+    sample = motion.sample(model, t_mj)
+    body_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in TRACKED_BODIES]
+    tracks: dict[str, list[np.ndarray]] = {b: [] for b in TRACKED_BODIES}
+    data = mujoco.MjData(model)
+    for k, t in enumerate(t_mj):
+        tk = float(t)
+        if is_imu[k]:
+            imu_dynamics(model, data, sample.qpos[k], sample.qvel[k], sample.qacc[k])
+            imu.observe(model, data, tk)
+        else:
+            data.qpos[:] = sample.qpos[k]
+            mujoco.mj_kinematics(model, data)
+        if on_sample is not None:
+            on_sample(data, k, tk)
+        if is_trk[k]:
+            for b, i in zip(TRACKED_BODIES, body_ids):
+                tracks[b].append(np.concatenate([[tk], data.xpos[i], data.xquat[i]]))
+    return {b: np.array(v).reshape(-1, 8) for b, v in tracks.items()}
+
+
 def record(
     model: object, truth: SceneTruth, exo: ExoSpec, motion: Motion, config: SensorsConfig, seed: int
 ) -> Recording:
@@ -59,27 +95,15 @@ def record(
     t_trk = sample_times(TRACK_RATE_HZ, dur)
     t_mj = np.union1d(np.union1d(t_tof, t_imu), t_trk)
     is_tof, is_imu, is_trk = np.isin(t_mj, t_tof), np.isin(t_mj, t_imu), np.isin(t_mj, t_trk)
-    sample = motion.sample(model, t_mj)
-
     tofs = [ToFSensor(sid, config.tof, model, seed) for sid in TOF_IDS]
     imu = ImuSensor(IMU_ID, config.imu, model, seed)
-    body_ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, b) for b in TRACKED_BODIES]
-    tracks: dict[str, list[np.ndarray]] = {b: [] for b in TRACKED_BODIES}
-    data = mujoco.MjData(model)
-    for k, t in enumerate(t_mj):
-        tk = float(t)
-        if is_imu[k]:
-            imu_dynamics(model, data, sample.qpos[k], sample.qvel[k], sample.qacc[k])
-            imu.observe(model, data, tk)
-        else:
-            data.qpos[:] = sample.qpos[k]
-            mujoco.mj_kinematics(model, data)
+
+    def observe_tof(data: object, k: int, tk: float) -> None:
         if is_tof[k]:
             for s in tofs:
                 s.observe(model, data, tk)
-        if is_trk[k]:
-            for b, i in zip(TRACKED_BODIES, body_ids):
-                tracks[b].append(np.concatenate([[tk], data.xpos[i], data.xquat[i]]))
+
+    body_tracks = step_through(model, motion, t_mj, imu, is_imu, is_trk, observe_tof)
 
     streams: dict[str, list] = {sid: [] for sid in SENSOR_ORDER}
     tof_truth: dict[int, ToFTruth] = {}
@@ -113,7 +137,7 @@ def record(
     merged.sort(key=lambda x: (x[0], x[1]))  # stable: each stream is already in time order
     frames = tuple(f for _, _, f in merged)
     tof_t = tuple(tof_truth[id(f)] for f in frames if id(f) in tof_truth)
-    return Recording(frames, tof_t, {b: np.array(v) for b, v in tracks.items()})
+    return Recording(frames, tof_t, body_tracks)
 
 
 @lru_cache(maxsize=16)

@@ -413,6 +413,21 @@ class _StairsPipeline(ABC):
             return False
         return True
 
+    def _usable_range(self, frame: ToFReading, r: float) -> bool:
+        """Whether a reading can become a point; otherwise count why not."""
+        st = self._stats
+        if frame.status != TofStatus.VALID:
+            st.n_no_return += 1
+        elif not math.isfinite(r):
+            st.n_nan += 1
+        elif r < 0.0:
+            st.extra["n_bad_range"] += 1
+        elif not self._kin.has_state:
+            st.n_without_state += 1
+        else:
+            return True
+        return False
+
     def _tof(self, frame: ToFReading) -> None:
         st = self._stats
         sid = frame.sensor_id
@@ -425,17 +440,7 @@ class _StairsPipeline(ABC):
             r = float(frame.range_m)
         except (TypeError, ValueError):
             r = float("nan")
-        if not self._in_order(frame):
-            pass
-        elif frame.status != TofStatus.VALID:
-            st.n_no_return += 1
-        elif not math.isfinite(r):
-            st.n_nan += 1
-        elif r < 0.0:
-            st.extra["n_bad_range"] += 1
-        elif not self._kin.has_state:
-            st.n_without_state += 1
-        else:
+        if self._in_order(frame) and self._usable_range(frame, r):
             uid = len(self._uid_stamp)
             kin, consume, clock = self._kin, self._consume, time.perf_counter_ns
             t0 = clock()

@@ -152,7 +152,7 @@ def reference_algorithm(points, flags, params: StaircaseParams):
             qz, target = P[u, 2], None
             flat = sigma_z < params.th_z_m
             if cur >= params.n_surfaces:
-                pass
+                target = None  # beyond S4: discarded
             elif cur % 2 == 0:
                 if flat and abs(qz - z_bar) < sigma_z:
                     target = cur
