@@ -130,9 +130,19 @@ def _failures(records: Sequence[dict[str, Any]], limit: int = 30) -> list[str]:
     return lines[:limit] + ([f"- ... {len(lines) - limit} more"] if len(lines) > limit else [])
 
 
+def track_sections(track: Any, records: Sequence[dict[str, Any]], pipelines: Sequence[str], out: Path) -> list[str]:
+    """The track's own report sections (markdown lines, figures written into ``out``).
+
+    A track may define ``report_sections(records, pipelines, out_dir) -> list[str]``; without
+    it the report has the summary table only.
+    """
+    if hasattr(track, "report_sections"):
+        return list(track.report_sections(records, pipelines, out))
+    return []
+
+
 def write_report(out_dir: str | os.PathLike) -> Path:
     """Write ``report.md`` and its figures (PNG) into a run folder; returns the report's path."""
-    from .plots import plot_distributions, plot_side_view
     from .tracks import get_track
 
     out = Path(out_dir)
@@ -146,7 +156,7 @@ def write_report(out_dir: str | os.PathLike) -> Path:
         "",
         f"{len({r['episode'] for r in records})} of {len(order)} episodes finished; "
         f"seeds {config['seeds']}; scenario overrides {config.get('overrides') or 'none'}.",
-        "Published figures come from the real exoskeleton of the staircase paper (seeds/004); ours from simulation.",
+        getattr(track, "report_intro", "Published figures come from the papers' real hardware; ours from simulation."),
         "",
         "## Summary (mean ± std over episodes)",
         "",
@@ -154,16 +164,7 @@ def write_report(out_dir: str | os.PathLike) -> Path:
         "",
     ]
     if records:
-        plot_distributions(records, pipelines, out / "errors.png")
-        lines += ["## Error distributions", "", "![error distributions](errors.png)", ""]
-    figures = sorted((out / "figures").glob("*.npz")) if (out / "figures").exists() else []
-    if figures:
-        lines += ["## Side views (as Fig. 4 of the paper)", ""]
-        for f in figures:
-            key = f.stem.replace("__", "/")
-            with np.load(f) as data:
-                png = plot_side_view(dict(data), f.with_suffix(".png"), title=key)
-            lines += [f"### {key}", "", f"![{key}](figures/{png.name})", ""]
+        lines += track_sections(track, records, pipelines, out)
     fails = _failures(records)
     if fails:
         lines += ["## Failures", "", *fails, ""]

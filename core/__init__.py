@@ -13,7 +13,17 @@ from .errors import (
     UnknownNameError,
     check_range,
 )
-from .estimates import PlaneEstimate, PointAssignment, StaircaseEstimate
+from .estimates import (
+    LOCOMOTION_MODES,
+    FilterEstimate,
+    LocomotionEstimate,
+    ModePrediction,
+    PlaceRecognitionEstimate,
+    PlaneEstimate,
+    PointAssignment,
+    StaircaseEstimate,
+    TrajectoryEstimate,
+)
 from .frames import (
     FRAME_TYPES,
     ContactSample,
@@ -21,6 +31,7 @@ from .frames import (
     ImuSample,
     JointState,
     LidarScan,
+    OdometrySample,
     RgbdFrame,
     StreamStats,
     ToFReading,
@@ -28,13 +39,21 @@ from .frames import (
     frame_kind,
 )
 from .pipeline import Pipeline, coerce_like, config_from_dict
-from .truth import SURFACE_KINDS, PlanarSurface, SceneTruth, ToFTruth, height_at
+from .truth import SURFACE_KINDS, PlanarSurface, SceneTruth, StepTruth, ToFTruth, height_at
 
 __all__ = [
     "Calibration",
     "ConfigError",
     "ContactSample",
     "Episode",
+    "FilterEstimate",
+    "LOCOMOTION_MODES",
+    "LocomotionEstimate",
+    "ModePrediction",
+    "OdometrySample",
+    "PlaceRecognitionEstimate",
+    "StepTruth",
+    "TrajectoryEstimate",
     "EpisodeTruth",
     "ExobenchError",
     "FRAME_TYPES",

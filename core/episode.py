@@ -9,7 +9,7 @@ import numpy as np
 
 from .calibration import Calibration
 from .frames import Frame
-from .truth import SceneTruth, ToFTruth
+from .truth import SceneTruth, StepTruth, ToFTruth
 
 
 @dataclass(frozen=True, eq=False)
@@ -32,6 +32,8 @@ class EpisodeTruth:
             simulator's ``LidarTruth`` objects; empty when the episode has no LiDAR).
         trajectory_w: LiDAR sensor pose at the start of each emitted scan, (N, 8) rows
             ``[t, x, y, z, qw, qx, qy, qz]`` (empty when the episode has no LiDAR).
+        steps: every step of the walk with its locomotion mode (empty when not relevant).
+        extra: track-specific truth (e.g. pedestrian tracks, camera poses), plain values/arrays.
     """
 
     scene: SceneTruth
@@ -45,6 +47,8 @@ class EpisodeTruth:
     events: dict[str, float] = field(default_factory=dict)
     lidar: tuple[Any, ...] = ()
     trajectory_w: np.ndarray = field(default_factory=lambda: np.zeros((0, 8)))
+    steps: tuple[StepTruth, ...] = ()
+    extra: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)

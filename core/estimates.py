@@ -75,3 +75,109 @@ class StaircaseEstimate:
             if p.index == index:
                 return p
         return None
+
+
+LOCOMOTION_MODES = ("LG", "SA", "SD", "RA", "RD")  # level ground, stair/ramp ascent/descent
+
+
+@dataclass(frozen=True, eq=False)
+class ModePrediction:
+    """The locomotion mode predicted for the next step, at one instant.
+
+    Attributes:
+        stamp_s: time of the input frame the prediction was made on, s.
+        mode: one of :data:`LOCOMOTION_MODES`, or ``""`` when the pipeline has none yet.
+        footprint_odom: predicted footprint of the next step in the odometry frame, (3,)
+            (NaN when unknown).
+        strike_index: number of heel strikes the pipeline had seen when it predicted (the
+            prediction is for the step after the last of them).
+        latency_s: compute time of this prediction (frame in -> mode out), s.
+        status: ``"ok"``, or why the pipeline kept its last state (``"no_depth"``,
+            ``"dropped"``, ``"no_odometry"``, ...).
+    """
+
+    stamp_s: float
+    mode: str
+    footprint_odom: np.ndarray
+    strike_index: int
+    latency_s: float
+    status: str = "ok"
+
+
+@dataclass(frozen=True, eq=False)
+class LocomotionEstimate:
+    """Locomotion-mode predictions over an episode (track ``locomotion``).
+
+    Attributes:
+        predictions: one per processed camera frame, time-ordered.
+        planes: the final plane set, each a dict with ``id``, ``normal``, ``centroid`` (odometry
+            frame), ``kind`` and ``score`` (for reports and rerun).
+        stats: diagnostics and faulty-input counters (dropped frames, empty depth, ...).
+    """
+
+    predictions: tuple[ModePrediction, ...]
+    planes: tuple[dict[str, Any], ...] = ()
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class TrajectoryEstimate:
+    """An estimated sensor trajectory (track ``odometry``, and ``lidar-filter`` through odometry).
+
+    Attributes:
+        stamps_s: time of each pose, s, (N,) (the scan's ``sweep_start_s`` for LiDAR).
+        T_world_sensor: poses of the sensor in the estimator's world frame (its first pose is
+            usually the identity), (N, 4, 4).
+        time_per_scan_s: processing time of each input scan, s, (N,).
+        loop_edges: detected loop closures, pairs of pose indices ``(i, j)`` (may be empty).
+        status: per-pose status (``"ok"``, ``"empty_scan"``, ``"lost"``, ...), length N.
+        stats: diagnostics (failures, keyframes, submaps, ...).
+        map_points: the final (corrected) map in the estimator frame, (M, 3), optional.
+    """
+
+    stamps_s: np.ndarray
+    T_world_sensor: np.ndarray
+    time_per_scan_s: np.ndarray
+    loop_edges: tuple[tuple[int, int], ...] = ()
+    status: tuple[str, ...] = ()
+    stats: dict[str, Any] = field(default_factory=dict)
+    map_points: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class FilterEstimate:
+    """What an intensity filter kept of each scan (track ``lidar-filter``).
+
+    Attributes:
+        stamps_s: the scan stamps, (N,).
+        keep: one boolean mask per scan over its points, in the scan's point order.
+        time_per_scan_s: processing time of each scan, s, (N,).
+        stats: counters (empty scans, ...).
+    """
+
+    stamps_s: np.ndarray
+    keep: tuple[np.ndarray, ...]
+    time_per_scan_s: np.ndarray
+    stats: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class PlaceRecognitionEstimate:
+    """Place-recognition results over the keyframes of an episode (track ``loop-closure``).
+
+    Attributes:
+        stamps_s: time of each keyframe (a scan, or the last scan of a submap), (K,).
+        match_index: best database match of each keyframe among earlier, non-recent keyframes,
+            -1 when there is none, (K,) int.
+        distance: descriptor distance of that match (lower is more similar; inf when none), (K,).
+        yaw_rad: relative yaw from the column-shift alignment, (K,).
+        time_per_keyframe_s: description + query time per keyframe, s, (K,).
+        stats: diagnostics.
+    """
+
+    stamps_s: np.ndarray
+    match_index: np.ndarray
+    distance: np.ndarray
+    yaw_rad: np.ndarray
+    time_per_keyframe_s: np.ndarray
+    stats: dict[str, Any] = field(default_factory=dict)

@@ -147,7 +147,27 @@ class RgbdFrame:
     K: np.ndarray
 
 
-Frame = ToFReading | ImuSample | JointState | ContactSample | LidarScan | RgbdFrame
+@dataclass(frozen=True, eq=False)
+class OdometrySample:
+    """One pose from an odometry source (e.g. a visual-inertial odometry running on the device).
+
+    The pose is in the odometry's own gravity-aligned world frame ``odom`` (z up), which may drift
+    away from the true world; pipelines must not assume it equals the truth.
+
+    Attributes:
+        stamp_s: time the pose refers to, s.
+        sensor_id: the tracked body, e.g. ``"odom_head"`` (a camera/IMU body).
+        T_odom_body: 4x4 pose of the tracked body in the odometry frame.
+        v_odom_m_s: linear velocity of the body's origin in the odometry frame, m/s, (3,).
+    """
+
+    stamp_s: float
+    sensor_id: str
+    T_odom_body: np.ndarray
+    v_odom_m_s: np.ndarray
+
+
+Frame = ToFReading | ImuSample | JointState | ContactSample | LidarScan | RgbdFrame | OdometrySample
 
 FRAME_TYPES: dict[str, type] = {
     "tof": ToFReading,
@@ -156,6 +176,7 @@ FRAME_TYPES: dict[str, type] = {
     "contact": ContactSample,
     "lidar": LidarScan,
     "rgbd": RgbdFrame,
+    "odometry": OdometrySample,
 }
 
 

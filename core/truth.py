@@ -134,3 +134,27 @@ def height_at(truth: SceneTruth, x: float, y: float, kinds: tuple[str, ...] = ("
         if s.contains(np.array([x, y, z]), tol_m=1e-6) and not (z <= best):
             best = float(z)
     return best
+
+
+@dataclass(frozen=True, eq=False)
+class StepTruth:
+    """One step of a walk: where and when a foot landed and the locomotion mode of that step.
+
+    Attributes:
+        index: step number in the walk, 0-based.
+        side: ``"l"`` or ``"r"``, the foot that swings in this step.
+        liftoff_s: time the foot leaves the ground (start of the step), s.
+        heel_strike_s: time its heel touches down (end of the step), s.
+        footprint_w: sole point below the ankle where it lands, world, (3,).
+        terrain: kind of the surface it lands on (``"ground"``, ``"tread"``, ``"ramp"``, ...).
+        mode: locomotion mode of the step, one of ``LG SA SD RA RD`` (from the terrain under the
+            landing footprint relative to the one under the previous footprint).
+    """
+
+    index: int
+    side: str
+    liftoff_s: float
+    heel_strike_s: float
+    footprint_w: np.ndarray
+    terrain: str
+    mode: str

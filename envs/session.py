@@ -58,6 +58,7 @@ from exobench.core import (
     ImuSample,
     JointState,
     LidarScan,
+    OdometrySample,
     PlanarSurface,
     RgbdFrame,
     SceneTruth,
@@ -175,6 +176,8 @@ def frame_to_dict(frame: Frame, store: _BinaryStore | None = None) -> dict[str, 
         d.update(names=list(frame.names), position_rad=_arr(frame.position_rad))
     elif isinstance(frame, ContactSample):
         d.update(force_n=_f(frame.force_n), in_contact=bool(frame.in_contact))
+    elif isinstance(frame, OdometrySample):
+        d.update(T_odom_body=_arr(frame.T_odom_body), v_odom_m_s=_arr(frame.v_odom_m_s))
     elif store is None:
         raise SessionError(f"{kind!r} frames are stored in binary files; write them with write_session")
     elif isinstance(frame, LidarScan):
@@ -202,6 +205,8 @@ def frame_from_dict(d: dict[str, Any], root: str | os.PathLike | None = None) ->
         return JointState(stamp, sid, tuple(d["names"]), _unarr(d["position_rad"]))
     if kind == "contact":
         return ContactSample(stamp, sid, _unf(d["force_n"]), bool(d["in_contact"]))
+    if kind == "odometry":
+        return OdometrySample(stamp, sid, _unarr(d["T_odom_body"]), _unarr(d["v_odom_m_s"]))
     if kind in ("lidar", "rgbd"):
         if root is None:
             raise SessionError(f"{kind!r} frame at {stamp} s refers to {d['file']!r}; pass the session root")
@@ -216,7 +221,7 @@ def frame_from_dict(d: dict[str, Any], root: str | os.PathLike | None = None) ->
         if list(a["depth_m"].shape[:2]) != list(d["shape"]):
             raise SessionError(f"{root / d['file']}: depth shape {a['depth_m'].shape} does not match {d['shape']}")
         return RgbdFrame(stamp, sid, a["rgb"], a["depth_m"], a["K"])
-    raise SessionError(f"frames.jsonl: unknown frame kind {kind!r}; valid: tof, imu, joints, contact, lidar, rgbd")
+    raise SessionError(f"frames.jsonl: unknown frame kind {kind!r}; valid: tof, imu, joints, contact, odometry, lidar, rgbd")
 
 
 # --- calibration ------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -217,3 +218,21 @@ class StairsTrack:
 
     def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
         return side_view_data(episode, estimates)
+
+    report_intro = "Published figures come from the real exoskeleton of the staircase paper (seeds/004); ours from simulation."
+
+    def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
+        """Error distributions and the side views of the figure cases (as Fig. 4 of the paper)."""
+        from exobench.benchmarks.plots import plot_distributions, plot_side_view
+
+        plot_distributions(records, pipelines, out / "errors.png")
+        lines = ["## Error distributions", "", "![error distributions](errors.png)", ""]
+        figures = sorted((out / "figures").glob("*.npz")) if (out / "figures").exists() else []
+        if figures:
+            lines += ["## Side views (as Fig. 4 of the paper)", ""]
+            for f in figures:
+                key = f.stem.replace("__", "/")
+                with np.load(f) as data:
+                    png = plot_side_view(dict(data), f.with_suffix(".png"), title=key)
+                lines += [f"### {key}", "", f"![{key}](figures/{png.name})", ""]
+        return lines
