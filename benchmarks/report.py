@@ -131,14 +131,8 @@ def _failures(records: Sequence[dict[str, Any]], limit: int = 30) -> list[str]:
 
 
 def track_sections(track: Any, records: Sequence[dict[str, Any]], pipelines: Sequence[str], out: Path) -> list[str]:
-    """The track's own report sections (markdown lines, figures written into ``out``).
-
-    A track may define ``report_sections(records, pipelines, out_dir) -> list[str]``; without
-    it the report has the summary table only.
-    """
-    if hasattr(track, "report_sections"):
-        return list(track.report_sections(records, pipelines, out))
-    return []
+    """The track's own report sections (markdown lines, figures written into ``out``)."""
+    return list(track.report_sections(list(records), list(pipelines), out))
 
 
 def write_report(out_dir: str | os.PathLike) -> Path:
@@ -156,7 +150,7 @@ def write_report(out_dir: str | os.PathLike) -> Path:
         "",
         f"{len({r['episode'] for r in records})} of {len(order)} episodes finished; "
         f"seeds {config['seeds']}; scenario overrides {config.get('overrides') or 'none'}.",
-        getattr(track, "report_intro", "Published figures come from the papers' real hardware; ours from simulation."),
+        track.report_intro,
         "",
         "## Summary (mean ± std over episodes)",
         "",

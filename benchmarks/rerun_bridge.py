@@ -144,14 +144,6 @@ def _log_tof(rr: Any, rec: Any, episode: Episode) -> None:
         rec.log(f"world/tof/{frame.sensor_id}/hits", rr.Points3D(hits[frame.sensor_id], colors=colors[frame.sensor_id], radii=0.004))
 
 
-def write_track_recording(track: Any, episode: Episode, estimates_by_pipeline: dict[str, Any], path: str | os.PathLike) -> Path:
-    """A recording through the track's own ``write_recording(episode, estimates, path)`` when it
-    has one (each track knows what to show), else the staircase recording below."""
-    if hasattr(track, "write_recording"):
-        return Path(track.write_recording(episode, estimates_by_pipeline, path))
-    return write_recording(episode, estimates_by_pipeline, path)
-
-
 def write_recording(episode: Episode, estimates_by_pipeline: dict[str, Any], path: str | os.PathLike) -> Path:
     """Write ``episode`` and the estimates to the ``.rrd`` file ``path``; returns the path.
 

@@ -378,13 +378,12 @@ def _run_pool(job_list: list[_Job], jobs: int, finish: Callable[..., None]) -> N
 
 def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: float = 0.1) -> Path:
     """Simulate the plan's first episode again and write a rerun recording of it."""
-    from .rerun_bridge import write_track_recording
 
     first = plan.episodes[0]
     episode = plan.track.simulate(first.scenario, first.seed)
     estimates, _, _, timelines = run_pipelines(plan.track, episode, plan.pipelines, timeline_every_s=every_s)
     series = {n: timelines[n] + [(float(episode.frames[-1].stamp_s), e)] for n, e in estimates.items()}
-    return write_track_recording(plan.track, episode, series, path)
+    return plan.track.write_recording(episode, series, Path(path))
 
 
 def load_case(track: Track, suite: str, name: str) -> Case:

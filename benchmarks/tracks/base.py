@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from exobench.core.episode import Episode
@@ -138,6 +139,17 @@ class Track(Protocol):
 
     def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
         """Arrays the report's per-case figure needs (saved as .npz)."""
+
+    report_intro: ClassVar[str]
+    """One line under the report's title: where the published figures come from."""
+
+    def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out_dir: Path) -> list[str]:
+        """The track's report sections after the summary table: markdown lines; figures are
+        written into ``out_dir`` (figure data saved by the runner is in ``out_dir/figures``)."""
+
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+        """Write a rerun recording (``.rrd``) of the episode and the estimates (a final estimate,
+        or a time series ``[(stamp_s, estimate), ...]`` per pipeline); returns the path."""
 
 
 @dataclass

@@ -219,6 +219,11 @@ class StairsTrack:
     def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
         return side_view_data(episode, estimates)
 
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+        from exobench.benchmarks.rerun_bridge import write_recording
+
+        return write_recording(episode, estimates_by_pipeline, path)
+
     report_intro = "Published figures come from the real exoskeleton of the staircase paper (seeds/004); ours from simulation."
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
