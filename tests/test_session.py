@@ -12,6 +12,7 @@ from exobench.core import (
     EpisodeTruth,
     ImuSample,
     JointState,
+    OdometrySample,
     PlanarSurface,
     SceneTruth,
     SensorMount,
@@ -33,6 +34,7 @@ def _episode(rng) -> Episode:
         r = float("nan") if i % 7 == 0 else float(rng.uniform(0.1, 2))
         frames.append(ToFReading(t, "tof_r_med", r, TofStatus.NO_TARGET if i % 7 == 0 else TofStatus.VALID))
         frames.append(ContactSample(t, "contact_l_heel", float(rng.uniform(0, 500)), bool(i % 2)))
+        frames.append(OdometrySample(t, "odom_head", rng.normal(size=(4, 4)), rng.normal(size=3)))
         tof.append(ToFTruth(t, "tof_r_med", r, rng.normal(size=3), i % 5, np.eye(4) + rng.normal(size=(4, 4))))
     surf = PlanarSurface(0, "ground", np.array([0, 0, 1.0]), np.zeros(3), rng.normal(size=(4, 3)), ("floor",))
     truth = EpisodeTruth(
