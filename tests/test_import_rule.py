@@ -10,7 +10,7 @@ FORBIDDEN = {
     "core": ("mujoco", "dm_control", "open3d", "pinocchio", "gtsam", "rerun", "scipy", "matplotlib",
              "exobench.models", "exobench.envs", "exobench.perception", "exobench.mapping",
              "exobench.benchmarks"),
-    "perception": ("mujoco", "dm_control", "exobench.envs", "exobench.models", "exobench.benchmarks"),
+    "perception": ("mujoco", "dm_control", "exobench.envs", "exobench.models", "exobench.benchmarks", "exobench.mapping"),
     "mapping": ("mujoco", "dm_control", "exobench.envs", "exobench.models", "exobench.benchmarks"),
     "models": ("exobench.envs", "exobench.perception", "exobench.mapping", "exobench.benchmarks"),
     "envs": ("exobench.perception", "exobench.mapping", "exobench.benchmarks"),
