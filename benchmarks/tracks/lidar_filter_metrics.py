@@ -1,0 +1,128 @@
+"""Scoring of a :class:`FilterEstimate` against the true kind of every LiDAR point (lidar-filter track).
+
+Per point the truth (:func:`office_common.point_classes`) says genuine (a real surface on the
+straight ray, also through glass), glass (the pane's own weak reflection) or ghost (a surface
+seen in a mirror or pane, reported along the original ray), and whether a genuine point lies on
+a ground surface (SceneTruth kinds ``ground``, ``tread``, ``landing``, ``ramp``). Pooled over
+all scans of the episode:
+
+- ``spurious_removed_frac``: glass + ghost points removed / glass + ghost points (NaN if none);
+- ``ground_kept_frac``: genuine ground points kept / genuine ground points;
+- ``glass_removed_frac``, ``ghost_removed_frac``, ``genuine_kept_frac``,
+  ``nonground_kept_frac`` (genuine points off the ground kept), ``kept_frac`` (all points);
+- counts ``n_points``, ``n_glass``, ``n_ghost``, ``n_ground``; ``bad_masks`` (scans whose mask
+  is missing or of the wrong length: their points count as removed);
+- ``time_per_scan_ms``: median compute time per scan.
+
+Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
+:mod:`odometry_metrics` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
+``odom_tve_{x,y,z}_m``, ``odom_ate_m``, ``odom_rpe_m``, ...).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from exobench.core.episode import Episode
+from exobench.core.estimates import FilterEstimate
+
+from .. import trajectory as tj
+from .office_common import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
+
+COUNT_KEYS = ("n_points", "n_glass", "n_ghost", "n_ground", "bad_masks")
+FRACTION_KEYS = ("spurious_removed_frac", "ground_kept_frac", "glass_removed_frac", "ghost_removed_frac",
+                 "genuine_kept_frac", "nonground_kept_frac", "kept_frac")  # fmt: skip
+ODOM_KEYS = ("odom_te_m", "odom_oe_rad", "odom_tve_x_m", "odom_tve_y_m", "odom_tve_z_m", "odom_ate_m", "odom_rpe_m",
+             "odom_drift_per_m", "odom_time_per_scan_ms")  # fmt: skip
+
+
+def failure_metrics(episode: Episode | None, reason: str) -> dict[str, Any]:
+    out: dict[str, Any] = {k: math.nan for k in (*FRACTION_KEYS, *COUNT_KEYS, *ODOM_KEYS, "time_per_scan_ms")}
+    out.update(failed=True, failed_reason=reason)
+    return out
+
+
+def _frac(num: int, den: int) -> float:
+    return num / den if den else math.nan
+
+
+def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], keep: Sequence[np.ndarray]) -> dict[str, Any]:
+    """The fractions and counts of the module docstring from per-scan classes, ground flags and
+    keep masks (a mask of the wrong length, or missing, removes every point of its scan)."""
+    c_all, g_all, k_all = [], [], []
+    bad = 0
+    for i, (c, g) in enumerate(zip(classes, ground, strict=True)):
+        k = np.asarray(keep[i], dtype=bool).reshape(-1) if i < len(keep) else None
+        if k is None or len(k) != len(c):
+            bad += 1
+            k = np.zeros(len(c), dtype=bool)
+        c_all.append(np.asarray(c))
+        g_all.append(np.asarray(g, dtype=bool))
+        k_all.append(k)
+    c = np.concatenate(c_all) if c_all else np.zeros(0, dtype=int)
+    g = np.concatenate(g_all) if g_all else np.zeros(0, dtype=bool)
+    k = np.concatenate(k_all) if k_all else np.zeros(0, dtype=bool)
+    spur = (c == GLASS) | (c == GHOST)
+    gen = c == GENUINE
+
+    def n(mask: np.ndarray) -> int:
+        return int(np.count_nonzero(mask))
+
+    return {
+        "spurious_removed_frac": _frac(n(spur & ~k), n(spur)),
+        "ground_kept_frac": _frac(n(g & k), n(g)),
+        "glass_removed_frac": _frac(n((c == GLASS) & ~k), n(c == GLASS)),
+        "ghost_removed_frac": _frac(n((c == GHOST) & ~k), n(c == GHOST)),
+        "genuine_kept_frac": _frac(n(gen & k), n(gen)),
+        "nonground_kept_frac": _frac(n(gen & ~g & k), n(gen & ~g)),
+        "kept_frac": _frac(n(k), len(k)),
+        "n_points": len(c), "n_glass": n(c == GLASS), "n_ghost": n(c == GHOST), "n_ground": n(g), "bad_masks": bad,
+    }  # fmt: skip
+
+
+def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tuple[dict[str, Any], Any]:
+    """kiss-icp on the kept points of every scan, scored as the odometry track does: (``odom_``
+    metrics, the :class:`TrajectoryEstimate`)."""
+    from exobench.mapping.kiss_icp_pipeline import run_kiss_icp
+
+    from .odometry_metrics import score_trajectory
+
+    scans = [s for s, _ in lidar_pairs(episode)]
+    est = run_kiss_icp(scans, keep)
+    m = score_trajectory(episode, est)
+    out = {f"odom_{k}": m.get(k, math.nan) for k in ("te_m", "oe_rad", "tve_x_m", "tve_y_m", "tve_z_m", "ate_m", "rpe_m",
+                                                     "drift_per_m", "time_per_scan_ms")}  # fmt: skip
+    out["odom_failures"] = m.get("failures", math.nan)
+    return out, est
+
+
+def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = False,
+                 trajectories: dict[int, Any] | None = None) -> dict[str, Any]:
+    """The metrics of the module docstring (never raises on a bad estimate); with ``odometry``
+    the kiss-icp trajectory is stored in ``trajectories[id(est)]`` when given."""
+    try:
+        pairs = lidar_pairs(episode)
+        classes, ground = [], []
+        for _, truth in pairs:
+            c, g = point_classes(episode, truth)
+            classes.append(c)
+            ground.append(g)
+        keep = list(est.keep)
+        out: dict[str, Any] = {"failed": False, "failed_reason": ""}
+        out.update(mask_fractions(classes, ground, keep))
+        out["time_per_scan_ms"] = tj.time_per_scan_ms(est.time_per_scan_s)
+        if len(keep) != len(pairs):
+            out["failed_reason"] = f"{len(keep)} masks for {len(pairs)} scans"
+        out.update({k: math.nan for k in ODOM_KEYS})
+        if odometry:
+            m, traj = odometry_through_filter(episode, keep)
+            out.update(m)
+            if trajectories is not None:
+                trajectories[id(est)] = traj
+        return out
+    except Exception as e:  # a scorer never raises on an estimate
+        return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")

@@ -1,0 +1,228 @@
+"""KISS-ICP LiDAR odometry (Vizzo et al. 2023; the peer of seeds/003 Tables 5.3-5.4) as a pipeline.
+
+``kiss-icp`` (track ``odometry``) feeds every :class:`~exobench.core.frames.LidarScan` to the
+installed ``kiss-icp`` package (``KissICP.register_frame(points, timestamps)``) and returns a
+:class:`~exobench.core.estimates.TrajectoryEstimate` of the LiDAR poses, the first scan at the
+identity.
+
+Details:
+
+- Timestamps: the per-point ``time_offset_s``; kiss-icp normalises them per scan and deskews
+  every point to the pose at the *last* firing (constant-velocity model), so the pose it reports
+  is the LiDAR at ``sweep_start_s + max(time_offset_s)`` and that is the stamp stored. With
+  ``deskew=False`` the scan is taken as instantaneous and stamped ``sweep_start_s``.
+- ``voxel_size_m = 0`` takes kiss-icp's own default (``max_range_m / 100``).
+- ``filter``: ``"none"`` (default), ``"threshold"``, ``"naive-ground"`` or ``"normal-ground"``
+  runs the intensity filter of seeds/003 Sec. 4.2.2 (:mod:`exobench.perception.filter_pipelines`,
+  with its default parameters and ``T_footprint_sensor`` from the exoskeleton's kinematics)
+  before odometry, as Table 5.4 does. :func:`run_kiss_icp` takes precomputed keep masks instead.
+- Faults never raise: a scan with fewer than ``min_points`` usable points (empty, all NaN, or
+  all removed by the filter) keeps the last pose with status ``"empty_scan"``; a registration
+  that raises or returns a non-finite pose keeps the last pose with status ``"failed"`` (and the
+  odometry is rebuilt from that pose, so later scans still register); both are counted in
+  ``stats``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from exobench.core.calibration import Calibration
+from exobench.core.errors import ConfigError, check_range
+from exobench.core.estimates import TrajectoryEstimate
+from exobench.core.frames import Frame, LidarScan
+
+FILTER_KINDS = ("none", "threshold", "naive-ground", "normal-ground")
+
+__all__ = ["FILTER_KINDS", "KissIcpPipeline", "KissOdometry", "run_kiss_icp"]
+
+
+@dataclass(frozen=True)
+class KissConfig:
+    """kiss-icp parameters (its ``KISSConfig`` fields) and the adapter's own.
+
+    Attributes:
+        max_range_m / min_range_m: ``data.max_range`` / ``data.min_range``, m.
+        voxel_size_m: ``mapping.voxel_size``, m (0: ``max_range_m / 100``, kiss-icp's default).
+        deskew: ``data.deskew``.
+        max_points_per_voxel: ``mapping.max_points_per_voxel``.
+        max_threads: ``registration.max_num_threads`` (0 = automatic).
+        min_points: scans with fewer usable points keep the last pose.
+        lidar_id: the LiDAR used (empty: the first LiDAR seen).
+        filter: intensity filter applied before odometry (:data:`FILTER_KINDS`).
+    """
+
+    max_range_m: float = 100.0
+    min_range_m: float = 0.3
+    voxel_size_m: float = 0.0
+    deskew: bool = True
+    max_points_per_voxel: int = 20
+    max_threads: int = 1
+    min_points: int = 50
+    lidar_id: str = ""
+    filter: str = "none"
+
+    def __post_init__(self) -> None:
+        check_range("max_range_m", self.max_range_m, 0.0, 1000.0, low_open=True)
+        check_range("min_range_m", self.min_range_m, 0.0, self.max_range_m, high_open=True)
+        check_range("voxel_size_m", self.voxel_size_m, 0.0, 10.0)
+        for name, lo, hi in (("max_points_per_voxel", 1, 1000), ("max_threads", 0, 64), ("min_points", 1, 10**6)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise ConfigError(name, v, f"an integer in [{lo}, {hi}]")
+        if not isinstance(self.deskew, bool):
+            raise ConfigError("deskew", self.deskew, "True or False")
+        if self.filter not in FILTER_KINDS:
+            raise ConfigError("filter", self.filter, " or ".join(repr(k) for k in FILTER_KINDS))
+
+    def kiss_config(self) -> Any:
+        """The package's ``KISSConfig`` (pydantic) with these values."""
+        from kiss_icp.config import KISSConfig
+
+        cfg = KISSConfig()
+        cfg.data.max_range = float(self.max_range_m)
+        cfg.data.min_range = float(self.min_range_m)
+        cfg.data.deskew = bool(self.deskew)
+        cfg.mapping.voxel_size = float(self.voxel_size_m) if self.voxel_size_m > 0 else float(self.max_range_m / 100.0)
+        cfg.mapping.max_points_per_voxel = int(self.max_points_per_voxel)
+        cfg.registration.max_num_threads = int(self.max_threads)
+        return cfg
+
+
+class KissOdometry:
+    """Scan-by-scan kiss-icp with the fault handling of the module docstring."""
+
+    def __init__(self, config: KissConfig) -> None:
+        self.config = config
+        self._odom: Any = None
+        self.stamps: list[float] = []
+        self.poses: list[np.ndarray] = []
+        self.times: list[float] = []
+        self.status: list[str] = []
+        self.stats: dict[str, Any] = {"scans": 0, "empty_scans": 0, "failed_scans": 0, "points_used": 0}
+        self._last = np.eye(4)
+
+    def _new_odometry(self, pose: np.ndarray) -> Any:
+        from kiss_icp.kiss_icp import KissICP
+
+        odom = KissICP(config=self.config.kiss_config())
+        odom.last_pose = pose.copy()
+        return odom
+
+    def add(self, scan: LidarScan, keep: np.ndarray | None = None) -> None:
+        """Register one scan (``keep``: the points to use, None = all)."""
+        t0 = time.perf_counter()
+        pts = np.asarray(scan.points_xyz, dtype=float).reshape(-1, 3)
+        offs = np.asarray(scan.time_offset_s, dtype=float).reshape(-1)
+        if len(offs) != len(pts):
+            offs = np.zeros(len(pts))
+        ok = np.all(np.isfinite(pts), axis=1) & np.isfinite(offs)
+        if keep is not None:
+            k = np.asarray(keep, dtype=bool).reshape(-1)
+            ok &= k if len(k) == len(pts) else np.zeros(len(pts), dtype=bool)
+        pts, offs = pts[ok], offs[ok]
+        stamp = float(scan.sweep_start_s)
+        if self.config.deskew and len(offs):
+            stamp += float(np.max(offs))
+        status = "ok"
+        if len(pts) < self.config.min_points:
+            status = "empty_scan"
+            self.stats["empty_scans"] += 1
+        else:
+            try:
+                if self._odom is None:
+                    self._odom = self._new_odometry(self._last)
+                self._odom.register_frame(np.ascontiguousarray(pts), np.ascontiguousarray(offs))
+                pose = np.asarray(self._odom.last_pose, dtype=float)
+                if not np.all(np.isfinite(pose)):
+                    raise FloatingPointError("non-finite pose")
+                self._last = pose.copy()
+                self.stats["points_used"] += len(pts)
+            except Exception as e:  # a failed registration is a result: keep the last pose
+                status = "failed"
+                self.stats["failed_scans"] += 1
+                self.stats["last_error"] = f"{type(e).__name__}: {e}"
+                self._odom = None
+        self.stats["scans"] += 1
+        self.stamps.append(stamp)
+        self.poses.append(self._last.copy())
+        self.status.append(status)
+        self.times.append(time.perf_counter() - t0)
+
+    def estimate(self, extra_stats: dict[str, Any] | None = None) -> TrajectoryEstimate:
+        stats = {**self.stats, **dict(extra_stats or {})}
+        return TrajectoryEstimate(
+            stamps_s=np.array(self.stamps, dtype=float),
+            T_world_sensor=np.array(self.poses, dtype=float).reshape(-1, 4, 4),
+            time_per_scan_s=np.array(self.times, dtype=float),
+            status=tuple(self.status),
+            stats=stats,
+        )
+
+
+def run_kiss_icp(scans: Sequence[LidarScan], keep: Sequence[np.ndarray] | None = None,
+                 config: KissConfig | None = None) -> TrajectoryEstimate:
+    """kiss-icp over ``scans`` using only the points of ``keep`` (one mask per scan; None: all).
+
+    The time per scan is the odometry's only (the masks are given).
+    """
+    odo = KissOdometry(config or KissConfig())
+    for i, scan in enumerate(scans):
+        odo.add(scan, None if keep is None else (keep[i] if i < len(keep) else np.zeros(0, dtype=bool)))
+    return odo.estimate()
+
+
+class KissIcpPipeline:
+    """``kiss-icp``: KISS-ICP odometry of the trunk LiDAR, optionally after an intensity filter."""
+
+    name: ClassVar[str] = "kiss-icp"
+    track: ClassVar[str] = "odometry"
+    Config = KissConfig
+
+    def __init__(self, config: KissConfig | None = None) -> None:
+        self.config = config if config is not None else KissConfig()
+        self._odo = KissOdometry(self.config)
+        self._filter: Any = None
+        self._lidar: str = self.config.lidar_id
+
+    def reset(self, calibration: Calibration) -> None:
+        self._odo = KissOdometry(self.config)
+        self._lidar = self.config.lidar_id
+        self._filter = None
+        if self.config.filter != "none":
+            from exobench.perception.filter_pipelines import filter_pipeline
+
+            cls = filter_pipeline(self.config.filter)
+            self._filter = cls(cls.Config(lidar_id=self.config.lidar_id))
+            self._filter.reset(calibration)
+
+    def process(self, frame: Frame) -> TrajectoryEstimate | None:
+        if self._filter is not None and not isinstance(frame, LidarScan):
+            self._filter.process(frame)
+        if not isinstance(frame, LidarScan):
+            return None
+        if not self._lidar:
+            self._lidar = frame.sensor_id
+        if frame.sensor_id != self._lidar:
+            return None
+        keep = None
+        t0 = time.perf_counter()
+        if self._filter is not None:
+            self._filter.process(frame)
+            keep = self._filter.last_keep
+        t_filter = time.perf_counter() - t0
+        self._odo.add(frame, keep)
+        self._odo.times[-1] += t_filter
+        return None
+
+    def finalize(self) -> TrajectoryEstimate:
+        extra: dict[str, Any] = {"filter": self.config.filter}
+        if self._filter is not None:
+            f = self._filter.finalize().stats
+            extra["filter_stats"] = {k: v for k, v in f.items() if isinstance(v, (int, float, str))}
+        return self._odo.estimate(extra)

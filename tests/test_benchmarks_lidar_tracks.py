@@ -1,0 +1,186 @@
+"""The lidar-filter and odometry tracks: metrics on constructed truth, one short office walk
+through the runner (every filter and kiss-icp), and bad --set values on the command line."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from exobench.benchmarks.cli import cli
+from exobench.benchmarks.runner import plan_run, run_pipelines
+from exobench.benchmarks.tracks.lidar_filter_metrics import mask_fractions
+from exobench.benchmarks.tracks.odometry_metrics import interpolate_poses, score_trajectory, true_track
+from exobench.benchmarks.tracks.office_common import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
+from exobench.core.estimates import TrajectoryEstimate
+from exobench.core.transforms import matrix_to_quat_wxyz, rot_z
+
+WALK_M = 1.0
+
+
+# ------------------------------------------------------------------ metrics, constructed truth
+
+
+def test_mask_fractions_hand_computed():
+    classes = [np.array([GENUINE, GENUINE, GLASS, GHOST, GHOST]), np.array([GENUINE, GHOST, GENUINE])]
+    ground = [np.array([True, False, False, False, False]), np.array([False, False, True])]
+    keep = [np.array([True, True, False, True, False]), np.array([False, False, False])]
+    m = mask_fractions(classes, ground, keep)
+    # spurious: glass(removed), ghost(kept), ghost(removed), ghost(removed) -> 3 of 4 removed
+    assert m["spurious_removed_frac"] == pytest.approx(3 / 4)
+    assert m["glass_removed_frac"] == 1.0 and m["ghost_removed_frac"] == pytest.approx(2 / 3)
+    assert m["ground_kept_frac"] == pytest.approx(1 / 2)  # first scan's ground kept, second's not
+    assert m["genuine_kept_frac"] == pytest.approx(2 / 4)
+    assert m["nonground_kept_frac"] == pytest.approx(1 / 2)
+    assert (m["n_points"], m["n_glass"], m["n_ghost"], m["n_ground"], m["bad_masks"]) == (8, 1, 3, 2, 0)
+    # a missing or wrong-length mask removes the scan's points and is counted
+    m2 = mask_fractions(classes, ground, [keep[0], np.array([True])])
+    assert m2["bad_masks"] == 1 and m2["ground_kept_frac"] == pytest.approx(1 / 2)
+
+
+def _square_loop(n_side=10, side_m=4.0):
+    """Poses around a square returning to the start, heading along each side; rows t x y z q."""
+    rows, t = [], 0.0
+    corners = [(0, 0), (side_m, 0), (side_m, side_m), (0, side_m)]
+    for k in range(4):
+        a, b = np.array(corners[k], float), np.array(corners[(k + 1) % 4], float)
+        R = rot_z(np.pi / 2 * k)
+        for s in np.linspace(0, 1, n_side, endpoint=False):
+            p = a + s * (b - a)
+            rows.append([t, p[0], p[1], 1.0, *matrix_to_quat_wxyz(R)])
+            t += 0.1
+    rows.append([t, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0])
+    return np.array(rows)
+
+
+def _poses(rows):
+    from exobench.core.transforms import quat_wxyz_to_matrix
+
+    T = np.tile(np.eye(4), (len(rows), 1, 1))
+    T[:, :3, 3] = rows[:, 1:4]
+    T[:, :3, :3] = [quat_wxyz_to_matrix(q) for q in rows[:, 4:8]]
+    return T
+
+
+def test_trajectory_metrics_on_a_constructed_loop():
+    truth = _square_loop()
+    episode = SimpleNamespace(truth=SimpleNamespace(trajectory_w=truth, body_tracks={}))
+    Q = _poses(truth)
+    # the estimate: the truth seen from another world frame (rigid), exact
+    G = np.eye(4)
+    G[:3, :3], G[:3, 3] = rot_z(0.4), [2.0, -1.0, 0.5]
+    est = TrajectoryEstimate(truth[:, 0], G @ Q, np.full(len(Q), 0.01), status=("ok",) * len(Q))
+    m = score_trajectory(episode, est)
+    assert not m["failed"]
+    for key in ("ate_m", "rpe_m", "te_m", "oe_rad", "drift_per_m"):
+        assert m[key] == pytest.approx(0.0, abs=1e-9), key
+    assert m["path_m"] == pytest.approx(16.0) and m["time_per_scan_ms"] == pytest.approx(10.0)
+    # the last pose ends 0.3 m along the start's x and 0.4 m along its y: TE 0.5 m, OE 0
+    P = Q.copy()
+    P[-1, :3, 3] += [0.3, 0.4, 0.0]
+    m = score_trajectory(episode, TrajectoryEstimate(truth[:, 0], P, np.zeros(len(P)), status=("ok",) * len(P)))
+    assert m["te_m"] == pytest.approx(0.5) and m["tve_x_m"] == pytest.approx(0.3) and m["tve_y_m"] == pytest.approx(0.4)
+    assert m["oe_rad"] == pytest.approx(0.0, abs=1e-12)
+    # a bad estimate is scored as failed, not raised
+    bad = TrajectoryEstimate(np.array([0.0, 1.0]), np.zeros((3, 4, 4)), np.zeros(2))
+    assert score_trajectory(episode, bad)["failed"]
+
+
+# ------------------------------------------------------------------ one short office walk
+
+
+@pytest.fixture(scope="module")
+def walk():
+    """One 1.5 m corridor walk, every lidar-filter pipeline (scored through kiss-icp too) and kiss-icp."""
+    overrides = {"route": "corridor", "max_distance_m": WALK_M, "score_odometry": True}
+    plan = plan_run("lidar-filter", "quick", None, (0,), overrides)
+    ep_plan = plan.episodes[0]
+    episode = plan.track.simulate(ep_plan.scenario, ep_plan.seed)
+    est, metrics, _, _ = run_pipelines(plan.track, episode, plan.pipelines)
+    odo = plan_run("odometry", "quick", ["kiss-icp"], (0,), {"route": "corridor", "max_distance_m": WALK_M})
+    odo_est, odo_metrics, _, _ = run_pipelines(odo.track, episode, odo.pipelines)
+    return SimpleNamespace(episode=episode, est={**est, **odo_est}, metrics={**metrics, **odo_metrics})
+
+
+def test_footprint_transform_matches_the_true_lidar_pose(walk):
+    """T_footprint_sensor from kinematics: height above the floor and tilt of the true LiDAR."""
+    ep = walk.episode
+    T_fs = walk.est["filter-naive-ground"].stats["T_footprint_sensor"]
+    stamps = walk.est["filter-naive-ground"].stamps_s
+    inside, Q = interpolate_poses(true_track(ep), stamps)
+    floor_z = [float(s.point_w[2]) for s in ep.truth.scene.surfaces if s.kind == "ground"]
+    assert np.ptp(floor_z) < 1e-9
+    assert inside.sum() > 0.8 * len(stamps)
+    T = T_fs[inside]
+    np.testing.assert_allclose(T[:, 2, 3], Q[:, 2, 3] - floor_z[0], atol=0.03)
+    np.testing.assert_allclose(T[:, 2, :3], Q[:, 2, :3], atol=0.03)  # z axis of f in the sensor frame
+
+
+def test_filters_on_the_office_walk(walk):
+    m = walk.metrics
+    for name in ("filter-none", "filter-threshold", "filter-naive-ground", "filter-normal-ground"):
+        assert not m[name]["failed"], m[name]
+    n_spurious = m["filter-none"]["n_glass"] + m["filter-none"]["n_ghost"]
+    assert m["filter-none"]["ground_kept_frac"] == 1.0 and m["filter-none"]["n_ground"] > 0
+    if n_spurious:
+        assert m["filter-none"]["spurious_removed_frac"] == 0.0
+    assert m["filter-threshold"]["ground_kept_frac"] < 0.5  # weak grazing floor returns are dropped
+    assert m["filter-naive-ground"]["ground_kept_frac"] >= 0.95
+    # the target of the normal ground-aware filter (seeds/003 eq. 4.19)
+    normal = m["filter-normal-ground"]
+    assert normal["ground_kept_frac"] >= 0.95, f"normal filter keeps {normal['ground_kept_frac']:.3f} of the ground"
+    if n_spurious:
+        assert normal["spurious_removed_frac"] >= 0.90, f"normal filter removes {normal['spurious_removed_frac']:.3f}"
+
+
+def test_scores_agree_with_point_truth(walk):
+    """spurious_removed_frac recomputed directly from LidarTruth kinds and the masks."""
+    from exobench.envs.lidar_optics import ReturnKind
+
+    est = walk.est["filter-threshold"]
+    pairs = lidar_pairs(walk.episode)
+    assert len(pairs) == len(est.keep)
+    spur = removed = 0
+    for (_scan, truth), k in zip(pairs, est.keep, strict=True):
+        s = (truth.kind == ReturnKind.GLASS) | (truth.kind == ReturnKind.GHOST)
+        spur += s.sum()
+        removed += (s & ~k).sum()
+        c, _ = point_classes(walk.episode, truth)
+        assert ((c != GENUINE) == s).all()
+    if spur:
+        assert walk.metrics["filter-threshold"]["spurious_removed_frac"] == pytest.approx(removed / spur)
+
+
+def test_kiss_icp_on_a_short_corridor(walk):
+    m = walk.metrics["kiss-icp"]
+    assert not m["failed"] and m["failures"] == 0
+    assert m["path_m"] == pytest.approx(WALK_M, rel=0.2)
+    # sane: the unfiltered odometry may slide in the corridor but stays within the walk's scale
+    assert m["ate_m"] < WALK_M and m["rpe_m"] < 0.1
+    # through the naive ground-aware filter (Table 5.4's setting) the ATE is small
+    naive = walk.metrics["filter-naive-ground"]
+    assert naive["odom_ate_m"] < 0.3, naive["odom_ate_m"]
+
+
+# ------------------------------------------------------------------ command line
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--track", "lidar-filter", "--set", "max_distance_m=0.1"], "max_distance_m"),
+        (["--track", "lidar-filter", "--set", "lidar=vlp99"], "lidar"),
+        (["--track", "lidar-filter", "--set", "score_odometry=maybe"], "score_odometry"),
+        (["--track", "lidar-filter", "--set", "filter-naive-ground.ground_margin_m=2"], "ground_margin_m"),
+        (["--track", "odometry", "--set", "route=spiral"], "route"),
+        (["--track", "odometry", "--pipeline", "kiss-icp", "--set", "kiss-icp.filter=bogus"], "filter"),
+    ],
+)
+def test_bad_set_values_exit_2_and_write_nothing(tmp_path, args, expected):
+    out = tmp_path / "run"
+    result = CliRunner().invoke(cli, ["run", *args, "--out", str(out)], catch_exceptions=False)
+    assert result.exit_code == 2, result.output
+    assert expected in result.stderr
+    assert not out.exists()
