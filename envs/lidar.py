@@ -80,8 +80,9 @@ class LidarConfig:
             frontal, has signal 100 (0.8 white at 10 m).
         intensity_mode: ``"signal"``: the byte is the Lambertian signal (cos / r^2; bright
             surfaces nearer than about 10 m saturate at 100); ``"reflectivity"``: the byte is the
-            range-compensated calibrated reflectivity ``100 * rho * |cos(incidence)|`` (how the
-            VLP-16 reports it). Detection uses the signal in both.
+            range-compensated calibrated reflectivity ``100 * G * rho * |cos(incidence)|`` (how the
+            VLP-16 reports it; ``G`` < 1 only for ghosts and returns through glass, see
+            :mod:`exobench.envs.lidar_optics`). Detection uses the signal in both.
         latency_s: delivery delay after the end of the sweep, s [A: 0].
         dropout_prob: probability a whole sweep is lost [A: 0].
         point_dropout_prob: probability a return is lost [A: 0].
@@ -179,7 +180,9 @@ class LidarTruth:
         material: material name of that surface, (N,) str.
         kind: :class:`ReturnKind` code, (N,).
         via_geom_id: the glass / mirror geom the beam crossed or bounced on, -1 if none, (N,).
-        signal: unclipped return strength on the intensity scale, (N,).
+        signal: unclipped return strength on the intensity scale, (N,), with the path's energy
+            share (``G`` of :mod:`exobench.envs.lidar_optics`: ghosts keep the specular fraction
+            squared of their light, returns through glass the transmission squared).
         origin_w / dir_w: the original ray in the world at its firing pose, (N, 3).
     """
 
@@ -281,11 +284,11 @@ class LidarSensor:
         ok = beams.geom >= 0
         g = np.where(ok, beams.geom, 0)
         path = np.where(ok, beams.path_m, 1.0)
-        signal = return_signal(optics.reflectivity[g], beams.cos_inc, path, c.ref_reflectivity, c.ref_range_m)
+        signal = return_signal(optics.reflectivity[g], beams.cos_inc, path, c.ref_reflectivity, c.ref_range_m, beams.gain)
         ok &= (path >= pat.min_range_m) & (path <= pat.max_range_m) & (signal >= c.detection_threshold)
         ok &= u_drop >= c.point_dropout_prob
         idx = np.flatnonzero(ok)
-        level = signal if c.intensity_mode == "signal" else 100.0 * optics.reflectivity[g] * beams.cos_inc
+        level = signal if c.intensity_mode == "signal" else 100.0 * beams.gain * optics.reflectivity[g] * beams.cos_inc
 
         r_m = path[idx] + c.range_noise_m * z[idx]
         if c.resolution_m > 0.0:

@@ -16,12 +16,26 @@ ray at the total path length (a ghost: the mirror image of the real surface). Up
 Secondary rays start at different points, so they are cast one by one with ``mj_ray`` (only the
 few beams that meet glass or mirrors; the primary rays are batched).
 
-Return strength (Lambertian, HELIOS++ / RobotecGPULidar): ``signal = 100 * (rho / rho_ref) *
+Return strength (Lambertian, HELIOS++ / RobotecGPULidar): ``signal = 100 * G * (rho / rho_ref) *
 |cos(incidence)| * (r_ref / path)^2``, with rho the reflectivity of the surface that returns the
 light, the incidence at that surface and the total path length; ``rho_ref`` = 0.8 (white) at
-``r_ref`` = 10 m frontal gives 100. The intensity byte is ``min(level, 100)`` for diffuse
-surfaces and ``101 + min(level, 154)`` for retro-reflectors (VLS-128 convention), where the level
-is the signal itself or, range-compensated, ``100 * rho * |cos|`` (see ``LidarConfig``).
+``r_ref`` = 10 m frontal gives 100. ``G`` is the share of the pulse energy that travels the
+beam's path there and back: the light returned by a surface seen in a mirror or a pane leaves
+by the specular reflection and comes back by it (the path is reversible), so every bounce
+multiplies by the specular fraction ``S`` twice, and every pane crossed multiplies by its
+transmission ``T`` twice::
+
+    G = prod_bounces S_k^2 * prod_crossings T_k^2        (G = 1 for a direct return)
+
+A ghost of a 0.6 plaster wall seen frontally in clear glass (S = 0.1) is thus at most
+``100 * 0.6 * 0.01 = 0.6`` on the reflectivity byte, a pane's own return ``100 * 0.05 * |cos|
+<= 5``: both far below the thesis' removed band ``[0, 15]`` (seeds/003 section 5.2.2), while a
+real mirror (S = 0.95) gives ghosts as bright as the surface they mirror. The intensity byte
+is ``min(level, 100)`` for diffuse surfaces and ``101 + min(level, 154)`` for retro-reflectors
+(VLS-128 convention), where the level is the signal itself or, range-compensated (the VLP-16
+calibrated reflectivity, which compensates the range but not the path's losses),
+``100 * G * rho * |cos|`` (see ``LidarConfig``). Detection uses the signal, so faint ghosts
+are never reported.
 """
 
 from __future__ import annotations
@@ -86,6 +100,7 @@ class BeamResult:
     cos_inc: np.ndarray  # |cos| of the incidence at that surface
     kind: np.ndarray  # ReturnKind
     via_geom: np.ndarray  # last glass / mirror geom passed or reflected on, -1 if none
+    gain: np.ndarray  # G: share of the pulse energy the path keeps there and back (module docstring)
 
 
 def follow_beams(
@@ -118,6 +133,7 @@ def follow_beams(
     reflected = np.zeros(n, dtype=bool)
     transmitted = np.zeros(n, dtype=bool)
     via = np.full(n, -1, dtype=np.int64)
+    gain = np.ones(n)
     done = ~hit  # a beam is done once its returning surface is decided
     for j in range(u.shape[1]):
         g = np.where(geom >= 0, geom, 0)
@@ -148,6 +164,7 @@ def follow_beams(
             o[redo] += (r[redo] + EPS_M)[:, None] * d[redo]
             r[redo], gi[redo], nn[redo] = cast_rays(model, data, geomgroup, o[redo], d[redo])
         via[act] = geom[act]
+        gain[act] *= np.where(m, S[act], T[act]) ** 2  # out and back by the same bounce / crossing
         lost = (r < 0.0) | (gi < 0)
         q = o + np.where(lost, 0.0, r)[:, None] * d
         path[act] = np.where(lost, np.nan, path[act] + np.linalg.norm(q - p, axis=1))
@@ -163,7 +180,7 @@ def follow_beams(
     kind[on_glass] = ReturnKind.GLASS
     kind[reflected] = ReturnKind.GHOST
     cos_inc = np.abs(np.einsum("ij,ij->i", n_cur, d_cur))
-    return BeamResult(geom, path, hit_w, cos_inc, kind, via)
+    return BeamResult(geom, path, hit_w, cos_inc, kind, via, gain)
 
 
 def cast_rays(
@@ -184,10 +201,12 @@ def cast_rays(
 
 
 def return_signal(
-    reflectivity: np.ndarray, cos_inc: np.ndarray, path_m: np.ndarray, ref_reflectivity: float, ref_range_m: float
+    reflectivity: np.ndarray, cos_inc: np.ndarray, path_m: np.ndarray, ref_reflectivity: float, ref_range_m: float,
+    gain: np.ndarray | float = 1.0,
 ) -> np.ndarray:
-    """Lambertian return strength on the intensity scale (100 = white at the reference range, frontal)."""
-    return 100.0 * (reflectivity / ref_reflectivity) * cos_inc * (ref_range_m / path_m) ** 2
+    """Lambertian return strength on the intensity scale (100 = white at the reference range, frontal),
+    times the path's energy share ``gain`` (``G`` of the module docstring)."""
+    return 100.0 * gain * (reflectivity / ref_reflectivity) * cos_inc * (ref_range_m / path_m) ** 2
 
 
 def intensity_byte(level: np.ndarray, retro: np.ndarray) -> np.ndarray:

@@ -19,9 +19,14 @@ Frames are time-ordered (ties: encoders, IMU, contacts, LiDAR). The truth keeps 
 penetration. ``T_world_estimator`` is the LiDAR pose at t = 0. Same scenario and seed, same
 frames bit for bit.
 
-Route handling: the office routes turn by 90 and 180 degrees within a step or two; waypoints
-closer than :data:`MIN_SEGMENT_M` to the previous kept one are dropped so the planner's
-look-ahead is not confused by stubs, and the polyline is cut at ``max_distance_m``.
+Route handling: the office routes turn by 90 and 180 degrees at corners and doors; the planner
+(:func:`exobench.envs.walk.plan_walk`) tracks its progress monotonically along the polyline (the
+loop passes corridors twice) and walks up to every corner sharper than 45 deg and turns there on
+the spot, ``max_turn_deg`` per step. Waypoints closer than :data:`MIN_SEGMENT_M` to the previous
+kept one are dropped, and the polyline is cut at ``max_distance_m``. The walker starts facing
+the first segment; a closed route (the whole ``"loop"``, not cut) ends with a turn on the spot
+to that heading, so the final pose equals the start pose (up to the feet's placement, a few
+cm) as the thesis' TE / OE / TVE protocol assumes (seeds/003 section 5.2.2).
 """
 
 from __future__ import annotations
@@ -57,11 +62,13 @@ ROUTES = ("loop", "corridor")
 PARAMS: dict[str, ParamSpec] = {
     "office_seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the office layout"),
     "n_offices": ParamSpec(3, 1, 24, "", "cellular offices along the north corridor"),
+    "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass (the meeting room's south one first)"),
+    "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished stone (the south corridor first)"),
     "route": ParamSpec("corridor", None, None, "", "office route walked", choices=ROUTES),
     "max_distance_m": ParamSpec(20.0, 0.5, 500.0, "m", "the route is cut after this length (keeps quick runs short)"),
     "step_length_m": ParamSpec(0.35, 0.1, 0.8, "m", "nominal step length"),
     "swing_s": ParamSpec(0.8, 0.3, 5.0, "s", "duration of one swing"),
-    "max_turn_deg": ParamSpec(60.0, 5.0, 60.0, "deg", "largest heading change per step (the office routes turn 90-180 deg at doors; less fails there)"),
+    "max_turn_deg": ParamSpec(30.0, 5.0, 60.0, "deg", "largest heading change per step (sharper corners are turned on the spot over several steps)"),
     "lidar": ParamSpec("vlp16", None, None, "", "LiDAR scan pattern", choices=LIDAR_PATTERNS),
     "lidar_rate_hz": ParamSpec(10.0, 5.0, 20.0, "Hz", "LiDAR sweeps per second"),
     "lidar_noise_m": ParamSpec(0.015, 0.0, 0.1, "m", "LiDAR range noise, standard deviation"),
@@ -79,6 +86,8 @@ class OfficeScenario:
 
     office_seed: int = PARAMS["office_seed"].default
     n_offices: int = PARAMS["n_offices"].default
+    glass_fraction: float = PARAMS["glass_fraction"].default
+    polished_fraction: float = PARAMS["polished_fraction"].default
     route: str = PARAMS["route"].default
     max_distance_m: float = PARAMS["max_distance_m"].default
     step_length_m: float = PARAMS["step_length_m"].default
@@ -110,7 +119,8 @@ class OfficeScenario:
     def office_params(self) -> object:
         from exobench.models.office import OfficeParams
 
-        return OfficeParams(seed=self.office_seed, n_offices=self.n_offices)
+        return OfficeParams(seed=self.office_seed, n_offices=self.n_offices, glass_fraction=self.glass_fraction,
+                            polished_fraction=self.polished_fraction)
 
     def lidar_config(self) -> LidarConfig:
         r = self.lidar_rate_hz
@@ -159,10 +169,17 @@ def plan_office_walk(scenario: OfficeScenario) -> tuple[object, Motion]:
     exo = scenario.exo_spec()
     scene = compiled_office(scenario.office_params(), exo)
     wps = route_waypoints(office_route(scene.truth, scenario.route), scenario.max_distance_m)  # type: ignore[attr-defined]
-    length = float(np.sum(np.linalg.norm(np.diff(np.asarray(wps), axis=0), axis=1)))
+    pts = np.asarray(wps)
+    length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+    d0 = pts[1] - pts[0]
+    start_yaw = float(np.degrees(np.arctan2(d0[1], d0[0])))
+    closed = bool(np.linalg.norm(pts[-1] - pts[0]) < 1e-9)
+    turns = np.arctan2(np.diff(pts, axis=0)[:, 1], np.diff(pts, axis=0)[:, 0])
+    turning_steps = int(np.sum(np.abs((np.diff(turns) + np.pi) % (2 * np.pi) - np.pi)) / np.radians(scenario.max_turn_deg))
     route = Route(
         wps, step_length_m=scenario.step_length_m, swing_s=scenario.swing_s, max_turn_deg=scenario.max_turn_deg,
-        max_steps=min(10000, int(3.0 * length / scenario.step_length_m) + 100),
+        start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None,
+        max_steps=min(10000, int(3.0 * length / scenario.step_length_m) + 2 * turning_steps + 100),
     )  # fmt: skip
     return scene, plan_walk(exo, scene.truth, route)  # type: ignore[attr-defined]
 

@@ -3,7 +3,17 @@
 The exoskeleton walks stop-and-go (every swing is rest to rest, then a short double support),
 as lower-limb exoskeletons do. Each step the heading turns towards a look-ahead point of the
 route (at most ``max_turn_deg``, the stance foot pivoting about its ankle) and the swing foot
-is placed ``a`` ahead of the stance ankle along the new heading, one hip width beside it. A
+is placed ``a`` ahead of the stance ankle along the new heading, one hip width beside it.
+
+Progress along the route is an arc length that never decreases: the walker's position is
+projected onto the polyline only within a window ahead of the current arc length (and never
+past the next sharp corner), so routes that pass a place twice (a corridor walked out and back,
+a loop that closes) are followed in order. A corner sharper than ``turn_in_place_deg`` is a
+stop: the walker steps up to it, then turns on the spot (steps with ``a = 0``, at most
+``max_turn_deg`` each) until it faces the next segment, and walks on; any heading error larger
+than ``max_turn_deg`` is turned away on the spot the same way, so 90 and 180 degree turns work
+with any ``max_turn_deg``. At the end the feet are brought together and, if ``end_yaw_deg`` is
+given, the walker turns on the spot to that heading (a closed loop ends in its start pose). A
 placement is a *foothold* when the sole from the ankle to the toe rests on one walkable surface
 (the heel may overhang a lower one, as on stairs) with the foot pitched along it and no roll.
 On level ground and ramps the nominal step is kept when it is a foothold at about the same
@@ -58,6 +68,10 @@ class Route:
             the other). swing_s / double_support_s: duration of a swing / of the pause after it, s.
         stairs: ``"step-over"`` or ``"step-to"``. max_turn_deg: heading change per step, deg.
         still_s: standing still at the start and at the end, s. clearance_m: toe clearance, m.
+        start_yaw_deg: initial heading, deg (default: towards the second waypoint).
+        end_yaw_deg: heading turned to on the spot at the end, deg (default: none).
+        turn_in_place_deg: waypoints where the route turns by more than this are walked to and
+            turned at on the spot, deg. max_steps: steps allowed (GaitError beyond).
     """
 
     waypoints_xy: tuple[tuple[float, float], ...]
@@ -70,6 +84,8 @@ class Route:
     clearance_m: float = 0.04
     start_yaw_deg: float | None = None
     max_steps: int = 200
+    end_yaw_deg: float | None = None
+    turn_in_place_deg: float = 45.0
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.waypoints_xy, dtype=float)
@@ -88,6 +104,9 @@ class Route:
         if self.start_yaw_deg is not None:
             check_range("route.start_yaw_deg", self.start_yaw_deg, -360.0, 360.0)
         check_range("route.max_steps", self.max_steps, 1, 10000)
+        if self.end_yaw_deg is not None:
+            check_range("route.end_yaw_deg", self.end_yaw_deg, -360.0, 360.0)
+        check_range("route.turn_in_place_deg", self.turn_in_place_deg, 1.0, 180.0)
 
 
 class _Polyline:
@@ -98,20 +117,39 @@ class _Polyline:
         self.cum = np.concatenate([[0.0], np.cumsum(self.len)])
         self.total = float(self.cum[-1])
 
-    def project(self, q: np.ndarray) -> float:
-        best, best_d = 0.0, np.inf
+    def project(self, q: np.ndarray, lo: float = 0.0, hi: float = np.inf) -> float:
+        """Arc length of the point of the polyline between arc lengths ``lo`` and ``hi`` nearest to ``q``."""
+        lo, hi = max(float(lo), 0.0), min(float(hi), self.total)
+        hi = max(hi, lo)
+        best, best_d = lo, np.inf
         for i in range(len(self.seg)):
-            u = float(np.clip((q - self.p[i]) @ self.seg[i] / self.len[i] ** 2, 0.0, 1.0))
+            a, b = float(self.cum[i]), float(self.cum[i + 1])
+            if b < lo - 1e-12 or a > hi + 1e-12:
+                continue
+            u0, u1 = (max(lo, a) - a) / self.len[i], (min(hi, b) - a) / self.len[i]
+            u = float(np.clip((q - self.p[i]) @ self.seg[i] / self.len[i] ** 2, u0, u1))
             d = float(np.linalg.norm(self.p[i] + u * self.seg[i] - q))
             if d < best_d:
-                best, best_d = float(self.cum[i] + u * self.len[i]), d
+                best, best_d = a + u * float(self.len[i]), d
         return best
 
-    def point(self, s: float) -> np.ndarray:
-        """Point at arc length ``s``; beyond the end the last segment is extended."""
+    def point(self, s: float, seg: int | None = None) -> np.ndarray:
+        """Point at arc length ``s``; beyond the end the last segment is extended. With ``seg``,
+        the point on that segment's line (extended beyond its ends)."""
         s = max(float(s), 0.0)
-        i = int(np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.seg) - 1))
+        i = int(np.clip(np.searchsorted(self.cum, s, side="right") - 1, 0, len(self.seg) - 1)) if seg is None else seg
         return self.p[i] + (s - self.cum[i]) / self.len[i] * self.seg[i]
+
+    def stops(self, min_turn_rad: float) -> list[tuple[float, int]]:
+        """(arc length, incoming segment) of every vertex turning by more than ``min_turn_rad``, and of the end."""
+        out = []
+        for j in range(1, len(self.p) - 1):
+            a0 = np.arctan2(self.seg[j - 1][1], self.seg[j - 1][0])
+            a1 = np.arctan2(self.seg[j][1], self.seg[j][0])
+            if abs(_wrap(float(a1 - a0))) > min_turn_rad:
+                out.append((float(self.cum[j]), j - 1))
+        out.append((self.total, len(self.seg) - 1))
+        return out
 
 
 def _wrap(a: float) -> float:
@@ -185,20 +223,40 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
     swing = "r"
     done = False
     first_plan = None
+    stops = path.stops(np.radians(route.turn_in_place_deg))
+    k_stop = 0  # the next stop (sharp corner or the end) not reached yet
+    arrived = False
+    s_prog = 0.0  # arc length reached by the walker; never decreases
+    window = max(1.0, 3.0 * route.step_length_m)
+    look_m = max(route.step_length_m, 0.5)
+    max_turn = float(np.radians(route.max_turn_deg))
+    end_yaw = None if route.end_yaw_deg is None else float(np.radians(route.end_yaw_deg))
     for _ in range(route.max_steps):
         stance = "l" if swing == "r" else "r"
         sg = 1.0 if stance == "l" else -1.0
         A = feet[stance].ankle
         mid = 0.5 * (feet["l"].ankle + feet["r"].ankle)[:2]
-        s_mid, s_A = path.project(mid), path.project(A[:2])
-        look = path.point(s_mid + max(route.step_length_m, 0.5)) - mid
-        remaining = path.total - s_A
-        yaw1 = yaw
-        if np.linalg.norm(look) > 1e-6:
-            turn = np.clip(_wrap(float(np.arctan2(look[1], look[0])) - yaw), *np.radians([-route.max_turn_deg, route.max_turn_deg]))
-            yaw1 = yaw + float(turn)
-        final = remaining < 0.05
-        a_nom = 0.0 if final else min(route.step_length_m, remaining)
+        while True:  # progress within the window ahead, up to the next stop; pass the stops reached
+            s_stop, stop_seg = stops[k_stop]
+            s_floor = stops[k_stop - 1][0] if k_stop else 0.0
+            s_prog = max(s_prog, path.project(mid, s_prog, min(s_prog + window, s_stop)))
+            s_A = path.project(A[:2], max(s_floor, s_prog - window), s_stop)
+            remaining = s_stop - s_A
+            if remaining >= 0.05 or k_stop == len(stops) - 1:
+                break
+            k_stop += 1
+            s_prog = max(s_prog, s_stop)
+        arrived = arrived or (k_stop == len(stops) - 1 and remaining < 0.05)  # stays so while turning at the end
+        s_look = s_prog + look_m
+        look = (path.point(s_look) if s_look <= s_stop else path.point(s_look, stop_seg)) - mid
+        err = _wrap(float(np.arctan2(look[1], look[0])) - yaw) if np.linalg.norm(look) > 1e-6 else 0.0
+        if arrived:
+            err = 0.0 if end_yaw is None else _wrap(end_yaw - yaw)
+        turn = float(np.clip(err, -max_turn, max_turn))
+        yaw1 = yaw + turn
+        in_place = abs(err) > max_turn + 1e-9  # turn on the spot first
+        final = arrived and not in_place
+        a_nom = 0.0 if (arrived or in_place) else min(route.step_length_m, remaining)
         options = _choose(pl, route, A, sg, yaw1, a_nom, feet, stance, swing, final)
         if not options:
             raise GaitError(f"no foothold for foot_{swing} ahead of ({A[0]:.2f}, {A[1]:.2f}) at t={t:.2f} s")

@@ -13,7 +13,9 @@ Attributes of a :class:`LidarMaterial`:
     transmission: fraction of beams that pass through (glass), 0-1.
     specular: fraction of beams reflected specularly (glass and mirrors): such a beam continues
         along the mirrored direction and, if it hits something, is reported along the original
-        ray at the reflected path length (a ghost point).
+        ray at the reflected path length (a ghost point). The ghost's light is mirrored out and
+        back, so it keeps ``specular ** 2`` of the energy (and a return through glass
+        ``transmission ** 2``): see :mod:`exobench.envs.lidar_optics`.
 """
 
 from __future__ import annotations

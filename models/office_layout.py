@@ -19,6 +19,12 @@ slot: a plaster wall fills it, a glass partition stands in its middle (panes bet
 mullions). Doors are openings with an open leaf at 90 deg inside the room, hinged on the jamb
 nearer the room's side wall; the clear width beside the open leaf is ``door_width_m``.
 Floors and ceilings are one plane per area (corridor, room), split under the walls.
+
+Glass and polished floors along the routes: of the ``round(glass_fraction * (n_offices + 2))``
+glass partitions the meeting room's south one (beside the ``"corridor"`` route) is always one,
+the others are drawn at random; of the ``round(polished_fraction * n_areas)`` polished floors
+the south corridor's is always one. The ``"loop"`` route enters every room and walks every
+corridor, so it passes all of them.
 """
 
 from __future__ import annotations
@@ -243,9 +249,10 @@ def build_layout(p: OfficeParams) -> Layout:
         x1 = X if k == n - 1 else x + float(widths[k])
         ox.append((x, x1))
         x = x1 + t
-    # which corridor partitions are glass (offices 0..n-1, then meeting north, meeting south)
+    # which corridor partitions are glass (offices 0..n-1, then meeting north, meeting south); the
+    # meeting room's south partition, the one the "corridor" route passes, is glass first
     n_glass = int(round(p.glass_fraction * (n + 2)))
-    glass = set(int(i) for i in rng.permutation(n + 2)[:n_glass])
+    glass = set(int(i) for i in _first(rng.permutation(n + 2), n + 1)[:n_glass])
 
     regions = [{"name": "corridor_n", "kind": "corridor", "rect": [0.0, X, yc1 + t / 2, yn1 + t / 2]},
                {"name": "corridor_s", "kind": "corridor", "rect": [0.0, X, 0.0, W + t / 2]},
@@ -257,7 +264,9 @@ def build_layout(p: OfficeParams) -> Layout:
         regions.append({"name": f"office{k}", "kind": "office",
                         "rect": [0.0 if k == 0 else a - t / 2, X if k == n - 1 else b + t / 2, yn1 + t / 2, yo1],
                         "clear": [a, b, yo0, yo1]})
-    polished = set(int(i) for i in rng.permutation(len(regions))[:int(round(p.polished_fraction * len(regions)))])
+    # polished floors: the south corridor (walked by both routes) first, then at random
+    n_polished = int(round(p.polished_fraction * len(regions)))
+    polished = set(int(i) for i in _first(rng.permutation(len(regions)), 1)[:n_polished])
     solids: list[Solid] = []
     for i, r in enumerate(regions):
         if i in polished:
@@ -378,6 +387,11 @@ def build_layout(p: OfficeParams) -> Layout:
     return Layout(solids=solids, objects=objects, regions=regions, routes=routes, start_w=[W / 2, yN, 0.0],
                   featureless_x_m=[W, xm0], corridor_y_m={"north": yN, "south": yS},
                   extent=(-te, X + te, -te, yo1 + te))
+
+
+def _first(order: np.ndarray, item: int) -> np.ndarray:
+    """``order`` with ``item`` moved to the front (the other items keep their order)."""
+    return np.concatenate([[item], order[order != item]])
 
 
 def _T(x: float, y: float, z: float) -> list[list[float]]:

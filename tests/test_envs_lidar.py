@@ -335,6 +335,54 @@ def test_specular_surfaces_make_ghosts_at_the_mirrored_geometry(mat):
     assert not np.any(tr.genuine[ghost])
 
 
+@pytest.mark.parametrize("mode", ["reflectivity", "signal"])
+def test_ghost_strength_carries_the_specular_fraction_there_and_back(mode):
+    # a half-silvered mirror: a ghost's light is mirrored on the way out and on the way back
+    spec = 0.5
+    mat = LidarMaterial("half_mirror", 0.05, "mirror", specular=spec)
+    model, data, truth, ids, n_m, q_m = _mirror_scene(mat)
+    cfg = LidarConfig(materials=(mat,), intensity_mode=mode, range_noise_m=0.0, resolution_m=0.0, detection_threshold=0.0)
+    scan, tr = LidarSensor("lidar", cfg, model, 5).scan(model, data, sensor_pose(), 0.0, truth)
+    ghost = tr.kind == ReturnKind.GHOST
+    assert ghost.sum() > 100
+    o = np.array([0, 0, H])
+    u = scan.points_xyz[ghost] / np.linalg.norm(scan.points_xyz[ghost], axis=1)[:, None]
+    # hand computation: reflect the ray on the mirror plane, intersect the labelled real plane
+    s1 = ((q_m - o) @ n_m) / (u @ n_m)
+    p1 = o + s1[:, None] * u
+    d = u - 2.0 * (u @ n_m)[:, None] * n_m
+    rho_of = {0: 0.35, ids["back"]: 0.6, ids["side"]: 0.45}  # concrete (default) floor, plaster, wood
+    sids = tr.surface_id[ghost]
+    normals = np.array([truth.surface(int(k)).normal_w for k in sids])
+    points = np.array([truth.surface(int(k)).point_w for k in sids])
+    s2 = np.einsum("ij,ij->i", points - p1, normals) / np.einsum("ij,ij->i", d, normals)
+    cos = np.abs(np.einsum("ij,ij->i", d, normals))
+    rho = np.array([rho_of[int(k)] for k in sids])
+    signal = 100.0 * spec**2 * (rho / 0.8) * cos * (10.0 / (s1 + s2)) ** 2
+    np.testing.assert_allclose(tr.signal[ghost], signal, rtol=1e-9)
+    level = signal if mode == "signal" else 100.0 * spec**2 * rho * cos
+    np.testing.assert_array_equal(scan.intensity[ghost], np.rint(np.minimum(level, 100.0)).astype(np.uint8))
+
+
+def test_through_glass_returns_lose_the_transmission_twice():
+    wall = ("wall", (WALL_X + 0.1, 0, 0), (0.1, 20, 10), 0.0, (0, -1.0))
+    model, data, truth, _ = build([wall, PANE], {"pane": "tinted", "wall": "plaster"})
+    origin = np.array([0, 0, H])
+    ref = None
+    for t in (1.0, 0.7):
+        mat = LidarMaterial("tinted", 0.05, "glass", transmission=t, specular=0.0)
+        cfg = LidarConfig(materials=(mat,), intensity_mode="reflectivity", **EXACT)
+        scan, tr = LidarSensor("lidar", cfg, model, 3).scan(model, data, sensor_pose(), 0.0, truth)
+        through = tr.kind == ReturnKind.THROUGH_GLASS
+        u = scan.points_xyz[through] / np.linalg.norm(scan.points_xyz[through], axis=1)[:, None]
+        _, what = front_wall_range(u, origin)
+        cos = np.where(what == 0, np.abs(u[:, 2]), np.abs(u[:, 0]))
+        rho = np.where(what == 0, 0.35, 0.6)  # concrete (default) floor, plaster wall
+        np.testing.assert_array_equal(scan.intensity[through], np.rint(100.0 * t**2 * rho * cos).astype(np.uint8))
+        ref = through.sum() if ref is None else ref
+    assert 0 < through.sum() < ref  # the rest of the beams return from the pane itself
+
+
 def test_glass_decisions_follow_the_material_fractions():
     mat = LidarMaterial("glass", 0.05, "glass", transmission=0.85, specular=0.1)  # the table's glass
     wall = ("wall", (WALL_X + 0.1, 0, 0), (0.1, 20, 10), 0.0, (0, -1.0))

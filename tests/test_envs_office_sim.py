@@ -108,6 +108,50 @@ def test_walk_stays_on_the_floor_and_follows_the_route(run):
     assert np.all(np.diff(traj[:, 1]) >= -1e-9)
 
 
+def test_glass_ghosts_and_ground_intensities_as_the_thesis_filter_assumes(run):
+    """Scans contain pane returns, ghosts and returns through glass; ghosts and panes are faint
+    (a ghost keeps the specular fraction squared of its light), and so is the floor seen at the
+    VLP-16's grazing angles, which is why a plain intensity threshold loses the ground
+    (seeds/003 sections 4.2.2 and 5.2.2)."""
+    from exobench.envs.lidar import ReturnKind
+    from exobench.models.materials import material
+
+    _, scene, _, ep = run
+    truth = ep.truth.scene
+    kinds = np.concatenate([lt.kind for lt in ep.truth.lidar])
+    for k in (ReturnKind.GLASS, ReturnKind.GHOST, ReturnKind.THROUGH_GLASS):
+        assert np.count_nonzero(kinds == k) > 100, k.name
+    mats = [material(m) for m in set(truth.geom_materials.values())]
+    s_max = max(m.specular for m in mats)
+    rho_max = max(m.reflectivity for m in mats)
+    ghost_bound = np.rint(100.0 * s_max**2 * rho_max)  # brightest ghost: frontal, best mirror, brightest surface
+    glass_bound = np.rint(100.0 * material("glass").reflectivity)
+    assert max(ghost_bound, glass_bound) < 16  # below the removed band [0, 15] of section 5.2.2
+    ground_ids = {s.surface_id for s in truth.surfaces if s.kind == "ground"}
+    n_ground = n_low = 0
+    for scan, lt in zip(_scans(ep), ep.truth.lidar):
+        assert np.all(scan.intensity[lt.kind == ReturnKind.GHOST] <= ghost_bound)
+        assert np.all(scan.intensity[lt.kind == ReturnKind.GLASS] <= glass_bound)
+        g = lt.genuine & np.isin(lt.surface_id, list(ground_ids))
+        n_ground += int(g.sum())
+        n_low += int(np.count_nonzero(scan.intensity[g] < 16))
+    assert n_ground > 1000 and n_low / n_ground > 0.95
+
+
+def test_office_has_glass_and_polished_floor_along_both_routes():
+    sc = OfficeScenario.from_dict({"glass_fraction": 0.2, "polished_fraction": 0.1, "n_offices": 3})
+    from exobench.models.office_layout import build_layout
+
+    layout = build_layout(sc.office_params())
+    glass_walls = {s.name.split("_pane")[0] for s in layout.solids if s.material == "glass" and s.name.startswith("wall_")}
+    assert glass_walls == {"wall_meeting_s"}  # round(0.2 * 5) = 1: the one beside the corridor route
+    polished = [r["name"] for r in layout.regions if r["floor"] == "polished_floor"]
+    assert polished == ["corridor_s"]  # round(0.1 * 9) = 1: the corridor both routes walk
+    none = build_layout(OfficeScenario.from_dict({"glass_fraction": 0.0, "polished_fraction": 0.0}).office_params())
+    assert not any(s.material == "glass" and s.name.startswith("wall_") for s in none.solids)
+    assert not any(r["floor"] == "polished_floor" for r in none.regions)
+
+
 def test_deterministic(run):
     sc, _, _, ep = run
     again = simulate_office(sc, SEED)
@@ -122,7 +166,8 @@ def test_deterministic(run):
 @pytest.mark.parametrize(
     "field,value",
     [("lidar", "hdl64"), ("route", "stairs"), ("max_distance_m", -1.0), ("lidar_rate_hz", 50.0),
-     ("n_offices", 2.5), ("step_length_m", "long"), ("lidar_noise_m", True)],
+     ("n_offices", 2.5), ("step_length_m", "long"), ("lidar_noise_m", True), ("glass_fraction", 1.5),
+     ("polished_fraction", -0.1)],
 )  # fmt: skip
 def test_invalid_values_name_the_field(field, value):
     with pytest.raises(ConfigError) as e:

@@ -260,3 +260,49 @@ def test_version_1_session_still_reads(tmp_path):
     back = read_session(write_session(ep, tmp_path / "v2"))
     assert read_meta(tmp_path / "v2")["version"] == 2
     _assert_same_objects(ep.frames, back.frames, "frames")
+
+
+def test_lidar_truth_materials_are_stored_as_indices_into_a_name_table(tmp_path):
+    ep = _synthetic(np.random.default_rng(4))
+    path = write_session(ep, tmp_path / "s")
+    for k, lt in enumerate(ep.truth.lidar):
+        with np.load(path / "truth" / "lidar" / f"{k:06d}.npz") as z:
+            assert "material" not in z.files
+            idx, names = z["material_index"], z["material_names"]
+            assert idx.dtype == np.uint8 and idx.shape == lt.material.shape
+            assert len(names) == len(set(lt.material.tolist())) and list(names) == sorted(set(lt.material.tolist()))
+            np.testing.assert_array_equal(names[idx], lt.material)
+    back = read_session(path)
+    _assert_same_objects(ep.truth.lidar, back.truth.lidar, "lidar truth")
+    # more than 256 distinct names need 16-bit indices
+    rng = np.random.default_rng(5)
+    scan = _scan(rng, 0.7, "lidar_a", n=300)
+    lt = replace(_lidar_truth(rng, scan), material=np.array([f"m{i:03d}" for i in range(300)]))
+    ep2 = replace(ep, frames=ep.frames + (scan,), truth=replace(ep.truth, lidar=ep.truth.lidar + (lt,)))
+    path2 = write_session(ep2, tmp_path / "s2")
+    with np.load(path2 / "truth" / "lidar" / f"{len(ep2.truth.lidar) - 1:06d}.npz") as z:
+        assert z["material_index"].dtype == np.uint16
+    _assert_same_objects(ep2.truth.lidar, read_session(path2).truth.lidar, "lidar truth")
+
+
+def test_lidar_truth_files_with_material_strings_still_read(tmp_path):
+    """Sessions written before the name table stored ``material`` as a unicode array."""
+    ep = _synthetic(np.random.default_rng(6))
+    path = write_session(ep, tmp_path / "s")
+    old_fields = ("stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",
+                  "via_geom_id", "signal", "origin_w", "dir_w")  # fmt: skip
+    for k, lt in enumerate(ep.truth.lidar):
+        arrays = {n: np.asarray(getattr(lt, n)) for n in old_fields}
+        with open(path / "truth" / "lidar" / f"{k:06d}.npz", "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+    _assert_same_objects(ep.truth.lidar, read_session(path).truth.lidar, "lidar truth")
+    # an index beyond its name table is refused, naming the file
+    bad = path / "truth" / "lidar" / "000000.npz"
+    lt = ep.truth.lidar[0]
+    arrays = {n: np.asarray(getattr(lt, n)) for n in old_fields if n != "material"}
+    arrays["material_names"] = np.array(["wood"])
+    arrays["material_index"] = np.full(len(lt.kind), 3, dtype=np.uint8)
+    with open(bad, "wb") as fh:
+        np.savez_compressed(fh, **arrays)
+    with pytest.raises(SessionError, match="000000.npz"):
+        read_session(path)
