@@ -11,6 +11,7 @@ Layout of a session directory (format ``exobench-session``, version 2)::
                                    LiDAR trajectory_w, number of LiDAR truths
     truth/tof.jsonl                ground truth of each ToF frame, in ToF frame order
     truth/lidar/<k>.npz            ground truth of the k-th LiDAR scan of the episode (all sensors)
+    truth/extra.npz                the numpy arrays of ``EpisodeTruth.extra`` (only when it has any)
 
 Scalar frames (ToF, IMU, joints, contact) are written whole into their ``frames.jsonl`` line.
 A ``lidar`` line carries ``stamp_s``, ``sensor_id``, ``sweep_start_s``, the point count ``n``
@@ -18,7 +19,10 @@ and a reference ``file`` (relative to the session) + ``index`` (per sensor); the
 ``points_xyz`` (N, 3), ``intensity`` (N,), ``ring`` (N,), ``time_offset_s`` (N,). An ``rgbd``
 line carries ``stamp_s``, ``sensor_id``, ``shape`` [H, W], ``file`` and ``index``; the file
 holds ``rgb``, ``depth_m`` and ``K``. A LiDAR truth file holds every ``LidarTruth`` field
-(``stamp_s`` and ``sensor_id`` as 0-d arrays, ``material`` as a numpy unicode array). The
+(``stamp_s`` and ``sensor_id`` as 0-d arrays) except ``material``, which is stored as
+``material_index`` (N,) (uint8, or uint16 beyond 256 names) into ``material_names`` (the scan's
+distinct names, a numpy unicode array of the field's dtype); files written before that hold
+``material`` itself (a numpy unicode array) and still read. The
 .npz files are zip-compressed numpy arrays (``np.savez_compressed``): dtypes and values come
 back exactly, object arrays are refused. :func:`iter_frames` streams: it loads a scan's file
 when its line is read.
@@ -28,6 +32,12 @@ back the same float64 values bit for bit; NaN is written as ``null``. A session 
 a temporary sibling directory and renamed into place, so a failed write leaves nothing behind.
 A pipeline replayed on a session gets exactly the frames it would have had live, so it scores
 identically; the truth/ folder is for the harness and can be left out when sharing real logs.
+
+``EpisodeTruth.steps`` are written in ``episode.json`` (one object per step); the other
+values of ``EpisodeTruth.extra`` (numbers, strings, lists, dicts) are written there as JSON
+(tuples come back as lists, nested numpy arrays as lists); top-level numpy arrays go to
+``truth/extra.npz`` and come back with their dtype and values exactly. Sessions written before
+steps/extra existed read back with empty ones.
 
 Versions: 1 had no binary files (LiDAR and RGB-D frames were refused) and no LiDAR truth;
 version-1 sessions are still read (their LiDAR truth is empty). Writing always gives version 2.
@@ -64,6 +74,7 @@ from exobench.core import (
     SceneTruth,
     SensorMount,
     SessionError,
+    StepTruth,
     ToFReading,
     ToFTruth,
     frame_kind,
@@ -302,7 +313,24 @@ def truth_to_dict(t: EpisodeTruth) -> dict[str, Any]:
         "events": {k: _f(v) for k, v in t.events.items()},
         "trajectory_w": _arr(np.asarray(t.trajectory_w)),
         "n_lidar": len(t.lidar),
+        "steps": [_step_to_dict(s) for s in t.steps],
+        "extra": {str(k): _plain(v) for k, v in t.extra.items() if not isinstance(v, np.ndarray)},
+        "extra_arrays": sorted(str(k) for k, v in t.extra.items() if isinstance(v, np.ndarray)),
     }
+
+
+def _step_to_dict(s: StepTruth) -> dict[str, Any]:
+    return {
+        "index": int(s.index), "side": s.side, "liftoff_s": _f(s.liftoff_s), "heel_strike_s": _f(s.heel_strike_s),
+        "footprint_w": _arr(s.footprint_w), "terrain": s.terrain, "mode": s.mode,
+    }  # fmt: skip
+
+
+def _step_from_dict(d: dict[str, Any]) -> StepTruth:
+    return StepTruth(
+        index=int(d["index"]), side=d["side"], liftoff_s=_unf(d["liftoff_s"]), heel_strike_s=_unf(d["heel_strike_s"]),
+        footprint_w=_unarr(d["footprint_w"]), terrain=d["terrain"], mode=d["mode"],
+    )  # fmt: skip
 
 
 def _tof_truth_to_dict(t: ToFTruth) -> dict[str, Any]:
@@ -324,7 +352,33 @@ def _tof_truth_from_dict(d: dict[str, Any]) -> ToFTruth:
 
 
 def _lidar_truth_arrays(t: Any) -> dict[str, np.ndarray]:
-    return {n: np.asarray(getattr(t, n)) for n in LIDAR_TRUTH_FIELDS}
+    """The arrays of a LiDAR truth file: every field, ``material`` as indices into a name table."""
+    arrays = {n: np.asarray(getattr(t, n)) for n in LIDAR_TRUTH_FIELDS if n != "material"}
+    names, index = np.unique(np.asarray(t.material).reshape(-1), return_inverse=True)
+    arrays["material_names"] = names  # sorted distinct names, same dtype as the field
+    arrays["material_index"] = index.astype(np.uint8 if len(names) <= 256 else np.uint16)
+    return arrays
+
+
+def _load_lidar_truth(root: Path, rel: str) -> dict[str, np.ndarray]:
+    """A LiDAR truth file's fields, ``material`` rebuilt from its name table (or read as written
+    by sessions before the table)."""
+    fields = tuple(n for n in LIDAR_TRUTH_FIELDS if n != "material")
+    try:
+        with np.load(root / rel, allow_pickle=False) as z:
+            indexed = "material_index" in z.files
+    except FileNotFoundError:
+        raise SessionError(f"{root / rel}: binary file missing") from None
+    except _NPZ_ERRORS as e:
+        raise SessionError(f"{root / rel}: corrupt binary file ({type(e).__name__}: {e})") from None
+    if not indexed:
+        return _load_npz(root, rel, LIDAR_TRUTH_FIELDS)
+    a = _load_npz(root, rel, fields + ("material_index", "material_names"))
+    index, names = a.pop("material_index"), a.pop("material_names")
+    if index.ndim != 1 or names.ndim != 1 or (len(index) and int(index.max()) >= len(names)):
+        raise SessionError(f"{root / rel}: material_index does not fit its {len(names)} material_names")
+    a["material"] = names[index]
+    return a
 
 
 def _lidar_truth_from_arrays(a: dict[str, np.ndarray]) -> Any:
@@ -334,7 +388,9 @@ def _lidar_truth_from_arrays(a: dict[str, np.ndarray]) -> Any:
     return LidarTruth(stamp_s=float(a["stamp_s"]), sensor_id=str(a["sensor_id"]), **fields)
 
 
-def truth_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...], lidar: tuple[Any, ...] = ()) -> EpisodeTruth:
+def truth_from_dict(
+    d: dict[str, Any], tof: tuple[ToFTruth, ...], lidar: tuple[Any, ...] = (), extra_arrays: dict[str, np.ndarray] | None = None
+) -> EpisodeTruth:
     sc = d["scene"]
     scene = SceneTruth(
         surfaces=tuple(_surface_from_dict(s) for s in sc["surfaces"]),
@@ -356,6 +412,8 @@ def truth_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...], lidar: tuple[A
         events={k: _unf(v) for k, v in d["events"].items()},
         lidar=lidar,
         trajectory_w=_unarr(d.get("trajectory_w", [])).reshape(-1, 8),
+        steps=tuple(_step_from_dict(s) for s in d.get("steps", ())),
+        extra={**dict(d.get("extra", {})), **dict(extra_arrays or {})},
     )
 
 
@@ -403,6 +461,9 @@ def write_session(episode: Episode, path: str | os.PathLike, *, include_truth: b
                 arrays["stamp_s"] = np.asarray(float(lt.stamp_s))
                 arrays["sensor_id"] = np.asarray(str(lt.sensor_id))
                 _save_npz(tmp / "truth" / "lidar" / f"{k:06d}.npz", arrays)
+            extra_arrays = {str(k): v for k, v in episode.truth.extra.items() if isinstance(v, np.ndarray)}
+            if extra_arrays:
+                _save_npz(tmp / "truth" / "extra.npz", extra_arrays)
         os.rename(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -452,8 +513,10 @@ def read_session(path: str | os.PathLike) -> Episode:
         tof = tuple(_tof_truth_from_dict(json.loads(line)) for line in fh if line.strip())
     td = json.loads((p / "truth" / "episode.json").read_text())
     lidar = tuple(
-        _lidar_truth_from_arrays(_load_npz(p, f"truth/lidar/{k:06d}.npz", LIDAR_TRUTH_FIELDS))
+        _lidar_truth_from_arrays(_load_lidar_truth(p, f"truth/lidar/{k:06d}.npz"))
         for k in range(int(td.get("n_lidar", 0)))
     )
-    truth = truth_from_dict(td, tof, lidar)
+    names = tuple(td.get("extra_arrays", ()))
+    extra_arrays = _load_npz(p, "truth/extra.npz", names) if names else {}
+    truth = truth_from_dict(td, tof, lidar, extra_arrays)
     return Episode(scenario=meta["scenario"], seed=meta["seed"], calibration=calib, frames=frames, truth=truth)

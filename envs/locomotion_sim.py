@@ -1,0 +1,501 @@
+"""Locomotion-mode episodes (seeds/002): a walker with an RGB-D camera, IMU, insoles and odometry
+on stair, ramp and side-by-side stair/ramp courses.
+
+:class:`LocomotionScenario` holds the parameters (:data:`PARAMS`, validated like
+:mod:`exobench.envs.scenarios`: ``ConfigError(field, value, allowed)``, unknown names refused with
+``UnknownNameError``); :func:`simulate_locomotion` builds the course
+(:mod:`exobench.envs.locomotion_world`), plans a stop-and-go walk along it
+(:func:`plan_locomotion`), moves the camera like a walking person's head or chest
+(:mod:`exobench.envs.locomotion_motion`) and records an :class:`~exobench.core.Episode`.
+
+Courses (paper section III-B 1): ``stairs`` LG -> SA -> LG -> SD -> LG (a flight of ``n_steps``
+risers up, a ``landing_m`` landing, the same flight down); ``ramp`` LG -> RA -> LG -> RD -> LG
+(``slope_deg``, ``ramp_length_m`` run each way); ``parallel`` (III-B 3, Fig. 3(b)): the stair
+course and the ramp course side by side; the walker walks the ``parallel_first`` lane out, makes a
+U-turn on the floor beyond its end and walks back along the other lane (LG SA LG SD LG, U-turn,
+LG RA LG RD LG or the reverse). Side walls (``walls``) run along the lanes so that walls fill the
+view when the camera turns. The walker stops (standing, feet together) about 8 cm before every
+transition from level ground to stairs or a ramp: the planner finds the transition step from a
+standing start far more reliably, and exoskeleton users walk stop-and-go anyway.
+
+Limits of the walker (:mod:`exobench.envs.walk`, kinematic, stop-and-go), measured: 0.15 m
+risers and 11.8/15.8/17.8 deg ramps work for every pattern and user height 1.65-1.88 m; 0.18 m
+risers for some (wander and walk at 1.65-1.75 m); 0.20 and 0.25 m risers (the paper's) fail: the
+first step down from the landing is out of the planned leg's reach (stance knee limited to 100 deg,
+no heel rise on the descent). The scenario accepts ``riser_m`` up to 0.25; an unwalkable course
+raises ``ConfigError`` naming ``riser_m`` (stairs) or ``slope_deg`` (ramps) after at most
+``locomotion_world.MAX_PLANS`` planner calls (about 20-60 s).
+
+Walking patterns (SENSORS.md "Walking"): the walker is stop-and-go, so a pattern is a step length
+and a step period = swing + double support (:data:`PATTERNS`): cadence 90 (wander), 110 (walk)
+and 164 (jog) steps/min. Step lengths are what the walker can reach on stairs and ramps (0.35,
+0.40, 0.45 m at 1.75 m, scaled by height; real walking takes ~0.7 m and jogging 0.9-1.1 m
+steps), so level speeds are about 0.52, 0.73 and 1.2 m/s (paper Fig. 4(c): mean 0.78 m/s).
+
+Camera motion (section IV-A 2, Fig. 4(b)): the trunk follows the gait (vertical excursion, lean
+on stairs, heading); the ``head`` mount moves with the model's own neck joints (``neck_pitch``,
+``neck_yaw``; so rendering, the IMU and the truth agree): the camera's pitch below the horizon is
+a smooth seeded random process with mean ``head_pitch_mean_rad`` (0.14) and standard deviation
+``head_pitch_std_rad`` (0.26), clipped to the paper's range -0.66..1.18 rad and to the neck's joint
+range. The ``chest`` camera sits on a two-hinge rig on the pelvis (``chest_yaw``, ``chest_pitch``)
+that sways with a third of that spread around the mount's 30 deg pitch; the ``thigh`` mount
+(``rgbd_thigh_r``) moves with the right thigh only. ``view="unconventional"`` (III-B 2) adds slow
++-60 deg yaw and +-0.35 rad pitch excursions (head and chest), turning the camera to the walls.
+
+Pedestrians (III-B 4): ``pedestrians`` kinematic people (capsule + head, 1.6-1.9 m tall, mocap
+bodies in the compiled model, rendered) walk straight at 0.8-1.4 m/s towards or away from the
+walker, drifting across the lane, passing 1.2-2.5 m in front of it at a seeded time.
+
+Frames (time-ordered; ties: IMU, contacts, odometry, camera):
+
+- ``rgbd_<m>`` :class:`~exobench.core.RgbdFrame` at ``rate_hz`` (``width_px`` x ``height_px``,
+  D455 intrinsics and noise of :mod:`exobench.envs.rgbd`), stamped at measurement time +
+  ``latency_s``, lost with probability ``frame_dropout``; ``<m>`` is ``head``, ``chest`` or
+  ``thigh_r`` (:func:`sensor_ids`);
+- ``imu_<m>`` :class:`~exobench.core.ImuSample` at ``imu_rate_hz`` from a site at the camera's
+  optical frame (the D455's BMI055, SENSORS.md noise x ``imu_noise_scale``); its calibration mount
+  has the camera's pose and ``calibration.extra["T_camera_imu"]`` is the identity;
+- ``contact_{l,r}_{heel,toe}`` insole pads (:mod:`exobench.envs.proprio`), 100 Hz;
+- ``odom_<m>`` :class:`~exobench.core.OdometrySample` at each camera measurement time (also for
+  lost frames): the true optical-frame pose degraded by
+  :func:`~exobench.envs.locomotion_motion.drift_odometry` (translation error ``odom_drift_pct`` %
+  of the horizontal distance travelled, heading error ``odom_yaw_drift_deg_per_m`` per metre,
+  seeded directions), in a gravity-aligned odometry frame whose origin and heading are the
+  camera's at t = 0. ``calibration.extra["odometry"]`` (and a ``SensorMount`` of kind
+  ``"odometry"``) give the convention: the tracked body is the ``rgbd_<m>`` optical frame
+  (``T_camera_body`` = identity).
+
+Truth: ``steps`` (:class:`~exobench.core.truth.StepTruth` per step up to the cap; modes: see
+:func:`~exobench.envs.locomotion_world.step_truths`), ``events`` (``liftoff_s``, ``end_s``,
+``join_<k>_s`` where the walker stopped, and ``transition_<k>_<from>_<to>_s`` at the heel strike of
+each step k whose mode differs from the previous step's), ``trajectory_w`` (true optical-frame pose
+at each camera measurement time, rows [t, x, y, z, qw, qx, qy, qz]), ``T_world_estimator`` (the
+odometry frame), ``scene`` (surfaces of the course; the parallel course's second lane in
+``scene.params["lane_b"]``), and ``extra``: ``camera_T_world`` (N, 4, 4), ``camera_stamps_s`` (N,),
+``camera_pitch_rad`` (N,), ``distance_travelled_m`` (N,), ``odom_T_world`` (4, 4),
+``pedestrian_tracks`` (P, N, 5) rows [t, x, y, yaw, z of the feet], ``pedestrian_height_m`` (P,),
+``pedestrian_pixel_fraction`` (N, P) (share of the image each person covers),
+``pedestrian_geom_names`` (their MuJoCo geoms),
+``route_waypoints_xy``, ``pattern`` (step length, swing, double support, cadence, planner
+retries) and ``walk_duration_s`` (the whole planned walk; the episode ends at ``duration_cap_s``).
+
+Speed: rendering dominates (three passes a frame: depth, segmentation, colour, with software
+OpenGL, about 25 ms a frame even for tiny images). Measured on the 2-core machine while other jobs
+ran (load ~11), whole episodes including IMU, contacts and odometry: 424x240 (default) 7.7 frames
+per wall-second (23 per CPU-second), 640x480 3.5 (11 per CPU-second). A default stairs episode is
+13-14 s of walking (about 400 frames at 30 Hz); planning takes 2-10 s once per course and user
+(cached). Same scenario and seed, same frames bit for bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from exobench.core import ConfigError, Episode, EpisodeTruth, Frame, OdometrySample, SensorMount
+from exobench.core.transforms import matrix_to_quat_wxyz
+from exobench.models.exo_spec import ExoSpec
+from exobench.models.world_params import ParamSpec, check_param, from_dict_checked
+
+from .gait import GaitError, Motion
+from .imu import ImuSensor, imu_dynamics
+from .proprio import ContactSensor, contact_forces
+from .rgbd import RgbdCamera, RgbdConfig
+from .sensor_config import ContactConfig, ImuConfig, SensorsConfig, sample_times, sensor_rngs
+from .terrain import Terrain
+
+TERRAINS = ("stairs", "ramp", "parallel")
+MOUNTS = ("head", "chest", "thigh")
+PATTERNS_NAMES = ("wander", "walk", "jog")
+VIEWS = ("normal", "unconventional")
+PARALLEL_FIRST = ("stairs", "ramp")
+
+PARAMS: dict[str, ParamSpec] = {
+    "terrain": ParamSpec("stairs", None, None, "", "course: stairs (LG SA LG SD LG), ramp (LG RA LG RD LG), parallel (a stair lane beside a ramp lane, up one, down the other)", choices=TERRAINS),
+    "riser_m": ParamSpec(0.15, 0.05, 0.25, "m", "riser height (paper: 0.15, 0.20, 0.25; the walker descends at most about 0.18 m, see the module docstring)"),
+    "tread_m": ParamSpec(0.30, 0.25, 0.45, "m", "tread depth (going)"),
+    "n_steps": ParamSpec(4, 2, 8, "", "risers per flight"),
+    "slope_deg": ParamSpec(11.8, 3.0, 20.0, "deg", "ramp inclination (paper: 11.8, 15.8, 17.8)"),
+    "ramp_length_m": ParamSpec(2.5, 1.0, 6.0, "m", "horizontal run of each ramp (parallel: the ramp rises to the stairs' height instead)"),
+    "landing_m": ParamSpec(1.8, 1.2, 4.0, "m", "level landing between the way up and the way down"),
+    "approach_m": ParamSpec(1.5, 1.0, 5.0, "m", "level walk before the first transition and after the last"),
+    "width_m": ParamSpec(1.2, 0.9, 3.0, "m", "width of a flight / ramp lane"),
+    "walls": ParamSpec(True, None, None, "", "side walls along the course", choices=(False, True)),
+    "parallel_first": ParamSpec("stairs", None, None, "", "parallel course: the lane walked first (out along +x; back along the other after a U-turn)", choices=PARALLEL_FIRST),
+    "mount": ParamSpec("head", None, None, "", "camera mount: head (helmet), chest (chest bag), thigh", choices=MOUNTS),
+    "pattern": ParamSpec("walk", None, None, "", "walking pattern: wander, walk, jog (step length and cadence, see PATTERNS)", choices=PATTERNS_NAMES),
+    "user_height_m": ParamSpec(1.75, 1.60, 1.90, "m", "user's standing height (paper: 1.65-1.88)"),
+    "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
+    "view": ParamSpec("normal", None, None, "", "camera view: normal, or unconventional (large slow pitch/yaw excursions, walls fill the image)", choices=VIEWS),
+    "head_pitch_mean_rad": ParamSpec(0.14, -0.3, 0.6, "rad", "mean camera pitch below the horizon of the head mount (paper Fig. 4(b): 0.14)"),
+    "head_pitch_std_rad": ParamSpec(0.26, 0.0, 0.5, "rad", "standard deviation of the head-mount camera pitch (paper: 0.26); the chest sways with a third of it"),
+    "pedestrians": ParamSpec(0, 0, 4, "", "people walking across the view (paper: 2 in the disturbance test)"),
+    "width_px": ParamSpec(424, 16, 1280, "px", "image width (D455 424x240 / 640x480 / 848x480)"),
+    "height_px": ParamSpec(240, 16, 720, "px", "image height"),
+    "fx_px": ParamSpec(None, 0.0, 1e5, "px", "focal length (None: the D455 value for the resolution)", low_open=True),
+    "rate_hz": ParamSpec(30.0, 1.0, 90.0, "Hz", "RGB-D frame rate (the odometry runs at the same rate)"),
+    "latency_s": ParamSpec(0.0, 0.0, 0.5, "s", "RGB-D delivery latency"),
+    "depth_noise_scale": ParamSpec(1.0, 0.0, 10.0, "", "multiplier of the D455 stereo depth noise (subpixel 0.08)"),
+    "min_depth_m": ParamSpec(0.4, 0.0, 5.0, "m", "no depth closer than this (D455: 0.4)"),
+    "max_depth_m": ParamSpec(6.0, 0.5, 20.0, "m", "no depth farther than this (D455: about 6)"),
+    "frame_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability an RGB-D frame is lost"),
+    "imu_rate_hz": ParamSpec(200.0, 200.0, 400.0, "Hz", "camera IMU rate (BMI055 in the D455: 200-400)"),
+    "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the BMI055 noise densities and random walks"),
+    "odom_drift_pct": ParamSpec(1.0, 0.0, 20.0, "%", "odometry translation drift, percent of the distance travelled"),
+    "odom_yaw_drift_deg_per_m": ParamSpec(0.5, 0.0, 20.0, "deg/m", "odometry heading drift per metre travelled"),
+    "duration_cap_s": ParamSpec(60.0, 2.0, 600.0, "s", "the episode is cut after this time (frames and steps)"),
+}
+
+
+def _check_fields(obj: Any) -> None:
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        if f.name == "fx_px" and v is None:
+            continue
+        object.__setattr__(obj, f.name, check_param(f.name, v, PARAMS[f.name]))
+
+
+@dataclass(frozen=True)
+class LocomotionScenario:
+    """One locomotion-track episode; see :data:`PARAMS` for units, ranges and meaning."""
+
+    terrain: str = PARAMS["terrain"].default
+    riser_m: float = PARAMS["riser_m"].default
+    tread_m: float = PARAMS["tread_m"].default
+    n_steps: int = PARAMS["n_steps"].default
+    slope_deg: float = PARAMS["slope_deg"].default
+    ramp_length_m: float = PARAMS["ramp_length_m"].default
+    landing_m: float = PARAMS["landing_m"].default
+    approach_m: float = PARAMS["approach_m"].default
+    width_m: float = PARAMS["width_m"].default
+    walls: bool = PARAMS["walls"].default
+    parallel_first: str = PARAMS["parallel_first"].default
+    mount: str = PARAMS["mount"].default
+    pattern: str = PARAMS["pattern"].default
+    user_height_m: float = PARAMS["user_height_m"].default
+    user_mass_kg: float = PARAMS["user_mass_kg"].default
+    view: str = PARAMS["view"].default
+    head_pitch_mean_rad: float = PARAMS["head_pitch_mean_rad"].default
+    head_pitch_std_rad: float = PARAMS["head_pitch_std_rad"].default
+    pedestrians: int = PARAMS["pedestrians"].default
+    width_px: int = PARAMS["width_px"].default
+    height_px: int = PARAMS["height_px"].default
+    fx_px: float | None = PARAMS["fx_px"].default
+    rate_hz: float = PARAMS["rate_hz"].default
+    latency_s: float = PARAMS["latency_s"].default
+    depth_noise_scale: float = PARAMS["depth_noise_scale"].default
+    min_depth_m: float = PARAMS["min_depth_m"].default
+    max_depth_m: float = PARAMS["max_depth_m"].default
+    frame_dropout: float = PARAMS["frame_dropout"].default
+    imu_rate_hz: float = PARAMS["imu_rate_hz"].default
+    imu_noise_scale: float = PARAMS["imu_noise_scale"].default
+    odom_drift_pct: float = PARAMS["odom_drift_pct"].default
+    odom_yaw_drift_deg_per_m: float = PARAMS["odom_yaw_drift_deg_per_m"].default
+    duration_cap_s: float = PARAMS["duration_cap_s"].default
+
+    def __post_init__(self) -> None:
+        _check_fields(self)
+        if self.min_depth_m >= self.max_depth_m:
+            raise ConfigError("min_depth_m", self.min_depth_m, f"less than max_depth_m = {self.max_depth_m}")
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> LocomotionScenario:
+        """Validated scenario from plain values (strings are converted); unknown names refused."""
+        values = dict(values)
+        if isinstance(values.get("fx_px"), str) and values["fx_px"].strip().lower() in ("none", "null", ""):
+            values["fx_px"] = None
+        return from_dict_checked(cls, "locomotion scenario", PARAMS, values)
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def exo_spec(self) -> ExoSpec:
+        return ExoSpec(user_height_m=self.user_height_m, user_mass_kg=self.user_mass_kg)
+
+
+# pattern -> (step length at a 1.75 m user, m; swing, s; double support, s). Cadence = 60 /
+# (swing + double support): wander 90, walk 110, jog 164 steps/min (SENSORS.md "Walking"). The
+# step lengths are what the stop-and-go kinematic walker can reach on stairs and ramps (about
+# 0.35-0.45 m; real walking takes 0.7 m and jogging 0.9-1.1 m steps), scaled by height / 1.75;
+# the speeds are therefore about 0.52 (wander), 0.73 (walk) and 1.2 (jog) m/s on level ground
+# (paper Fig. 4(c): mean 0.78 m/s, 0.05-2.12 m/s).
+PATTERNS: dict[str, tuple[float, float, float]] = {
+    "wander": (0.35, 0.55, 60.0 / 90.0 - 0.55),
+    "walk": (0.40, 0.42, 60.0 / 110.0 - 0.42),
+    "jog": (0.45, 0.30, 60.0 / 164.0 - 0.30),
+}
+MOUNT_KEYS = {"head": "head", "chest": "chest", "thigh": "thigh_r"}
+# planning retries: (clearance over nosings, m; shift of the start along the route, m; step length factor)
+PLAN_TRIES = tuple(
+    (clr, shift, fac) for fac in (1.0, 0.9, 1.1, 0.8) for clr in (0.04, 0.02) for shift in (0.0, -0.15, 0.1)
+)
+PENETRATION_RATE_HZ = 250.0
+CONTACT_ORDER = ("contact_l_heel", "contact_l_toe", "contact_r_heel", "contact_r_toe")
+
+
+def sensor_ids(mount: str) -> tuple[str, str, str]:
+    """(RGB-D camera, IMU, odometry) sensor ids of a mount name."""
+    k = MOUNT_KEYS[mount]
+    return f"rgbd_{k}", f"imu_{k}", f"odom_{k}"
+
+
+def _world_key(sc: LocomotionScenario) -> tuple:
+    return (sc.terrain, sc.riser_m, sc.tread_m, sc.n_steps, sc.slope_deg, sc.ramp_length_m, sc.landing_m,
+            sc.approach_m, sc.width_m, bool(sc.walls), sc.parallel_first)  # fmt: skip
+
+
+@lru_cache(maxsize=8)
+def _plan_cached(key: tuple, exo: ExoSpec, pattern: str) -> tuple[Any, tuple, Any, dict[str, float]]:
+    from .locomotion_world import build_locomotion_world, plan_pieces
+
+    sc = LocomotionScenario(**dict(zip(_WORLD_FIELDS, key)))
+    toe = exo.foot_m - exo.heel_to_ankle_m
+    step0, swing, ds = PATTERNS[pattern]
+    step = step0 * exo.user_height_m / 1.75
+    world, pieces = build_locomotion_world(sc, toe)
+    try:
+        motion, got = plan_pieces(exo, world.truth, pieces, step, swing, ds, PLAN_TRIES)
+    except GaitError as err:
+        field = "riser_m" if sc.terrain in ("stairs", "parallel") else "slope_deg"
+        value = sc.riser_m if field == "riser_m" else sc.slope_deg
+        raise ConfigError(field, value, f"a course the walker can walk with pattern {pattern!r} and user_height_m="
+                          f"{exo.user_height_m} (every planning attempt failed; last: {err})") from None
+    info = {**got, "swing_s": swing, "double_support_s": ds, "cadence_steps_per_min": 60.0 / (swing + ds)}
+    wps = tuple(tuple(map(float, p)) for piece in pieces for p in piece)
+    return world, wps, motion, info
+
+
+_WORLD_FIELDS = ("terrain", "riser_m", "tread_m", "n_steps", "slope_deg", "ramp_length_m", "landing_m",
+                 "approach_m", "width_m", "walls", "parallel_first")  # fmt: skip
+
+
+def plan_locomotion(scenario: LocomotionScenario) -> tuple[Any, tuple, Motion, dict[str, float]]:
+    """(built world, route waypoints, walking motion, pattern numbers) of a scenario, without sensing.
+
+    Tries :data:`PLAN_TRIES` (clearance, start shift, shorter steps) until the walker of
+    :func:`exobench.envs.walk.plan_walk` finds footholds for the whole course; raises
+    :class:`ConfigError` naming ``riser_m`` (stairs) or ``slope_deg`` (ramps) when none works.
+    """
+    return _plan_cached(_world_key(scenario), scenario.exo_spec(), scenario.pattern)
+
+
+@lru_cache(maxsize=8)
+def _compiled(key: tuple, exo: ExoSpec, pattern: str, mount: str, ped_heights: tuple[float, ...]) -> Any:
+    from .locomotion_world import compose_locomotion
+
+    world = _plan_cached(key, exo, pattern)[0]
+    cam_id, imu_id, _ = sensor_ids(mount)
+    return compose_locomotion(world, exo, cam_id, imu_id, list(ped_heights))
+
+
+def _rgbd_config(sc: LocomotionScenario) -> RgbdConfig:
+    try:
+        return RgbdConfig(
+            width_px=sc.width_px, height_px=sc.height_px, fx_px=sc.fx_px, fy_px=sc.fx_px, rate_hz=sc.rate_hz,
+            latency_s=sc.latency_s, min_depth_m=sc.min_depth_m, max_depth_m=sc.max_depth_m,
+            subpixel=0.08 * sc.depth_noise_scale, dropout_prob=sc.frame_dropout,
+        )  # fmt: skip
+    except ConfigError as err:  # name the scenario's field
+        name = err.field.split(".", 1)[-1] if hasattr(err, "field") else "width_px"
+        raise ConfigError(name, getattr(err, "value", None), getattr(err, "allowed", str(err))) from None
+
+
+def _rows(t: np.ndarray, T: np.ndarray) -> np.ndarray:
+    q = np.array([matrix_to_quat_wxyz(R) for R in T[:, :3, :3]]).reshape(-1, 4)
+    return np.column_stack([t, T[:, :3, 3], q])
+
+
+def _joint_addr(model: Any, name: str) -> tuple[int, int]:
+    import mujoco
+
+    j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
+    return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+
+
+def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
+    """One walk along the scenario's course with the camera, its IMU, insoles and odometry."""
+    import mujoco
+
+    from exobench.models.exo import exo_calibration
+    from exobench.models.exo_spec import JOINT_RANGES_RAD
+
+    from .locomotion_motion import drift_odometry, pedestrian_paths, view_motion
+    from .locomotion_world import step_truths
+
+    sc = scenario
+    exo = sc.exo_spec()
+    world, wps, motion, info = plan_locomotion(sc)
+    truth_scene = world.truth
+    dur = float(min(motion.duration_s, sc.duration_cap_s))
+    cam_id, imu_id, odom_id = sensor_ids(sc.mount)
+    view_rng = sensor_rngs(seed, "locomotion_view")[0]
+    ped_rng = sensor_rngs(seed, "locomotion_pedestrians")[0]
+    odom_rng = sensor_rngs(seed, odom_id)[0]
+
+    # pedestrians around the walker (seeded), then the compiled scene with their bodies
+    def walker_xy(t: float) -> np.ndarray:
+        return motion.state(t, solve_legs=False).pelvis_w[0, :2]
+
+    def walker_heading(t: float) -> float:
+        return float(motion.state(t, solve_legs=False).yaw[0])
+
+    peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, 0.5 * sc.width_m, dur, ped_rng)
+    scene = _compiled(_world_key(sc), exo, sc.pattern, sc.mount, tuple(p.height_m for p in peds))
+    model = scene.model
+    terrain = Terrain(truth_scene)
+
+    # camera view motion on the neck (head) or the chest rig
+    mount_pitch = np.radians(0.5 * exo.camera_pitch_deg if sc.mount == "head" else exo.camera_pitch_deg)
+
+    def trunk_pitch(t: np.ndarray) -> np.ndarray:
+        return motion.state(np.atleast_1d(t), solve_legs=False).pitch
+
+    view = view_motion(sc.mount, sc.view, sc.head_pitch_mean_rad, sc.head_pitch_std_rad, float(mount_pitch),
+                       trunk_pitch, {k: JOINT_RANGES_RAD[k] for k in ("neck_pitch", "neck_yaw")}, dur, view_rng)  # fmt: skip
+    extra_adr = {name: _joint_addr(model, name) for name in view.joints}
+
+    def state_at(t: np.ndarray) -> Any:
+        smp = motion.sample(model, t)
+        for name, (q, qd, qdd) in view.derivatives(t).items():
+            qa, va = extra_adr[name]
+            smp.qpos[:, qa], smp.qvel[:, va], smp.qacc[:, va] = q, qd, qdd
+        return smp
+
+    # IMU on the camera body: full dynamics at its instants
+    imu_cfg = ImuConfig(rate_hz=sc.imu_rate_hz, noise_scale=sc.imu_noise_scale)
+    imu = ImuSensor(imu_id, imu_cfg, model, seed)
+    t_imu = sample_times(imu_cfg.rate_hz, dur)
+    smp = state_at(t_imu)
+    data = mujoco.MjData(model)
+    for k, tk in enumerate(t_imu):
+        imu_dynamics(model, data, smp.qpos[k], smp.qvel[k], smp.qacc[k])
+        imu.observe(model, data, float(tk))
+
+    # RGB-D frames with pedestrians placed; truth of the camera pose and pedestrian pixels
+    cfg = _rgbd_config(sc)
+    t_cam = sample_times(cfg.rate_hz, dur)
+    smp = state_at(t_cam)
+    ped_xy = [p.xy(t_cam) for p in peds]
+    ped_z = [np.nan_to_num(terrain.height(xy), nan=0.0) for xy in ped_xy]
+    ped_mocap = [int(model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"ped{k}")]) for k in range(len(peds))]
+    ped_geoms = [
+        {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"ped{k}_{g}") for g in ("body", "head")} for k in range(len(peds))
+    ]
+    rgbd_frames: list[Frame] = []
+    T_cam = np.zeros((len(t_cam), 4, 4))
+    ped_pixels = np.zeros((len(t_cam), len(peds)))
+    with RgbdCamera(cam_id, cfg, model, seed) as cam:
+        for k, tk in enumerate(t_cam):
+            data.qpos[:] = smp.qpos[k]
+            for i, p in enumerate(peds):
+                data.mocap_pos[ped_mocap[i]] = [ped_xy[i][k, 0], ped_xy[i][k, 1], ped_z[i][k]]
+                data.mocap_quat[ped_mocap[i]] = [np.cos(0.5 * p.yaw), 0.0, 0.0, np.sin(0.5 * p.yaw)]
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_camlight(model, data)
+            frame, tr = cam.capture(model, data, float(tk))
+            T_cam[k] = tr["T_world_sensor"]
+            for i, gs in enumerate(ped_geoms):
+                ped_pixels[k, i] = float(np.isin(tr["geom_id"], list(gs)).mean())
+            if frame is not None:
+                rgbd_frames.append(frame)
+
+    # odometry: the true optical frame with drift, at the camera instants
+    T_world_odom, T_odom_cam, v_odom, dist = drift_odometry(t_cam, T_cam, sc.odom_drift_pct, sc.odom_yaw_drift_deg_per_m, odom_rng)
+    odom_frames = [OdometrySample(float(t_cam[k]), odom_id, T_odom_cam[k].copy(), v_odom[k].copy()) for k in range(len(t_cam))]
+
+    # insole contacts (as in exobench.envs.office_sim)
+    con_cfg = ContactConfig()
+    t_con = sample_times(con_cfg.rate_hz, dur)
+    st = motion.state(t_con)
+    rv = _joint_addr(model, "root")[1]
+    acc_z = motion.sample(model, t_con).qacc[:, rv + 2]
+    pads = {}
+    for pid in CONTACT_ORDER:
+        _, T = exo.contact_mount(pid)
+        pads[pid] = st.sole_points_w(pid.split("_")[1], T[:3, 3][None, :])[:, 0]
+    g = float(-model.opt.gravity[2])
+    forces = contact_forces(terrain, pads, st.ankle_w, st.pelvis_w, acc_z, exo.user_mass_kg + exo.exo_mass_kg,
+                            con_cfg.contact_tol_m, g)  # fmt: skip
+    streams: dict[str, list[Frame]] = {sid: [] for sid in (imu_id, *CONTACT_ORDER, odom_id, cam_id)}
+    streams[imu_id] = list(imu.frames())
+    for pid in CONTACT_ORDER:
+        streams[pid] = list(ContactSensor(pid, con_cfg, seed).frames(t_con, forces[pid]))
+    streams[odom_id] = odom_frames
+    streams[cam_id] = rgbd_frames
+    order = tuple(streams)
+    rank = {sid: i for i, sid in enumerate(order)}
+    merged = [(f.stamp_s, rank[f.sensor_id], f) for sid in order for f in streams[sid]]
+    merged.sort(key=lambda x: (x[0], x[1]))
+    frames = tuple(f for _, _, f in merged)
+
+    # truth
+    steps = tuple(s for s in step_truths(motion, truth_scene, exo) if s.heel_strike_s <= dur + 1e-9)
+    events: dict[str, float] = {"liftoff_s": float(motion.events.get("liftoff_s", 0.0)), "end_s": dur}
+    prev = "LG"
+    for s in steps:
+        if s.mode != prev:
+            events[f"transition_{s.index}_{prev}_{s.mode}_s"] = s.heel_strike_s
+        prev = s.mode
+    z_opt = T_cam[:, :3, 2]
+    pitch = np.arcsin(np.clip(-z_opt[:, 2], -1.0, 1.0))
+    tracks = {cam_id: _rows(t_cam, T_cam)}
+    t_ft = sample_times(100.0, dur)
+    last = motion.footsteps[-1]
+    extra: dict[str, Any] = {
+        "camera_T_world": T_cam,
+        "camera_pitch_rad": pitch,
+        "camera_stamps_s": t_cam,
+        "distance_travelled_m": dist,
+        "odom_T_world": T_world_odom,
+        "pedestrian_tracks": np.array(
+            [np.column_stack([t_cam, ped_xy[i], np.full(len(t_cam), p.yaw), ped_z[i]]) for i, p in enumerate(peds)]
+        ).reshape(len(peds), len(t_cam), 5),
+        "pedestrian_height_m": np.array([p.height_m for p in peds]),
+        "pedestrian_pixel_fraction": ped_pixels,
+        "pedestrian_geom_names": [[f"ped{k}_body", f"ped{k}_head"] for k in range(len(peds))],
+        "route_waypoints_xy": np.asarray(wps, dtype=float),
+        "pattern": dict(info),
+        "walk_duration_s": float(motion.duration_s),
+    }
+    ep_truth = EpisodeTruth(
+        scene=truth_scene,
+        tof=(),
+        T_world_estimator=T_world_odom,
+        stance_side=motion.stance_side,
+        touchdown_w=np.asarray(last.sole_w, dtype=float).copy(),
+        foot_track_w=np.column_stack([t_ft, motion.sole_point_w("r", t_ft)]),
+        body_tracks=tracks,
+        max_penetration_m=motion.max_penetration_m(truth_scene, sample_times(PENETRATION_RATE_HZ, dur)),
+        events=events,
+        trajectory_w=_rows(t_cam, T_cam),
+        steps=steps,
+        extra=extra,
+    )
+
+    # calibration: the camera, its IMU (same frame) and the odometry convention
+    rgbd_params = {"rate_hz": cfg.rate_hz, "width_px": cfg.width_px, "height_px": cfg.height_px, "fx_px": cfg.fx_px,
+                   "fy_px": cfg.fy_px, "cx_px": cfg.cx_px, "cy_px": cfg.cy_px, "min_depth_m": cfg.min_depth_m,
+                   "max_depth_m": cfg.max_depth_m, "latency_s": cfg.latency_s, "subpixel": cfg.subpixel,
+                   "baseline_m": cfg.baseline_m}  # fmt: skip
+    known = SensorsConfig(imu=imu_cfg, contact=con_cfg).calibration_params()
+    cal = exo_calibration(exo, {"imu": known["imu"], "contact": known["contact"], cam_id: rgbd_params})
+    parent, T_parent_cam = exo.rgbd_mount(cam_id)
+    extra_mounts = (
+        SensorMount(imu_id, "imu", parent, T_parent_cam.copy(), dict(known["imu"])),
+        SensorMount(odom_id, "odometry", parent, T_parent_cam.copy(), {"rate_hz": cfg.rate_hz, "tracks": cam_id}),
+    )
+    cal = replace(cal, mounts=cal.mounts + extra_mounts, extra={
+        **cal.extra,
+        "camera": cam_id,
+        "camera_imu": imu_id,
+        "odometry": {
+            "sensor_id": odom_id, "tracks": cam_id, "T_camera_body": np.eye(4).tolist(),
+            "frame": "gravity-aligned (z up); origin and heading of the camera at the first frame",
+            "rate_hz": cfg.rate_hz,
+        },
+        "T_camera_imu": np.eye(4).tolist(),
+    })  # fmt: skip
+    return Episode(scenario=sc.as_dict(), seed=int(seed), calibration=cal, frames=frames, truth=ep_truth)

@@ -1,0 +1,235 @@
+"""Locomotion episodes (seeds/002): step modes, contacts, odometry, view spread, pedestrians, sessions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from exobench.core import ConfigError, ContactSample, ImuSample, OdometrySample, RgbdFrame, UnknownNameError
+from exobench.core.transforms import invert_T, quat_wxyz_to_matrix
+from exobench.envs.locomotion_motion import drift_odometry, view_motion
+from exobench.envs.locomotion_sim import PARAMS, LocomotionScenario, plan_locomotion, simulate_locomotion
+from exobench.envs.locomotion_world import step_truths
+from exobench.envs.session import read_session, write_session
+
+# small images at 10 Hz keep the file fast (rendering costs ~25 ms a frame whatever the size)
+FAST = {"width_px": 64, "height_px": 48, "rate_hz": 10.0}
+
+
+def _runs(modes: list[str]) -> list[str]:
+    return [m for i, m in enumerate(modes) if i == 0 or m != modes[i - 1]]
+
+
+@pytest.fixture(scope="module")
+def stairs_episode():
+    sc = LocomotionScenario.from_dict({**FAST, "pedestrians": 1, "odom_drift_pct": 0.0, "odom_yaw_drift_deg_per_m": 0.0})
+    return simulate_locomotion(sc, 3)
+
+
+def test_stair_course_modes_follow_the_course(stairs_episode):
+    steps = stairs_episode.truth.steps
+    assert _runs([s.mode for s in steps]) == ["LG", "SA", "LG", "SD", "LG"]
+    riser = stairs_episode.scenario["riser_m"]
+    top = stairs_episode.scenario["n_steps"] * riser
+    for s in steps:  # SA lands higher than the floor, SD below the landing, LG on the floor or the landing
+        z = s.footprint_w[2]
+        if s.mode == "SA":
+            assert 0.5 * riser < z <= top + 1e-6 and s.terrain in ("tread", "landing")
+        elif s.mode == "SD":
+            assert -1e-6 <= z < top - 0.5 * riser
+        else:
+            assert min(abs(z), abs(z - top)) < 1e-6
+    ev = stairs_episode.truth.events
+    trans = sorted((v, k) for k, v in ev.items() if k.startswith("transition_"))
+    assert [k.split("_")[3] for _, k in trans] == ["SA", "LG", "SD", "LG"]
+    for t, k in trans:
+        i = int(k.split("_")[1])
+        assert steps[i].heel_strike_s == t and steps[i].mode != steps[i - 1].mode
+
+
+def test_ramp_course_modes_follow_the_course():
+    sc = LocomotionScenario(terrain="ramp", slope_deg=11.8)
+    world, _, motion, _ = plan_locomotion(sc)
+    steps = step_truths(motion, world.truth, sc.exo_spec())
+    assert _runs([s.mode for s in steps]) == ["LG", "RA", "LG", "RD", "LG"]
+    for s in steps:
+        if s.mode in ("RA", "RD"):
+            assert s.terrain == "ramp"
+
+
+def test_parallel_course_switches_lanes_and_direction():
+    sc = LocomotionScenario(terrain="parallel", parallel_first="stairs")
+    world, _, motion, _ = plan_locomotion(sc)
+    steps = step_truths(motion, world.truth, sc.exo_spec())
+    assert _runs([s.mode for s in steps]) == ["LG", "SA", "LG", "SD", "LG", "RA", "LG", "RD", "LG"]
+    sa = np.array([s.footprint_w for s in steps if s.mode == "SA"])
+    ra = np.array([s.footprint_w for s in steps if s.mode == "RA"])
+    # out along +y on the stairs, back along -y on the ramp, the lanes side by side in x
+    assert np.all(np.diff(sa[:, 1]) > 0) and np.all(np.diff(ra[:, 1]) < 0)
+    assert abs(sa[:, 0].mean() - ra[:, 0].mean()) > sc.width_m
+
+
+def test_heel_strikes_coincide_with_insole_contacts(stairs_episode):
+    contacts = [f for f in stairs_episode.frames if isinstance(f, ContactSample)]
+    for s in stairs_episode.truth.steps:
+        pads = [f for f in contacts if f.sensor_id.startswith(f"contact_{s.side}_") and f.stamp_s > s.liftoff_s + 0.1]
+        first = min(f.stamp_s for f in pads if f.in_contact)
+        assert abs(first - s.heel_strike_s) <= 0.05, (s.index, first, s.heel_strike_s)
+        # and the foot is off the ground in the middle of its swing
+        mid = 0.5 * (s.liftoff_s + s.heel_strike_s)
+        assert not any(f.in_contact for f in pads if abs(f.stamp_s - mid) < 0.02)
+
+
+def test_odometry_without_drift_is_the_true_camera_pose(stairs_episode):
+    ep = stairs_episode
+    odo = [f for f in ep.frames if isinstance(f, OdometrySample)]
+    cam = [f for f in ep.frames if isinstance(f, RgbdFrame)]
+    assert len(odo) == len(ep.truth.trajectory_w) and len(cam) == len(odo)
+    assert odo[0].sensor_id == "odom_head" and ep.calibration.extra["odometry"]["tracks"] == "rgbd_head"
+    T_w_odom = ep.truth.T_world_estimator
+    assert np.allclose(T_w_odom[:3, 2], [0, 0, 1])  # gravity-aligned
+    T_cam = ep.truth.extra["camera_T_world"]
+    for k, f in enumerate(odo):
+        assert f.stamp_s == ep.truth.trajectory_w[k, 0]
+        assert np.allclose(T_w_odom @ f.T_odom_body, T_cam[k], atol=1e-9)
+    assert np.allclose(T_w_odom[:3, 3], T_cam[0][:3, 3])
+
+
+def test_odometry_drift_grows_with_distance_as_configured(stairs_episode):
+    t = stairs_episode.truth.extra["camera_stamps_s"]
+    T_cam = stairs_episode.truth.extra["camera_T_world"]
+    rng = np.random.default_rng(0)
+    T_wo, T_oc, _, dist = drift_odometry(t, T_cam, 2.0, 0.0, rng)
+    true_o = np.einsum("ij,njk->nik", invert_T(T_wo), T_cam)
+    err = np.linalg.norm(T_oc[:, :3, 3] - true_o[:, :3, 3], axis=1)
+    path = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(T_cam[:, :2, 3], axis=0), axis=1))])
+    assert dist[-1] > 3.0 and np.allclose(dist, path)
+    assert np.allclose(err, 0.02 * path, atol=1e-9)
+    # heading drift: the yaw error grows at the configured rate per metre
+    _, T_oc2, _, _ = drift_odometry(t, T_cam, 0.0, 3.0, np.random.default_rng(1))
+    R_err = np.einsum("nij,nkj->nik", T_oc2[:, :3, :3], true_o[:, :3, :3])
+    yaw_err = np.abs(np.arctan2(R_err[:, 1, 0], R_err[:, 0, 0]))
+    assert np.allclose(yaw_err, np.radians(3.0) * path, atol=1e-9)
+
+
+def test_head_camera_pitch_has_the_configured_spread(stairs_episode):
+    p = stairs_episode.truth.extra["camera_pitch_rad"]
+    assert abs(p.mean() - 0.14) < 0.05 and abs(p.std() - 0.26) < 0.06
+    assert p.min() >= -0.66 - 1e-6 and p.max() <= 1.18 + 1e-6
+
+
+def test_chest_rig_sways_a_third_of_the_head():
+    t = np.linspace(0.0, 20.0, 4001)
+    vm = view_motion("chest", "normal", 0.14, 0.3, 0.5, lambda x: 0 * x, {}, 20.0, np.random.default_rng(2))
+    assert abs(vm.values(t)["chest_pitch"].std() - 0.1) < 0.01
+    assert view_motion("thigh", "unconventional", 0.14, 0.3, 0.5, lambda x: 0 * x, {}, 20.0, np.random.default_rng(2)).joints == {}
+
+
+def test_camera_imu_sits_on_the_camera(stairs_episode):
+    imu = {f.stamp_s: f for f in stairs_episode.frames if isinstance(f, ImuSample)}
+    assert {f.sensor_id for f in imu.values()} == {"imu_head"}
+    t_cam = stairs_episode.truth.extra["camera_stamps_s"]
+    T_cam = stairs_episode.truth.extra["camera_T_world"]
+    for k in range(0, len(t_cam), 10):  # the IMU's orientation (0.2 deg AHRS error) is the camera's
+        R_imu = quat_wxyz_to_matrix(imu[t_cam[k]].quat_wxyz)
+        cos = (np.trace(R_imu.T @ T_cam[k][:3, :3]) - 1.0) / 2.0
+        assert np.degrees(np.arccos(min(1.0, cos))) < 1.0
+
+
+def test_pedestrian_is_seen_when_crossing(stairs_episode):
+    ep = stairs_episode
+    frac = ep.truth.extra["pedestrian_pixel_fraction"][:, 0]
+    tracks = ep.truth.extra["pedestrian_tracks"][0]
+    h = ep.truth.extra["pedestrian_height_m"][0]
+    assert 1.6 <= h <= 1.9 and frac.max() > 0.01
+    frames = {f.stamp_s: f for f in ep.frames if isinstance(f, RgbdFrame)}
+    k = int(np.argmax(frac))
+    T = ep.truth.extra["camera_T_world"][k]
+    # points on the person's axis, projected with K: some are in the image, and the depth there is
+    # the distance to the person's front (independent of the segmentation that gave ``frac``)
+    f = frames[tracks[k, 0]]
+    seen = 0
+    for z in np.linspace(0.25, h - 0.15, 12):
+        p_c = (invert_T(T) @ np.array([tracks[k, 1], tracks[k, 2], tracks[k, 4] + z, 1.0]))[:3]
+        if p_c[2] < 0.3:
+            continue
+        u, v = np.round((f.K @ (p_c / p_c[2]))[:2]).astype(int)
+        if 0 <= u < f.depth_m.shape[1] and 0 <= v < f.depth_m.shape[0]:
+            seen += 1
+            d = f.depth_m[v, u]
+            assert d == 0.0 or abs(d - p_c[2]) < 0.25  # front of a 0.2 m radius body
+    assert seen > 0
+
+
+def test_session_round_trip_keeps_steps_and_extra(stairs_episode, tmp_path):
+    path = write_session(stairs_episode, tmp_path / "loco")
+    back = read_session(path)
+    a, b = stairs_episode.truth, back.truth
+    assert len(a.steps) == len(b.steps)
+    for s, r in zip(a.steps, b.steps):
+        assert (s.index, s.side, s.liftoff_s, s.heel_strike_s, s.terrain, s.mode) == (
+            r.index, r.side, r.liftoff_s, r.heel_strike_s, r.terrain, r.mode)  # fmt: skip
+        assert np.array_equal(s.footprint_w, r.footprint_w)
+    for k, v in a.extra.items():
+        if isinstance(v, np.ndarray):
+            assert b.extra[k].dtype == v.dtype and np.array_equal(b.extra[k], v)
+        else:  # plain values come back as JSON gives them (tuples as lists)
+            assert b.extra[k] == v
+    odo = [f for f in back.frames if isinstance(f, OdometrySample)]
+    assert np.array_equal(odo[-1].T_odom_body, [f for f in stairs_episode.frames if isinstance(f, OdometrySample)][-1].T_odom_body)
+
+
+def test_same_seed_same_frames_and_time_order():
+    sc = LocomotionScenario.from_dict({**FAST, "duration_cap_s": 2.0, "pedestrians": 1, "mount": "chest"})
+    a, b = simulate_locomotion(sc, 7), simulate_locomotion(sc, 7)
+    assert len(a.frames) == len(b.frames)
+    stamps = [f.stamp_s for f in a.frames]
+    assert stamps == sorted(stamps) and stamps[-1] <= 2.0
+    for x, y in zip(a.frames, b.frames):
+        assert type(x) is type(y) and x.stamp_s == y.stamp_s and x.sensor_id == y.sensor_id
+        if isinstance(x, RgbdFrame):
+            assert np.array_equal(x.rgb, y.rgb) and np.array_equal(x.depth_m, y.depth_m)
+        elif isinstance(x, ImuSample):
+            assert np.array_equal(x.accel_m_s2, y.accel_m_s2) and np.array_equal(x.gyro_rad_s, y.gyro_rad_s)
+        elif isinstance(x, OdometrySample):
+            assert np.array_equal(x.T_odom_body, y.T_odom_body)
+    assert {f.sensor_id for f in a.frames if isinstance(f, RgbdFrame)} == {"rgbd_chest"}
+    c = simulate_locomotion(sc, 8)
+    da = [f.depth_m for f in a.frames if isinstance(f, RgbdFrame)]
+    dc = [f.depth_m for f in c.frames if isinstance(f, RgbdFrame)]
+    assert any(not np.array_equal(x, y) for x, y in zip(da, dc))
+
+
+@pytest.mark.parametrize(
+    ("values", "field"),
+    [
+        ({"mount": "hat"}, "mount"),
+        ({"pattern": "sprint"}, "pattern"),
+        ({"terrain": "ladder"}, "terrain"),
+        ({"width_px": 0}, "width_px"),
+        ({"fx_px": 0.0}, "fx_px"),
+        ({"fx_px": -5.0}, "fx_px"),
+        ({"min_depth_m": 3.0, "max_depth_m": 2.0}, "min_depth_m"),
+        ({"imu_rate_hz": 100.0}, "imu_rate_hz"),
+        ({"riser_m": 0.4}, "riser_m"),
+        ({"pedestrians": 1.5}, "pedestrians"),
+    ],
+)
+def test_bad_parameters_are_refused_with_the_field(values, field):
+    with pytest.raises(ConfigError) as err:
+        LocomotionScenario.from_dict(values)
+    assert err.value.field == field
+    if field in ("mount", "pattern", "terrain"):
+        for choice in PARAMS[field].choices:
+            assert choice in err.value.allowed
+
+
+def test_scenario_round_trips_through_plain_values():
+    sc = LocomotionScenario(terrain="parallel", mount="chest", pattern="jog", fx_px=200.0, walls=False)
+    assert LocomotionScenario.from_dict(sc.as_dict()) == sc
+    assert LocomotionScenario.from_dict({"riser_m": "0.2", "fx_px": "none"}).riser_m == 0.2
+
+
+def test_unknown_parameter_name_is_refused():
+    with pytest.raises(UnknownNameError):
+        LocomotionScenario.from_dict({"camera_mount": "head"})
