@@ -2,7 +2,8 @@
 
 ``filter-none``, ``filter-threshold`` (eq. 4.15), ``filter-naive-ground`` (eq. 4.16) and
 ``filter-normal-ground`` (eq. 4.17-4.19) wrap the filters of
-:mod:`exobench.perception.intensity_filter` unchanged; each returns a
+:mod:`exobench.perception.intensity_filter` unchanged (each scan's ``ring`` goes to the filter:
+the normal filter's range-image normals use it); each returns a
 :class:`~exobench.core.estimates.FilterEstimate` with one keep mask per LiDAR scan and the
 compute time per scan (kinematics + filter).
 
@@ -28,7 +29,9 @@ of the sweep). Faults never raise; they are counted in ``FilterEstimate.stats``:
 - before both an encoder state and an IMU orientation have arrived, or when the transform is not
   finite, the ground-aware filters fall back to the plain band of eq. (4.15) for that scan
   (``no_kinematics``) -- the conservative choice: nothing outside the band is kept;
-- non-finite points are dropped by the filters (``DROPPED_INVALID``; ``invalid_points``).
+- non-finite points are dropped by the filters (``DROPPED_INVALID``; ``invalid_points``);
+- the normal filter counts the scans whose normals came from the range image
+  (``normals_range_image_scans``) and from the knn fallback (``normals_knn_scans``).
 """
 
 from __future__ import annotations
@@ -208,8 +211,13 @@ class _FilterPipeline:
         if len(psi) != len(pts):  # malformed scan: nothing can be trusted
             res_keep, status, reason = np.zeros(len(pts), dtype=bool), "malformed", None
         else:
-            res = self.filter.apply(pts, psi, T)
+            ring = getattr(scan, "ring", None)
+            ring = None if ring is None or np.asarray(ring).reshape(-1).shape != (len(pts),) else np.asarray(ring).reshape(-1)
+            res = self.filter.apply(pts, psi, T, ring=ring)
             res_keep, status, reason = res.keep, res.status, res.reason
+            if res.normal_method:  # the normal filter: which normal estimate ran on this scan
+                key = f"normals_{res.normal_method.replace('-', '_')}_scans"
+                self._stats[key] = self._stats.get(key, 0) + 1
         dt = time.perf_counter() - t0
         st = self._stats
         st["scans"] += 1
@@ -320,15 +328,23 @@ class FilterNormalGround(_FilterPipeline):
     @dataclass(frozen=True)
     class Config(_BandFields):
         epsilon_eta: float = NormalGroundConfig.epsilon_eta
+        normal_method: str = NormalGroundConfig.normal_method
         normal_k: int = NormalGroundConfig.normal_k
         normal_radius_m: float = NormalGroundConfig.normal_radius_m
+        ri_col_halfwidth: int = NormalGroundConfig.ri_col_halfwidth
+        ri_azimuth_jump_rel: float = NormalGroundConfig.ri_azimuth_jump_rel
+        ri_ring_jump_rel: float = NormalGroundConfig.ri_ring_jump_rel
+        ri_max_ring_skip: int = NormalGroundConfig.ri_max_ring_skip
 
         def __post_init__(self) -> None:
             self.filter_config()
 
         def filter_config(self) -> NormalGroundConfig:
-            return NormalGroundConfig(**self.band(), epsilon_eta=self.epsilon_eta, normal_k=self.normal_k,
-                                      normal_radius_m=self.normal_radius_m)  # fmt: skip
+            return NormalGroundConfig(**self.band(), epsilon_eta=self.epsilon_eta, normal_method=self.normal_method,
+                                      normal_k=self.normal_k, normal_radius_m=self.normal_radius_m,
+                                      ri_col_halfwidth=self.ri_col_halfwidth, ri_azimuth_jump_rel=self.ri_azimuth_jump_rel,
+                                      ri_ring_jump_rel=self.ri_ring_jump_rel,
+                                      ri_max_ring_skip=self.ri_max_ring_skip)  # fmt: skip
 
     def _make_filter(self) -> NoFilter:
         return NormalGroundFilter(self.config.filter_config())

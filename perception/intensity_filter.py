@@ -34,19 +34,57 @@ Readings of the text (documented because it does not parse literally):
   of the ground itself scatter around z = 0 by the range noise (VLP-16: +-3 cm) and a strict
   ``< 0`` would drop half of them. ``ground_margin_m=0`` gives the strict inequality.
 - Eq. (4.17) applies a homogeneous transform to a direction: only its rotation acts on a normal.
-- Normals (step 1 of the normal filter): PCA of the ``normal_k`` nearest neighbours (the query
-  point included) within ``normal_radius_m``, as PCL's ``NormalEstimation``: the eigenvector of
-  the smallest eigenvalue of the neighbourhood covariance, flipped towards the viewpoint (the
-  sensor origin), so the ground seen from above has ``theta = +1`` and a ceiling ``-1`` (the
-  text: "typically normalized to 0 for parallel surfaces"). A point with fewer than 3
-  neighbours, or with collinear neighbours (a lone ring of a sparse LiDAR), has no normal and is
-  never rescued -- the sparsity limitation section 5.2.2 reports.
+- Normals (step 1 of the normal filter), ``normal_method``:
+
+  * ``"knn"``: the thesis' method, PCA of the ``normal_k`` nearest neighbours (the query point
+    included) within ``normal_radius_m``, as PCL's ``NormalEstimation``: the eigenvector of the
+    smallest eigenvalue of the neighbourhood covariance, flipped towards the viewpoint (the
+    sensor origin), so the ground seen from above has ``theta = +1`` and a ceiling ``-1`` (the
+    text: "typically normalized to 0 for parallel surfaces"). A point with fewer than 3
+    neighbours, or with collinear neighbours, has no normal and is never rescued. On a 16-ring
+    LiDAR the k nearest points of a floor point all lie on its own ring (0.2 deg azimuth steps,
+    2 deg between rings), so the "plane" is a line and its normal direction arbitrary: the
+    sparsity limitation section 5.2.2 reports ("the alternative solution proved unusable").
+  * ``"range-image"`` (default; a reading of step 1, not the thesis' PCL call): the scan is
+    organised as a range image, rows = rings sorted by elevation, columns = azimuth
+    (``atan2(y, x)`` in steps estimated from the scan), as practitioners do on spinning
+    multi-beam LiDARs, and each point's normal is the cross product of an azimuth tangent
+    (least-squares line through the point and its ``ri_col_halfwidth`` neighbours on one side;
+    neighbours whose range differs by more than ``ri_azimuth_jump_rel`` of the point's are
+    skipped) and a ring tangent (to the nearest return in the ring above / below, at most
+    ``ri_max_ring_skip`` rows away, whose range is within a ratio ``1 + ri_ring_jump_rel`` of the
+    point's: returns across a depth jump, such as a ghost behind glass or below a polished
+    floor, are passed over), flipped towards the sensor. That gives four one-sided normals per point (left/right x
+    up/down), NaN where a side has too few neighbours or straddles a depth jump. A point on a
+    crease (floor meeting a wall, the top floor row below a wall) lies on both surfaces and a
+    window across the crease mixes them, so eq. (4.19) is read as "some one-sided window of the
+    point is parallel to the footprint plane": the point is ground when any of its one-sided
+    normals passes eq. (4.18)-(4.19). :func:`estimate_range_image_normals` returns the single
+    normal (the mean of the one-sided normals when they agree within 20 deg, NaN on a crease).
+    Scans without a usable ring layout (no ``ring``, fewer than 2 rings, a non-spinning
+    pattern) fall back to ``"knn"``; :attr:`FilterResult.normal_method` says which ran.
 
 Defaults: ``psi*_min = 16``: the thesis' experiment removes ``[0, 15]`` of the 0-255 byte
 (section 5.2.2). ``psi*_max = 100``: the text leaves the upper bound open; 100 is the top of the
 diffuse range of the calibrated intensity byte (core/frames.py), so specular glass glints and
-blooming retro-reflectors are removed. ``epsilon_eta = 0.03`` (normals within 14 deg of the
-footprint z axis), ``normal_k = 10``, ``normal_radius_m = 0.5``: open in the text.
+blooming retro-reflectors are removed. ``epsilon_eta = 0.05`` (normals within 18 deg of the
+footprint z axis; open in the text): a floor normal from a VLP-16 range image has a few degrees
+of noise (1.5 cm range noise over azimuth tangents of a few cm at 5 m) and the footprint
+transform from kinematics a few more of tilt error, while ramps (< 5 deg) must pass and walls
+(90 deg) stay far away. ``normal_k = 10``, ``normal_radius_m = 0.5``: open in the text.
+Range-image windows: ``ri_col_halfwidth = 4`` columns (0.8 deg on a VLP-16: 6 cm at 4.5 m, where
+the lowest ring meets the floor, long enough that the range noise tilts the tangent by a few
+degrees only); ``ri_azimuth_jump_rel = 0.1`` (on a surface seen at 80 deg incidence the range
+grows by 2 % per 0.2 deg column); ``ri_ring_jump_rel = 0.3``: adjacent rings 2 deg apart on a level
+floor seen from 1.2-1.7 m have ranges in a ratio of 1.15-1.3 for the rings at -15..-7 deg
+(floor within about 10 m, the extent of offices and corridors), while a ghost behind glass
+next to the nearer genuine return it replaces jumps further; farther floor rings (-5 deg and
+up: ratio 1.4 and more) read as depth jumps and are not rescued. The gate is set for the
+VLP-16's uniform 2 deg rings: sensors with wider gaps between their lowest rings (VLP-32C:
+-25 / -15.6 / -11.3 deg, floor ratios 1.4-1.55) need a larger value (0.6 on the office walk).
+``ri_max_ring_skip = 2``: a
+ring with no return there, or only one across a depth jump (a specular floor returning the
+mirrored scene), is passed over.
 """
 
 from __future__ import annotations
@@ -71,6 +109,9 @@ __all__ = [
     "NormalGroundConfig",
     "NormalGroundFilter",
     "estimate_normals",
+    "estimate_range_image_normals",
+    "range_image_index",
+    "range_image_normal_candidates",
     "footprint_heights_m",
     "make_filter",
     "normal_cosines",
@@ -100,11 +141,14 @@ class FilterResult:
             none kept, e.g. a scan with only glass); ``"no_transform"`` (the ground test could not
             run because ``T_footprint_sensor`` was missing or not finite: only the band was
             applied).
+        normal_method: the normal estimate the normal filter used (``"range-image"`` or
+            ``"knn"``; empty for the other filters and when no normals were computed).
     """
 
     keep: np.ndarray
     reason: np.ndarray
     status: str
+    normal_method: str = ""
 
     @property
     def n_kept(self) -> int:
@@ -149,26 +193,58 @@ class NaiveGroundConfig(IntensityBandConfig):
             raise ConfigError("use_full_transform", self.use_full_transform, "True or False")
 
 
+NORMAL_METHODS = ("range-image", "knn")
+
+
 @dataclass(frozen=True)
 class NormalGroundConfig(IntensityBandConfig):
     """Normal ground-aware filter (eq. 4.17-4.19).
 
     Attributes:
         epsilon_eta: a point is ground when ``theta_eta > 1 - epsilon_eta`` (0 < eps < 1).
-        normal_k: neighbours (query point included) of the PCA normal, 3..100.
-        normal_radius_m: neighbours farther than this are not used, m.
+        normal_method: ``"range-image"`` (ring-organised scans; others fall back to knn) or
+            ``"knn"`` (the thesis' PCL method); see the module docstring.
+        normal_k: neighbours (query point included) of the knn PCA normal, 3..100.
+        normal_radius_m: knn neighbours farther than this are not used, m.
+        ri_col_halfwidth: range image: azimuth columns on each side of a point, 1..32.
+        ri_azimuth_jump_rel: range image: an azimuth neighbour whose range differs by more than
+            this fraction of the point's is skipped (0..1].
+        ri_ring_jump_rel: range image: a ring neighbour whose range differs by more than this
+            fraction of the nearer of the two ranges is across a depth jump, (0..2].
+        ri_max_ring_skip: range image: rings without a return skipped to find the ring
+            neighbour above / below, 1..4 (1 = only the adjacent ring).
     """
 
-    epsilon_eta: float = 0.03
+    epsilon_eta: float = 0.05
+    normal_method: str = "range-image"
     normal_k: int = 10
     normal_radius_m: float = 0.5
+    ri_col_halfwidth: int = 4
+    ri_azimuth_jump_rel: float = 0.1
+    ri_ring_jump_rel: float = 0.3
+    ri_max_ring_skip: int = 2
 
     def __post_init__(self) -> None:
         super().__post_init__()
         check_range("epsilon_eta", self.epsilon_eta, 0.0, 1.0, low_open=True, high_open=True)
-        if not isinstance(self.normal_k, int) or isinstance(self.normal_k, bool) or not 3 <= self.normal_k <= 100:
-            raise ConfigError("normal_k", self.normal_k, "an integer, 3 <= normal_k <= 100")
+        if self.normal_method not in NORMAL_METHODS:
+            raise ConfigError("normal_method", self.normal_method, " or ".join(repr(m) for m in NORMAL_METHODS))
+        _check_int("normal_k", self.normal_k, 3, 100)
         check_range("normal_radius_m", self.normal_radius_m, 0.0, 10.0, low_open=True)
+        _check_int("ri_col_halfwidth", self.ri_col_halfwidth, 1, 32)
+        check_range("ri_azimuth_jump_rel", self.ri_azimuth_jump_rel, 0.0, 1.0, low_open=True)
+        check_range("ri_ring_jump_rel", self.ri_ring_jump_rel, 0.0, 2.0, low_open=True)
+        _check_int("ri_max_ring_skip", self.ri_max_ring_skip, 1, 4)
+
+    def range_image_params(self) -> dict[str, float | int]:
+        """Keyword arguments of :func:`range_image_normal_candidates`."""
+        return {"col_halfwidth": self.ri_col_halfwidth, "azimuth_jump_rel": self.ri_azimuth_jump_rel,
+                "ring_jump_rel": self.ri_ring_jump_rel, "max_ring_skip": self.ri_max_ring_skip}  # fmt: skip
+
+
+def _check_int(field: str, value: object, low: int, high: int) -> None:
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not low <= value <= high:
+        raise ConfigError(field, value, f"an integer, {low} <= {field} <= {high}")
 
 
 # ---------------------------------------------------------------- pure functions of the equations
@@ -243,15 +319,194 @@ def estimate_normals(
     return normals
 
 
+def range_image_index(points_xyz: np.ndarray, ring: np.ndarray | None) -> tuple[np.ndarray, float] | None:
+    """Organise a spinning LiDAR scan as a range image of point indices.
+
+    Rows are the rings sorted by their mean elevation (lowest first), columns the azimuth
+    ``atan2(y, x)`` in steps of the scan's own azimuth resolution (the median gap between
+    successive returns of a ring), with a per-ring phase so that rings fired at slightly
+    different azimuths (interleaved lasers, per-laser offsets) still fall on whole columns.
+
+    Returns ``(index, azimuth_step_rad)``: ``index`` (rows, columns) int64 with the point index
+    of each cell, -1 where there is no return (two returns in one cell: the later one wins);
+    None when the scan has no usable ring layout (no ring, mismatched length, fewer than two
+    rings or than 8 columns, non-finite points only), so the caller falls back to knn.
+    Non-finite points are left out.
+    """
+    p = np.asarray(points_xyz, dtype=float).reshape(-1, 3)
+    if ring is None:
+        return None
+    ring_arr = np.asarray(ring).reshape(-1)
+    if len(ring_arr) != len(p) or len(p) == 0:
+        return None
+    valid = np.all(np.isfinite(p), axis=1) & (np.einsum("ni,ni->n", p, p) > 1e-12)
+    if ring_arr.dtype.kind == "f":
+        valid &= np.isfinite(ring_arr)
+    vi = np.flatnonzero(valid)
+    if len(vi) < 4:
+        return None
+    _, rinv = np.unique(ring_arr[vi], return_inverse=True)
+    rinv = rinv.reshape(-1)
+    n_rows = int(rinv.max()) + 1
+    if n_rows < 2:
+        return None
+    q = p[vi]
+    az = np.arctan2(q[:, 1], q[:, 0])
+    el = np.arctan2(q[:, 2], np.hypot(q[:, 0], q[:, 1]))
+    mean_el = np.bincount(rinv, el, n_rows) / np.bincount(rinv, None, n_rows)  # a ring's elevation is fixed
+    row_of_ring = np.empty(n_rows, dtype=np.int64)
+    row_of_ring[np.argsort(mean_el, kind="stable")] = np.arange(n_rows)
+    row = row_of_ring[rinv]
+    o = np.argsort(row * 8.0 + az, kind="stable")  # by row, then azimuth (|az| <= pi < 4)
+    gaps = np.diff(az[o])
+    gaps = gaps[(row[o][1:] == row[o][:-1]) & (gaps > 1e-9)]
+    if len(gaps) == 0:
+        return None
+    step = float(np.median(gaps))
+    n_cols = int(round(2.0 * np.pi / step))
+    if n_cols < 8 or n_cols > 1_000_000:
+        return None
+    u = az / step
+    w = 2.0 * np.pi * u
+    phase = np.arctan2(np.bincount(row, np.sin(w), n_rows), np.bincount(row, np.cos(w), n_rows)) / (2.0 * np.pi)
+    col = np.rint(u - phase[row]).astype(np.int64) % n_cols
+    index = np.full((n_rows, n_cols), -1, dtype=np.int64)
+    index[row, col] = vi
+    return index, step
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return v / n
+
+
+def range_image_normal_candidates(
+    points_xyz: np.ndarray,
+    ring: np.ndarray | None,
+    *,
+    col_halfwidth: int = 4,
+    azimuth_jump_rel: float = 0.1,
+    ring_jump_rel: float = 0.3,
+    max_ring_skip: int = 2,
+    min_neighbours: int = 2,
+    min_sin: float = 0.2,
+) -> np.ndarray | None:
+    """The four one-sided range-image normals of each point, (N, 4, 3), NaN where undefined.
+
+    Order: (left, up), (left, down), (right, up), (right, down). Side ``s`` of the azimuth
+    tangent: the least-squares line through the point and its neighbours ``p[c + s j]``,
+    ``j = 1..col_halfwidth``, whose range is within ``azimuth_jump_rel`` of the point's; at
+    least ``min_neighbours`` such neighbours are needed. Ring tangent: to the nearest return in the ring above (below),
+    in the same column or the next one on either side, at most ``max_ring_skip`` rings away,
+    whose range ``r_n`` is within ``|r_n - r| <= ring_jump_rel * min(r_n, r)`` of the point's
+    (returns across a depth jump are passed over); none when there is no such return.
+    The normal ``t_az x t_ring`` is flipped towards the sensor (origin); NaN when the tangents
+    are nearly parallel (sine of their angle below ``min_sin``). None when the scan is not
+    ring-organised (:func:`range_image_index`).
+    """
+    p = np.asarray(points_xyz, dtype=float).reshape(-1, 3)
+    organised = range_image_index(p, ring)
+    if organised is None:
+        return None
+    index, _ = organised
+    n_rows, n_cols = index.shape
+    has = index >= 0
+    pad = int(max_ring_skip)
+    # the image in float32: half the memory traffic; a few mm of rounding at 100 m is far below range noise
+    P = np.full((n_rows + 2 * pad, n_cols, 3), np.nan, dtype=np.float32)
+    P[pad : pad + n_rows][has] = p[index[has]]
+    rg = np.sqrt(np.einsum("rci,rci->rc", P, P))  # range image, NaN where empty
+    Pc, rc = P[pad : pad + n_rows], rg[pad : pad + n_rows]
+
+    cw = int(col_halfwidth)
+    Pw = np.concatenate([Pc[:, n_cols - cw :], Pc, Pc[:, :cw]], axis=1)  # columns wrap round (360 deg)
+    rw = np.concatenate([rc[:, n_cols - cw :], rc, rc[:, :cw]], axis=1)
+    t_az = {}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        tol = azimuth_jump_rel * rc
+        for s in (-1, 1):
+            # least-squares line through the point and its kept neighbours j on this side, in
+            # coordinates relative to the point: direction sum_j (j - mean j) q_j = S_jq - S_j S_q / n
+            s_q = np.zeros((n_rows, n_cols, 3), dtype=np.float32)
+            s_jq = np.zeros((n_rows, n_cols, 3), dtype=np.float32)
+            s_j = np.zeros((n_rows, n_cols), dtype=np.float32)
+            k = np.zeros((n_rows, n_cols), dtype=np.float32)
+            for j in range(1, cw + 1):
+                lo = cw + s * j
+                ok = np.abs(rw[:, lo : lo + n_cols] - rc) <= tol  # False where either is empty
+                q = np.where(ok[..., None], Pw[:, lo : lo + n_cols] - Pc, np.float32(0.0))
+                s_q += q
+                s_jq += np.float32(j) * q
+                s_j += np.float32(j) * ok
+                k += ok
+            t = s_jq - (s_j / (k + 1))[..., None] * s_q
+            t[k < min_neighbours] = np.nan
+            t_az[s] = s * t
+
+        t_ring = {}
+        Pr = np.concatenate([P[:, -1:], P, P[:, :1]], axis=1)  # one wrapped column each side
+        rr = np.concatenate([rg[:, -1:], rg, rg[:, :1]], axis=1)
+        for s in (1, -1):
+            nb = np.full((n_rows, n_cols, 3), np.nan, dtype=np.float32)
+            for k in range(pad, 0, -1):  # nearer rings overwrite farther ones
+                r0 = pad + s * k
+                for dc in (1, -1, 0):  # the same column overwrites its neighbours
+                    qs = rr[r0 : r0 + n_rows, 1 + dc : 1 + dc + n_cols]
+                    # a return, and no depth jump: range ratio within 1 + ring_jump_rel (False where empty)
+                    m = np.abs(qs - rc) <= ring_jump_rel * np.fmin(qs, rc)
+                    np.copyto(nb, Pr[r0 : r0 + n_rows, 1 + dc : 1 + dc + n_cols], where=m[..., None])
+            d = s * (nb - Pc)
+            t_ring[s] = d
+
+        # the cells with a return only, as component arrays (cheaper than strided (.., 3) ops)
+        idx = index[has]
+        az_u = {k: _unit(v[has].astype(float)).T for k, v in t_az.items()}
+        ring_u = {k: _unit(v[has].astype(float)).T for k, v in t_ring.items()}
+        px, py, pz = p[idx].T
+        out = np.empty((len(p), 4, 3))
+        out.fill(np.nan)
+        for c, (sa, sr) in enumerate(((-1, 1), (-1, -1), (1, 1), (1, -1))):
+            (ax, ay, az), (bx, by, bz) = az_u[sa], ring_u[sr]
+            nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+            sin = np.sqrt(nx * nx + ny * ny + nz * nz)
+            # unit normal, NaN when the tangents are (nearly) parallel; towards the sensor: n . (0 - p) >= 0
+            scale = np.where(sin > min_sin, 1.0, np.nan) / sin
+            scale = np.where(nx * px + ny * py + nz * pz > 0, -scale, scale)
+            out[idx, c, 0], out[idx, c, 1], out[idx, c, 2] = nx * scale, ny * scale, nz * scale
+    return out
+
+
+def estimate_range_image_normals(
+    points_xyz: np.ndarray, ring: np.ndarray | None, *, max_spread_deg: float = 20.0, **params: float
+) -> np.ndarray | None:
+    """One range-image normal per point, (N, 3): the mean of the defined one-sided normals of
+    :func:`range_image_normal_candidates` when they all lie within ``max_spread_deg`` of that
+    mean, NaN otherwise (no side defined, or a crease / depth jump). None when the scan is not
+    ring-organised."""
+    cand = range_image_normal_candidates(points_xyz, ring, **params)
+    if cand is None:
+        return None
+    defined = ~np.isnan(cand[..., 0])
+    mean = _unit(np.where(defined[..., None], cand, 0.0).sum(axis=1))
+    with np.errstate(invalid="ignore"):
+        cos = np.einsum("nki,ni->nk", cand, mean)
+        agree = np.all(~defined | (cos >= np.cos(np.radians(max_spread_deg))), axis=1) & defined.any(axis=1)
+    mean[~agree] = np.nan
+    return mean
+
+
 def normal_cosines(normals_sensor: np.ndarray, T_footprint_sensor: np.ndarray) -> np.ndarray:
     """Eq. (4.17)-(4.18): cosine between each normal, rotated into ``f``, and ``f``'s z; (N,).
 
-    NaN where the normal is undefined.
+    NaN where the normal is undefined. ``(R eta)_z = R[2, :] . eta``: only the last row of the
+    rotation is needed (computed without BLAS, whose idle threads cost more than the product).
     """
-    R = np.asarray(T_footprint_sensor, dtype=float)[:3, :3]
-    eta_f = np.asarray(normals_sensor, dtype=float).reshape(-1, 3) @ R.T
+    r = np.asarray(T_footprint_sensor, dtype=float)[2, :3]
+    eta = np.asarray(normals_sensor, dtype=float).reshape(-1, 3)
     with np.errstate(invalid="ignore", divide="ignore"):
-        return eta_f[:, 2] / np.linalg.norm(eta_f, axis=1)
+        z = eta[:, 0] * r[0] + eta[:, 1] * r[1] + eta[:, 2] * r[2]
+        return z / np.sqrt(np.einsum("ni,ni->n", eta, eta))
 
 
 # ------------------------------------------------------------------------------------- filters
@@ -290,7 +545,11 @@ def _finish(keep: np.ndarray, reason: np.ndarray, status: str) -> FilterResult:
 
 
 class NoFilter:
-    """The ``"none"`` filter: every finite point is kept."""
+    """The ``"none"`` filter: every finite point is kept.
+
+    Every filter's ``apply`` takes the cloud, its intensities, ``T_footprint_sensor`` and the
+    optional ``ring`` of each point (used by the range-image normals only).
+    """
 
     name = "none"
 
@@ -298,14 +557,18 @@ class NoFilter:
         self.config = config
 
     def apply(
-        self, points_xyz: np.ndarray, intensity: np.ndarray, T_footprint_sensor: np.ndarray | None = None
+        self,
+        points_xyz: np.ndarray,
+        intensity: np.ndarray,
+        T_footprint_sensor: np.ndarray | None = None,
+        ring: np.ndarray | None = None,
     ) -> FilterResult:
         _, _, finite = _prepare(points_xyz, intensity)
         reason = np.where(finite, FilterReason.KEPT_NO_FILTER, FilterReason.DROPPED_INVALID).astype(np.uint8)
         return _finish(finite.copy(), reason, "ok")
 
     def apply_scan(self, scan: LidarScan, T_footprint_sensor: np.ndarray | None = None) -> FilterResult:
-        return self.apply(scan.points_xyz, scan.intensity, T_footprint_sensor)
+        return self.apply(scan.points_xyz, scan.intensity, T_footprint_sensor, ring=scan.ring)
 
 
 class IntensityThresholdFilter(NoFilter):
@@ -317,7 +580,11 @@ class IntensityThresholdFilter(NoFilter):
         self.config = config or IntensityBandConfig()
 
     def apply(
-        self, points_xyz: np.ndarray, intensity: np.ndarray, T_footprint_sensor: np.ndarray | None = None
+        self,
+        points_xyz: np.ndarray,
+        intensity: np.ndarray,
+        T_footprint_sensor: np.ndarray | None = None,
+        ring: np.ndarray | None = None,
     ) -> FilterResult:
         _, psi, finite = _prepare(points_xyz, intensity)
         return _band_result(psi, finite, self.config, None, "ok")
@@ -337,7 +604,11 @@ class NaiveGroundFilter(NoFilter):
         return z_f < self.config.ground_margin_m
 
     def apply(
-        self, points_xyz: np.ndarray, intensity: np.ndarray, T_footprint_sensor: np.ndarray | None = None
+        self,
+        points_xyz: np.ndarray,
+        intensity: np.ndarray,
+        T_footprint_sensor: np.ndarray | None = None,
+        ring: np.ndarray | None = None,
     ) -> FilterResult:
         p, psi, finite = _prepare(points_xyz, intensity)
         T = _check_T(T_footprint_sensor)
@@ -356,25 +627,49 @@ class NormalGroundFilter(NoFilter):
     def __init__(self, config: NormalGroundConfig | None = None) -> None:
         self.config = config or NormalGroundConfig()
 
-    def cosines(self, points_xyz: np.ndarray, T_footprint_sensor: np.ndarray) -> np.ndarray:
-        """``theta_eta`` of eq. (4.18) per point (NaN without a normal), (N,)."""
+    def cosines_and_method(
+        self, points_xyz: np.ndarray, T_footprint_sensor: np.ndarray, ring: np.ndarray | None = None
+    ) -> tuple[np.ndarray, str]:
+        """``theta_eta`` of eq. (4.18) per point (NaN without a normal), (N,), and the normal
+        method that ran. Range image: the largest cosine of the point's one-sided normals (the
+        crease reading of the module docstring)."""
         p = np.asarray(points_xyz, dtype=float).reshape(-1, 3)
+        if self.config.normal_method == "range-image":
+            cand = range_image_normal_candidates(p, ring, **self.config.range_image_params())
+            if cand is not None:
+                theta = normal_cosines(cand.reshape(-1, 3), T_footprint_sensor).reshape(-1, 4)
+                defined = ~np.isnan(theta)
+                best = np.where(defined, theta, -np.inf).max(axis=1)
+                return np.where(defined.any(axis=1), best, np.nan), "range-image"
         normals = estimate_normals(p, self.config.normal_k, self.config.normal_radius_m)
-        return normal_cosines(normals, T_footprint_sensor)
+        return normal_cosines(normals, T_footprint_sensor), "knn"
+
+    def cosines(self, points_xyz: np.ndarray, T_footprint_sensor: np.ndarray, ring: np.ndarray | None = None) -> np.ndarray:
+        """``theta_eta`` of eq. (4.18) per point (NaN without a normal), (N,)."""
+        return self.cosines_and_method(points_xyz, T_footprint_sensor, ring)[0]
 
     def apply(
-        self, points_xyz: np.ndarray, intensity: np.ndarray, T_footprint_sensor: np.ndarray | None = None
+        self,
+        points_xyz: np.ndarray,
+        intensity: np.ndarray,
+        T_footprint_sensor: np.ndarray | None = None,
+        ring: np.ndarray | None = None,
     ) -> FilterResult:
         p, psi, finite = _prepare(points_xyz, intensity)
         T = _check_T(T_footprint_sensor)
         if T is None:
             return _band_result(psi, finite, self.config, None, "no_transform")
         ground = np.zeros(len(p), dtype=bool)
+        method = ""
         if finite.any():
-            theta = self.cosines(p[finite], T)
+            r = None
+            if ring is not None and np.asarray(ring).reshape(-1).shape == (len(p),):
+                r = np.asarray(ring).reshape(-1)[finite]
+            theta, method = self.cosines_and_method(p[finite], T, r)
             with np.errstate(invalid="ignore"):
                 ground[finite] = theta > 1.0 - self.config.epsilon_eta
-        return _band_result(psi, finite, self.config, ground, "ok")
+        res = _band_result(psi, finite, self.config, ground, "ok")
+        return FilterResult(res.keep, res.reason, res.status, method)
 
 
 FILTERS: dict[str, type[NoFilter]] = {

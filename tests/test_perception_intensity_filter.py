@@ -25,7 +25,10 @@ from exobench.perception.intensity_filter import (
     NormalGroundConfig,
     NormalGroundFilter,
     estimate_normals,
+    estimate_range_image_normals,
     make_filter,
+    range_image_index,
+    range_image_normal_candidates,
 )
 
 H = 1.4  # sensor height above the footprint, m
@@ -230,3 +233,185 @@ def test_registry_and_config_errors():
         NaiveGroundConfig(ground_margin_m=-0.1)
     with pytest.raises(ConfigError):
         NaiveGroundFilter().apply(np.zeros((2, 3)), np.zeros(2), np.eye(3))
+
+
+# ------------------------------------------------------------------ range-image normals (VLP-16-like rings)
+
+ELEV_DEG = np.arange(-15.0, 16.0, 2.0)  # 16 rings, 2 deg apart (ring 0 lowest)
+AZ_STEP_DEG = 0.2
+
+
+def _ring_scan(T_fs: np.ndarray, half_x_m: float = 6.0, half_y_m: float = 5.0, noise_m: float = 0.0, seed: int = 0,
+               shuffle: bool = True, max_range_m: float = 40.0):  # fmt: skip
+    """A VLP-16-like sweep cast analytically inside a room: floor z_f = 0, walls x_f = +-half_x_m,
+    y_f = +-half_y_m (no ceiling: upward rays that leave over the walls are no return).
+
+    Rays in the sensor frame (ring r at ELEV_DEG[r], azimuth steps of 0.2 deg, ring-dependent
+    phase as interleaved lasers have), rotated into f; each ray hits the nearest plane in front
+    of it. Returns points (sensor frame), ring, the true unit normal of the hit plane facing the
+    sensor (sensor frame) and whether the hit is on the floor."""
+    rng = np.random.default_rng(seed)
+    az = np.radians(np.arange(0.0, 360.0, AZ_STEP_DEG))
+    rows = []
+    for r, e in enumerate(np.radians(ELEV_DEG)):
+        a = az + np.radians(AZ_STEP_DEG) * r / 16.0
+        rows.append(np.column_stack([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.full(len(a), np.sin(e)),
+                                     np.full(len(a), r)]))  # fmt: skip
+    rays = np.concatenate(rows)
+    d_l, ring = rays[:, :3], rays[:, 3].astype(np.uint16)
+    R, o = T_fs[:3, :3], T_fs[:3, 3]
+    d_f = d_l @ R.T
+    planes = [(2, 0.0, [0.0, 0.0, 1.0]), (0, half_x_m, [-1.0, 0.0, 0.0]), (0, -half_x_m, [1.0, 0.0, 0.0]),
+              (1, half_y_m, [0.0, -1.0, 0.0]), (1, -half_y_m, [0.0, 1.0, 0.0])]  # fmt: skip
+    ts = []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for axis, value, _ in planes:
+            t = (value - o[axis]) / d_f[:, axis]
+            ts.append(np.where(t > 0, t, np.inf))
+    ts = np.array(ts)
+    which = np.argmin(ts, axis=0)
+    t = ts[which, np.arange(len(which))]
+    z_hit = o[2] + t * d_f[:, 2]
+    hit = np.isfinite(t) & (t < max_range_m) & (z_hit < 3.0)
+    n_f = np.array([pl[2] for pl in planes])[which]
+    on_floor = which == 0
+    rng_m = t + rng.normal(0.0, noise_m, len(t)) if noise_m else t
+    pts = d_l * rng_m[:, None]
+    n_l = n_f @ R  # R^T n, row-wise
+    pts, ring, n_l, on_floor = pts[hit], ring[hit], n_l[hit], on_floor[hit]
+    if shuffle:  # the organisation must not depend on the point order
+        perm = rng.permutation(len(pts))
+        pts, ring, n_l, on_floor = pts[perm], ring[perm], n_l[perm], on_floor[perm]
+    return pts, ring, n_l, on_floor
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", a, b), -1.0, 1.0)))
+
+
+@pytest.fixture(scope="module")
+def tilted_sensor():
+    return _T(_rot(math.radians(2.0), math.radians(5.0)), [0.0, 0.0, 1.2])
+
+
+def test_range_image_organises_rings_and_azimuth(tilted_sensor):
+    pts, ring, _, _ = _ring_scan(tilted_sensor)
+    index, step = range_image_index(pts, ring)
+    assert step == pytest.approx(math.radians(AZ_STEP_DEG), rel=1e-6)
+    assert index.shape == (16, 1800) and len(pts) > 0.5 * index.size
+    idx = index[index >= 0]
+    assert len(idx) == len(np.unique(idx)) == len(pts)  # every return in its own cell
+    rows, _ = np.nonzero(index >= 0)
+    assert np.array_equal(ring[index[index >= 0]], rows)  # rows are the rings, lowest first
+    # rows sorted by elevation, not by ring number: relabelled rings give the same image
+    perm = np.array([3, 0, 15, 7, 1, 2, 4, 5, 6, 8, 9, 10, 11, 12, 13, 14], dtype=np.uint16)
+    index2, _ = range_image_index(pts, perm[ring])
+    assert np.array_equal(index2, index)
+
+
+@pytest.mark.parametrize("noise_m", [0.0, 0.015])
+def test_range_image_normals_of_floor_and_wall(tilted_sensor, noise_m):
+    pts, ring, n_true, on_floor = _ring_scan(tilted_sensor, noise_m=noise_m, seed=3)
+    normals = estimate_range_image_normals(pts, ring)
+    defined = ~np.isnan(normals[:, 0])
+    assert defined[on_floor].mean() > 0.85 and defined[~on_floor].mean() > 0.85  # NaN near creases
+    err = _angle_deg(normals, n_true)
+    floor, wall = defined & on_floor, defined & ~on_floor
+    if noise_m == 0:  # exact but where a window reaches across a crease (room corners, wall bases)
+        assert np.median(err[defined]) < 0.1 and np.percentile(err[defined], 90) < 2.0, np.percentile(err[defined], [50, 90])
+    else:  # 1.5 cm range noise over 4-column (0.8 deg) azimuth windows: a few degrees
+        assert np.median(err[floor]) < 3.5 and np.median(err[wall]) < 6.5, (np.median(err[floor]), np.median(err[wall]))
+    # oriented towards the sensor: n . (0 - p) > 0
+    assert (np.einsum("ni,ni->n", normals[defined], -pts[defined]) > 0).all()
+    # the filter on weak returns: floor kept (eq. 4.19 via the one-sided normals), wall removed
+    res = NormalGroundFilter().apply(pts, np.full(len(pts), 5.0), tilted_sensor, ring=ring)
+    assert res.normal_method == "range-image"
+    assert res.keep[on_floor].mean() > 0.97
+    assert res.keep[~on_floor].mean() < 0.03
+
+
+def test_range_image_undefined_at_depth_jumps_and_sparse_rings(tilted_sensor):
+    pts, ring, _, on_floor = _ring_scan(tilted_sensor)
+    # a lone return far behind its neighbours (a ghost behind glass) has no ring or azimuth side
+    k = np.flatnonzero(~on_floor & (ring == 10))[50]
+    pts2 = pts.copy()
+    pts2[k] *= 2.0
+    cand = range_image_normal_candidates(pts2, ring)
+    assert np.isnan(cand[k]).all()
+    # a ring with a single return: fewer azimuth neighbours than needed -> NaN, no crash
+    one = np.flatnonzero(ring == 0)[:1]
+    sel = np.concatenate([one, np.flatnonzero(ring == 1)])
+    cand = range_image_normal_candidates(pts[sel], ring[sel])
+    assert np.isnan(cand[0]).all()
+
+
+def test_range_image_falls_back_to_knn_without_rings(tilted_sensor):
+    pts, ring, _, _ = _ring_scan(tilted_sensor)
+    assert range_image_index(pts, None) is None
+    assert range_image_index(pts, np.zeros(len(pts), dtype=np.uint16)) is None  # one ring: not a spinning scan
+    assert range_image_index(pts, ring[:-1]) is None  # mismatched length
+    psi = np.full(len(pts), 5.0)
+    filt = NormalGroundFilter()
+    assert filt.apply(pts, psi, tilted_sensor).normal_method == "knn"
+    assert filt.apply(pts, psi, tilted_sensor, ring=np.zeros(len(pts))).normal_method == "knn"
+    knn = NormalGroundFilter(NormalGroundConfig(normal_method="knn"))
+    res_knn = knn.apply(pts, psi, tilted_sensor, ring=ring)
+    assert res_knn.normal_method == "knn"
+    # the knn method is the thesis' PCL one, unchanged: same mask as the ring-less call
+    assert np.array_equal(res_knn.keep, filt.apply(pts, psi, tilted_sensor).keep)
+
+
+def test_range_image_nan_and_empty_inputs(tilted_sensor):
+    pts, ring, _, on_floor = _ring_scan(tilted_sensor, shuffle=False)
+    bad = pts.copy()
+    bad[::97] = np.nan
+    psi = np.full(len(pts), 5.0)
+    psi[5] = np.nan
+    res = NormalGroundFilter().apply(bad, psi, tilted_sensor, ring=ring)
+    assert res.normal_method == "range-image"
+    invalid = np.isnan(bad[:, 0]) | np.isnan(psi)
+    assert (res.reason[invalid] == FilterReason.DROPPED_INVALID).all()
+    assert res.keep[on_floor & ~invalid].mean() > 0.95
+    normals = estimate_range_image_normals(bad, ring)
+    assert np.isnan(normals[np.isnan(bad[:, 0])]).all()
+    empty = NormalGroundFilter().apply(np.zeros((0, 3)), np.zeros(0), tilted_sensor, ring=np.zeros(0, dtype=np.uint16))
+    assert empty.status == "empty_input" and empty.keep.shape == (0,)
+    assert estimate_range_image_normals(np.zeros((0, 3)), np.zeros(0)) is None
+    all_nan = NormalGroundFilter().apply(np.full((10, 3), np.nan), np.full(10, 5.0), tilted_sensor, ring=np.arange(10))
+    assert not all_nan.keep.any() and all_nan.status == "all_removed"
+
+
+def test_normal_method_config():
+    assert NormalGroundConfig().normal_method == "range-image"
+    assert make_filter("normal-ground", normal_method="knn").config.normal_method == "knn"
+    for bad in ({"normal_method": "pca"}, {"ri_col_halfwidth": 0}, {"ri_max_ring_skip": 5},
+                {"ri_ring_jump_rel": 0.0}, {"ri_azimuth_jump_rel": 1.5}):  # fmt: skip
+        with pytest.raises(ConfigError):
+            NormalGroundConfig(**bad)
+
+
+def test_far_grazing_floor_reads_as_a_depth_jump_unless_allowed():
+    """Adjacent rings on a level floor far away differ in range by more than ri_ring_jump_rel
+    (seen from 1.2 m, the rings at -7 / -5 / -3 deg meet the floor at 9.8 / 13.7 / 22.9 m: range
+    ratios 1.40 and 1.67 > 1.3): with the default 0.3 they count as depth jumps (no normal, not
+    rescued); a looser gate keeps them. Nearer rings (-15..-9 deg: ratios <= 1.28) pass."""
+    T_fs = _T(np.eye(3), [0.0, 0.0, 1.2])
+    pts, ring, _, on_floor = _ring_scan(T_fs, half_x_m=100.0, half_y_m=100.0)
+    far = on_floor & (ring >= 5)  # rings at -5 and -3 deg
+    psi = np.full(len(pts), 5.0)
+    strict = NormalGroundFilter().apply(pts, psi, T_fs, ring=ring)
+    loose = NormalGroundFilter(NormalGroundConfig(ri_ring_jump_rel=1.0)).apply(pts, psi, T_fs, ring=ring)
+    near = on_floor & (ring <= 3)  # -15..-9 deg
+    assert strict.keep[near].all() and loose.keep[near].all()
+    assert strict.keep[far].mean() < 0.05 and loose.keep[far].mean() > 0.95
+
+
+def test_pipeline_config_passes_the_normal_method_through():
+    from exobench.perception.filter_pipelines import FilterNormalGround
+
+    assert FilterNormalGround().filter.config.normal_method == "range-image"
+    pipe = FilterNormalGround(FilterNormalGround.Config(normal_method="knn", ri_col_halfwidth=6, ri_ring_jump_rel=0.4))
+    cfg = pipe.filter.config
+    assert (cfg.normal_method, cfg.ri_col_halfwidth, cfg.ri_ring_jump_rel) == ("knn", 6, 0.4)
+    with pytest.raises(ConfigError):
+        FilterNormalGround.Config(normal_method="bogus")
