@@ -44,7 +44,7 @@ from exobench.models.world_params import ParamSpec, from_dict_checked, validate_
 
 from .gait import Motion, rot_yaw_pitch
 from .imu import ImuSensor
-from .lidar import LidarConfig, LidarPattern, LidarSensor, LidarTruth
+from .lidar import LidarConfig, LidarPattern, LidarSensor, LidarTruth, compact_truth
 from .proprio import ENCODER_ID, ContactSensor, EncoderSensor, contact_forces
 from .sensor_config import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, sample_times
 from .sim import FOOT_TRACK_RATE_HZ, TRACK_RATE_HZ, step_through
@@ -57,14 +57,19 @@ SENSOR_ORDER = (ENCODER_ID, IMU_ID, *CONTACT_IDS, LIDAR_ID)
 PENETRATION_RATE_HZ = 1000.0
 MIN_SEGMENT_M = 0.3  # shorter route segments are merged into the next one
 LIDAR_PATTERNS = ("vlp16", "vlp32", "ouster64", "livox")
-ROUTES = ("loop", "corridor")
+ROUTES = ("loop", "ring", "corridor")
+LIDAR_TRUTHS = ("full", "labels")
 
 PARAMS: dict[str, ParamSpec] = {
     "office_seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the office layout"),
     "n_offices": ParamSpec(3, 1, 24, "", "cellular offices along the north corridor"),
     "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass (the meeting room's south one first)"),
     "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished stone (the south corridor first)"),
-    "route": ParamSpec("corridor", None, None, "", "office route walked", choices=ROUTES),
+    "route": ParamSpec("corridor", None, None, "", "office route walked (loop: every office and two laps, "
+                       "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor)",
+                       choices=ROUTES),
+    "lidar_truth": ParamSpec("full", None, None, "", "per-point LiDAR truth kept: full, or labels only "
+                             "(kind, surface, range; ~8x smaller, for long walks)", choices=LIDAR_TRUTHS),
     "max_distance_m": ParamSpec(20.0, 0.5, 500.0, "m", "the route is cut after this length (keeps quick runs short)"),
     "step_length_m": ParamSpec(0.35, 0.1, 0.8, "m", "nominal step length"),
     "swing_s": ParamSpec(0.8, 0.3, 5.0, "s", "duration of one swing"),
@@ -89,6 +94,7 @@ class OfficeScenario:
     glass_fraction: float = PARAMS["glass_fraction"].default
     polished_fraction: float = PARAMS["polished_fraction"].default
     route: str = PARAMS["route"].default
+    lidar_truth: str = PARAMS["lidar_truth"].default
     max_distance_m: float = PARAMS["max_distance_m"].default
     step_length_m: float = PARAMS["step_length_m"].default
     swing_s: float = PARAMS["swing_s"].default
@@ -254,7 +260,7 @@ def simulate_office(scenario: OfficeScenario, seed: int) -> Episode:
         got = lidar.scan(model, data, pose_at, t0, truth)
         if got is not None:
             streams[LIDAR_ID].append(got[0])
-            lidar_truth.append(got[1])
+            lidar_truth.append(got[1] if scenario.lidar_truth == "full" else compact_truth(got[1]))
             starts.append(t0)
     t_start = np.array(starts)
     trajectory = _pose_rows(t_start, pose_at(t_start)) if starts else np.zeros((0, 8))

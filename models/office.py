@@ -48,7 +48,7 @@ if TYPE_CHECKING:
 
 OBJECT_CLASSES = FURNITURE_CLASSES + ("door", "glass_partition", "window")
 SURFACE_KINDS = ("ground", "ceiling", "wall", "glass", "frame", "door", "furniture")
-ROUTE_KINDS = ("loop", "corridor")
+ROUTE_KINDS = ("loop", "ring", "corridor")
 
 
 def _emit(spec: mujoco.MjSpec, layout: Layout) -> None:
@@ -111,7 +111,8 @@ def office_route(truth: SceneTruth, kind: str = "loop") -> list[tuple[float, flo
 
     ``"loop"``: from the start round the corridor ring, into every office and out again, back
     to the start (a loop closure), then a second lap through the meeting room's two doors and
-    back along the featureless corridor to the start. ``"corridor"``: the whole south corridor,
+    back along the featureless corridor to the start. ``"ring"``: once round the corridor ring,
+    back to the start (a short loop). ``"corridor"``: the whole south corridor,
     blank-walled along the service core (``params["featureless_x_m"]``), where LiDAR odometry
     slides.
     """

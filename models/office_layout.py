@@ -383,7 +383,7 @@ def build_layout(p: OfficeParams) -> Layout:
         loop += [[dc, yN], [dc, yo0 + min(VISIT_M, D - 0.5)], [dc, yN]]
     loop += [NE, SE, SW, S, [dm, yN], [dm, 0.5 * (yc0 + yc1)], [dm, yS], SW, S]
     loop = [q for i, q in enumerate(loop) if i == 0 or q != loop[i - 1]]
-    routes = {"loop": loop, "corridor": [SW, SE]}
+    routes = {"loop": loop, "ring": [S, NE, SE, SW, S], "corridor": [SW, SE]}
     return Layout(solids=solids, objects=objects, regions=regions, routes=routes, start_w=[W / 2, yN, 0.0],
                   featureless_x_m=[W, xm0], corridor_y_m={"north": yN, "south": yS},
                   extent=(-te, X + te, -te, yo1 + te))

@@ -152,15 +152,38 @@ def test_office_has_glass_and_polished_floor_along_both_routes():
     assert not any(r["floor"] == "polished_floor" for r in none.regions)
 
 
-def test_deterministic(run):
+def test_deterministic_and_compact_truth_keeps_the_labels(run):
+    """Same seed, same frames; ``lidar_truth="labels"`` changes only what truth is kept."""
+    from dataclasses import replace
+
+    from exobench.benchmarks.tracks.office_common import points_world, sweep_start_poses
+
     sc, _, _, ep = run
-    again = simulate_office(sc, SEED)
+    again = simulate_office(replace(sc, lidar_truth="labels"), SEED)
+    starts = sweep_start_poses(again)
+    for full, compact, scan in zip(ep.truth.lidar, again.truth.lidar, _scans(again), strict=True):
+        for name in ("kind", "surface_id", "geom_id", "via_geom_id"):
+            np.testing.assert_array_equal(getattr(compact, name), getattr(full, name))
+        np.testing.assert_allclose(compact.true_range_m, full.true_range_m, rtol=1e-6)
+        assert compact.origin_w.shape == (0, 3) and compact.kind.dtype == np.int8
+        # points moved by the sweep-start pose lie within the walking motion of one sweep of the exact ones
+        err = np.linalg.norm(points_world(scan, compact, starts[round(scan.sweep_start_s, 9)]) - points_world(scan, full), axis=1)
+        assert np.median(err) < 0.1
     assert len(again.frames) == len(ep.frames)
     for a, b in zip(again.frames, ep.frames):
         assert type(a) is type(b) and a.stamp_s == b.stamp_s and a.sensor_id == b.sensor_id
         if isinstance(a, LidarScan):
             assert np.array_equal(a.points_xyz, b.points_xyz) and np.array_equal(a.intensity, b.intensity)
     np.testing.assert_array_equal(again.truth.trajectory_w, ep.truth.trajectory_w)
+
+
+def test_ring_route_closes_at_the_start():
+    sc = OfficeScenario.from_dict({"route": "ring", "max_distance_m": 500.0})
+    _, motion = plan_office_walk(sc)
+    st = motion.state(np.array([0.0, motion.duration_s]))
+    start, end = st.pelvis_w[0], st.pelvis_w[1]
+    assert np.linalg.norm(end[:2] - start[:2]) < 0.15
+    assert motion.duration_s > 60.0  # round the whole ring, not a stub
 
 
 @pytest.mark.parametrize(

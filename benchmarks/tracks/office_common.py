@@ -120,10 +120,28 @@ def point_classes(episode: Episode, truth: Any) -> tuple[np.ndarray, np.ndarray]
     return cls, ground
 
 
-def points_world(scan: LidarScan, truth: Any) -> np.ndarray:
-    """Measured points in the world frame: ``origin_w + |p| dir_w`` of each point's firing, (N, 3)."""
+def points_world(scan: LidarScan, truth: Any, T_world_sensor: np.ndarray | None = None) -> np.ndarray:
+    """Measured points in the world frame: ``origin_w + |p| dir_w`` of each point's firing, (N, 3).
+
+    A compact truth (``lidar_truth="labels"``) has no rays; then the points are moved by
+    ``T_world_sensor`` (the pose at the sweep start; the motion within the sweep is ignored).
+    """
+    if len(truth.origin_w) != len(scan.points_xyz):
+        if T_world_sensor is None:
+            raise ValueError("a compact LiDAR truth has no rays: pass the scan's T_world_sensor")
+        T = np.asarray(T_world_sensor, dtype=float)
+        return np.asarray(scan.points_xyz, dtype=float) @ T[:3, :3].T + T[:3, 3]
     r = np.linalg.norm(np.asarray(scan.points_xyz, dtype=float), axis=1)
     return np.asarray(truth.origin_w, dtype=float) + r[:, None] * np.asarray(truth.dir_w, dtype=float)
+
+
+def sweep_start_poses(episode: Episode) -> dict[float, np.ndarray]:
+    """True ``T_world_sensor`` at each scan start, keyed by the start time rounded to 1 ns."""
+    from exobench.core.transforms import make_T, quat_wxyz_to_matrix
+
+    return {
+        round(float(r[0]), 9): make_T(quat_wxyz_to_matrix(r[4:8]), r[1:4]) for r in np.asarray(episode.truth.trajectory_w)
+    }
 
 
 # ------------------------------------------------------------------------- rerun helpers
@@ -176,12 +194,13 @@ def log_scans(
     and, per pipeline of ``masks`` (keep masks per scan, in scan order), ``{root}/kept/{name}``;
     every ``stride``-th point of a scan (glass and ghost points always)."""
     pairs = lidar_pairs(episode)
+    starts = sweep_start_poses(episode)
     masks = dict(masks or {})
     for i, (scan, truth) in enumerate(pairs):
         if i % max(1, every):
             continue
         rec.set_time("sim_time", duration=float(scan.stamp_s))
-        p_w = points_world(scan, truth)
+        p_w = points_world(scan, truth, starts.get(round(float(scan.sweep_start_s), 9)))
         cls, _ = point_classes(episode, truth)
         sel = (np.arange(len(p_w)) % max(1, stride) == 0) | (cls != GENUINE)
         psi = np.asarray(scan.intensity)
