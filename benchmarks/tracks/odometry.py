@@ -8,14 +8,15 @@ TE/OE/TVE when the route ends where it started, time per scan).
 Suites (cases deterministic; the run seed drives the sensor noise):
 
 - ``quick``: 4 m of the south corridor (the office LiDAR simulation runs about 1.6x real time).
-- ``paper``: the whole corridor (featureless, where LiDAR odometry slides) and the loop route
-  (ring corridor, offices, back to the start, then a second lap), VLP-16 as in the thesis.
+- ``paper``: the whole corridor (featureless, where LiDAR odometry slides) and the ring route
+  (once round the corridor ring, past the glass, back to the start: loop TE/OE/TVE), VLP-16 as
+  in the thesis.
 - ``full``: the paper cases with VLP-32 and Ouster-64 patterns, without range noise, and for
-  users of 1.60 / 1.90 m.
+  users of 1.60 / 1.90 m, plus the whole office loop route (every office, two laps).
 
-Memory: an episode keeps every LiDAR point with its truth (about 200 bytes per point, some
-50 MB per second of walk with the VLP-16), so the whole loop route (about 380 s of walk) needs
-about 19 GB; shorten it with ``--set max_distance_m=...`` on smaller machines.
+Memory: the paper cases keep only the LiDAR truth's labels (``lidar_truth="labels"``: kind,
+surface and range per point, ~21 bytes instead of ~170), so the ring walk (~170 s, ~1,700
+sweeps) fits in about 3 GB; the full office ``loop`` route (~380 s, two laps) is in ``full``.
 
 Published figures (VBR outdoor sequences and a real indoor loop, not this office) are printed
 beside ours: Table 5.3 (ATE/RPE per VBR sequence), Sec. 5.2.1 (185 ms per LEO-SLAM loop) and
@@ -40,10 +41,12 @@ from .odometry_metrics import failure_metrics, score_trajectory, true_track
 from .office_common import office_params, simulate_office_episode, validate_office_scenario
 
 QUICK_M = 4.0
+LABELS = {"lidar_truth": "labels"}
 PAPER_CASES = {
-    "corridor": {"route": "corridor", "max_distance_m": 60.0},
-    "loop": {"route": "loop", "max_distance_m": 500.0},
+    "corridor": {"route": "corridor", "max_distance_m": 60.0, **LABELS},
+    "ring": {"route": "ring", "max_distance_m": 500.0, **LABELS},
 }
+LONG_CASES = {"loop": {"route": "loop", "max_distance_m": 500.0, **LABELS}}
 FULL_VARIANTS = {
     "vlp32": {"lidar": "vlp32"},
     "ouster64": {"lidar": "ouster64"},
@@ -117,7 +120,8 @@ class OdometryTrack:
                 for v, sv in FULL_VARIANTS.items()
                 for c in paper
             ]
-            return paper + extra
+            long = [Case(name, name, dict(sc), figure=True) for name, sc in LONG_CASES.items()]
+            return paper + extra + long
         raise UnknownNameError("suite", suite, self.suites)
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
