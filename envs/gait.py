@@ -152,7 +152,10 @@ class Segment:
     descends nearly vertically (0: the plain parabola of the staircase paper); ``swing_dip``
     (rad) points the toes down mid-swing by ``dip * 4 u (1 - u)``, as feet do after toe-off. When the
     stance pitch changes (a heel rise, only with a constant yaw) the stance foot pivots about
-    its toe tip and the stance ankle moves with it.
+    its toe tip and the stance ankle moves with it. ``swing_pivot`` (a segment whose swing foot
+    rests on the ground, ``a`` and ``z`` constant, yaw constant): the other foot turns about its
+    toe tip from ``swing_pitch[0]`` to ``swing_pitch[1]`` (the heel lowering after a forefoot
+    landing) and its ankle follows that rotation exactly.
     """
 
     t0: float
@@ -170,6 +173,7 @@ class Segment:
     swing_pitch: tuple[float, float]
     swing_lag: float = 0.0
     swing_dip: float = 0.0
+    swing_pivot: bool = False
 
 
 @dataclass(frozen=True)
@@ -247,6 +251,7 @@ class Motion:
         self._apex = np.array([s.apex_m for s in S])
         self._lag = np.array([s.swing_lag for s in S])
         self._dip = np.array([s.swing_dip for s in S])
+        self._pivot = np.array([s.swing_pivot for s in S], dtype=bool)
         self._addr_cache: dict[int, tuple[object, np.ndarray, int, int]] = {}
 
     # --- coordinates -------------------------------------------------------------------------
@@ -285,9 +290,13 @@ class Motion:
         pelvis[:, 2] = A[:, 2] + h
         swing = A + a[:, None] * xh - (sg * w)[:, None] * yh
         swing[:, 2] = z_sw
+        sw_pitch = lerp("swing_pitch") - self._dip[i] * 4.0 * u * (1.0 - u)
+        piv = self._pivot[i]
+        if np.any(piv):  # a resting foot turning about its toe tip (see Segment)
+            swp0 = self._pairs["swing_pitch"][i][:, 0]
+            swing = np.where(piv[:, None], toe_pivot(self.exo, swing, xh, swp0, sw_pitch), swing)
         left = sg > 0
         ankle = {"l": np.where(left[:, None], A, swing), "r": np.where(left[:, None], swing, A)}
-        sw_pitch = lerp("swing_pitch") - self._dip[i] * 4.0 * u * (1.0 - u)
         fpitch = {"l": np.where(left, st_pitch, sw_pitch), "r": np.where(left, sw_pitch, st_pitch)}
         joints = np.full((len(t), 6), np.nan)
         for k, side in enumerate(("l", "r") if solve_legs else ()):
@@ -437,6 +446,20 @@ def still_segment(exo: ExoSpec, plan: _SwingPlan, t0: float, t1: float, *, at_en
     )  # fmt: skip
 
 
+def heel_drop_segment(
+    exo: ExoSpec, plan: _SwingPlan, t0: float, t1: float, *, to_pitch: float, f: float, h: float
+) -> Segment:
+    """The double support after a forefoot landing: both feet stay, the landed foot turns about
+    its toe tip from the swing plan's end pitch to ``to_pitch`` (its heel lowers onto the
+    support; a ``swing_pivot`` segment) and the pelvis moves from the plan's end pose to
+    ``(f, h)`` over the stance ankle (it comes down as the leading leg takes the body)."""
+    seg = still_segment(exo, plan, t0, t1, at_end=True)
+    return Segment(
+        seg.t0, seg.t1, seg.stance, seg.ankle_w, seg.stance_pitch, seg.yaw, seg.pitch, (seg.f[0], float(f)),
+        (seg.h[0], float(h)), seg.a, seg.z, 0.0, (seg.swing_pitch[0], float(to_pitch)), swing_pivot=True,
+    )  # fmt: skip
+
+
 def swing_apex_m(
     exo: ExoSpec,
     terrain: Terrain,
@@ -446,16 +469,22 @@ def swing_apex_m(
     min_apex_m: float = 0.03,
     ramp: float = 0.2,
     n: int = 241,
+    exact_progress: bool = False,
 ) -> float:
     """Least parabola height ``H`` keeping the swing sole ``clearance_m`` above the terrain.
 
     The clearance asked for grows linearly from 0 at lift-off and touch-down to its full value
-    at a fraction ``ramp`` of the path, so the foot can leave and reach its support.
+    at a fraction ``ramp`` of the path, so the foot can leave and reach its support. The path is
+    sampled uniformly in progress ``u``. ``exact_progress=True`` (the walk planner) inverts the
+    minimum-jerk profile exactly; the default keeps the original Newton inversion, which sends
+    the first and last 5 % of ``u`` to the rest poses (harmless for a flat foot; the staircase
+    track's climbing step and its reference results use it), but misses a toe pitched down near
+    lift-off or touch-down.
     """
     seg = plan.segment(0.0, 1.0, 0.0)
     m = Motion(exo, [seg])
     u = np.linspace(0.0, 1.0, n)[1:-1]  # uniform in path progress, not in time
-    t = _inverse_min_jerk(u)
+    t = _inverse_min_jerk_exact(u) if exact_progress else _inverse_min_jerk(u)
     st = m.state(t, solve_legs=False)
     swing = "r" if plan.stance == "l" else "l"
     pts = st.sole_points_w(swing, sole_grid_f(exo, nx=13, ny=3))
@@ -468,6 +497,16 @@ def swing_apex_m(
 
 # swing shapes (lag, toe-down dip) the walk planner tries, plainest first
 SWING_SHAPES = tuple((lag, np.radians(dip)) for dip in (0.0, 15.0, 30.0) for lag in (0.0, 0.15, 0.3))
+
+
+def _inverse_min_jerk_exact(u: np.ndarray) -> np.ndarray:
+    """Times s in [0, 1] with min_jerk(s) = u (bisection; min_jerk is increasing on [0, 1])."""
+    lo, hi = np.zeros_like(u), np.ones_like(u)
+    for _ in range(52):
+        mid = 0.5 * (lo + hi)
+        below = min_jerk(mid) < u
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    return 0.5 * (lo + hi)
 
 
 def _inverse_min_jerk(u: np.ndarray) -> np.ndarray:

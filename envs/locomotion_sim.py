@@ -18,12 +18,13 @@ view when the camera turns. The walker stops (standing, feet together) about 8 c
 transition from level ground to stairs or a ramp: the planner finds the transition step from a
 standing start far more reliably, and exoskeleton users walk stop-and-go anyway.
 
-Limits of the walker (:mod:`exobench.envs.walk`, kinematic, stop-and-go), measured: 0.15 m
-risers and 11.8/15.8/17.8 deg ramps work for every pattern and user height 1.65-1.88 m; 0.18 m
-risers for some (wander and walk at 1.65-1.75 m); 0.20 and 0.25 m risers (the paper's) fail: the
-first step down from the landing is out of the planned leg's reach (stance knee limited to 100 deg,
-no heel rise on the descent). The scenario accepts ``riser_m`` up to 0.25; an unwalkable course
-raises ``ConfigError`` naming ``riser_m`` (stairs) or ``slope_deg`` (ramps) after at most
+Limits of the walker (:mod:`exobench.envs.walk`, kinematic, stop-and-go), measured: 0.15, 0.20
+and 0.25 m risers with 0.25, 0.30 and 0.32 m treads (and 0.18 m risers with 0.30 m treads), and
+11.8/15.8/17.8 deg ramps work for every pattern and user height 1.65-1.88 m. Risers of 0.20-0.25 m
+are descended with forefoot landings and the trailing heel up to 40 deg off the step; 0.25 m ones
+need a stance knee of up to 115 deg (see the walk module); on treads shorter than the foot
+(0.148 x height) the toes overhang the nosing on the way down. An unwalkable course raises
+``ConfigError`` naming ``riser_m`` (stairs) or ``slope_deg`` (ramps) after at most
 ``locomotion_world.MAX_PLANS`` planner calls (about 20-60 s).
 
 Walking patterns (SENSORS.md "Walking"): the walker is stop-and-go, so a pattern is a step length
@@ -115,7 +116,7 @@ PARALLEL_FIRST = ("stairs", "ramp")
 
 PARAMS: dict[str, ParamSpec] = {
     "terrain": ParamSpec("stairs", None, None, "", "course: stairs (LG SA LG SD LG), ramp (LG RA LG RD LG), parallel (a stair lane beside a ramp lane, up one, down the other)", choices=TERRAINS),
-    "riser_m": ParamSpec(0.15, 0.05, 0.25, "m", "riser height (paper: 0.15, 0.20, 0.25; the walker descends at most about 0.18 m, see the module docstring)"),
+    "riser_m": ParamSpec(0.15, 0.05, 0.25, "m", "riser height (paper: 0.15, 0.20, 0.25; limits of the walker: see the module docstring)"),
     "tread_m": ParamSpec(0.30, 0.25, 0.45, "m", "tread depth (going)"),
     "n_steps": ParamSpec(4, 2, 8, "", "risers per flight"),
     "slope_deg": ParamSpec(11.8, 3.0, 20.0, "deg", "ramp inclination (paper: 11.8, 15.8, 17.8)"),

@@ -15,13 +15,28 @@ than ``max_turn_deg`` is turned away on the spot the same way, so 90 and 180 deg
 with any ``max_turn_deg``. At the end the feet are brought together and, if ``end_yaw_deg`` is
 given, the walker turns on the spot to that heading (a closed loop ends in its start pose). A
 placement is a *foothold* when the sole from the ankle to the toe rests on one walkable surface
-(the heel may overhang a lower one, as on stairs) with the foot pitched along it and no roll.
+(the heel may overhang a lower one, as on stairs) with the foot pitched along it and no roll; only
+when no such foothold can be reached, the toes beyond the ball of the foot (``BALL_FRACTION``) may
+overhang a lower one too (treads shorter than the foot, on the way down).
 On level ground and ramps the nominal step is kept when it is a foothold at about the same
 level; otherwise (a riser or a slope change ahead) the foot goes to the next surface ahead,
 centred on it if it is a tread, at the nominal length clamped into it otherwise. ``step-over``
 puts each foot on the next tread; ``step-to`` brings the trailing foot beside the leading one
 before the next tread. The swing apex keeps ``clearance_m`` over nosings (see
-:func:`exobench.envs.gait.swing_apex_m`).
+:func:`exobench.envs.gait.swing_apex_m`, sampled with the exact inverse of the minimum-jerk
+progress so that a toe pitched down near lift-off or touch-down is checked too).
+
+On the way up and down stairs the trailing (stance) foot may rise on its toes (``HEEL_RISE_RAD``).
+Steep descents (risers 0.20-0.25 m), where no flat landing is within reach, are walked as people
+walk them: the leading foot reaches down toes first (``TOE_FIRST_RAD``), touches the tread with
+its toe tip, and lowers its heel in the double support (at least ``HEEL_DROP_S``; the pelvis
+comes down meanwhile) while the trailing foot stays on its toes (up to 40 deg); the stance knee
+may then flex to ``DESCENT_KNEE_DEEP_RAD`` instead of ``DESCENT_KNEE_MAX_RAD``. These are tried
+only when the flat landings fail, so gentler stairs are planned as before. The footstep of a
+forefoot landing records the foot flat on the tread (its ``touchdown_s`` is when the heel is
+down, when the insoles' heel pads touch). Heel rises and forefoot landings turn the foot about
+its toe tip, also when the toes overhang a nosing (an approximation: the real pivot is then the
+nosing under the ball of the foot).
 """
 
 from __future__ import annotations
@@ -45,6 +60,7 @@ from .gait import (
     _SwingPlan,
     check_feasible,
     end_pelvis_options,
+    heel_drop_segment,
     leg_length_for_knee,
     still_segment,
     swing_apex_m,
@@ -55,6 +71,19 @@ from .terrain import Terrain, sole_grid_f
 STAIR_MODES = ("step-over", "step-to")
 DESCENT_KNEE_MAX_RAD = np.radians(100.0)  # stair descent flexes the stance knee to about 90 deg (SENSORS.md)
 HEEL_RISE_RAD = tuple(np.radians([15.0, 25.0, 5.0, 0.0, 35.0]))  # trailing heel rises tried on stairs [A]
+# Steep stairs down (risers 0.20-0.25 m), tried only when no flat landing works. The leading foot
+# lands forefoot first, as people do on stairs of every inclination (Riener et al., Gait Posture
+# 15 (2002) 32-44, 24-42 deg stairs), toes down by TOE_FIRST_RAD [A: within the model's 40 deg
+# plantarflexion], and lowers its heel in the double support (at least HEEL_DROP_S). The stance
+# knee may then flex to DESCENT_KNEE_DEEP_RAD: 15 deg beyond the ~100 deg of ordinary stairs
+# (SENSORS.md), for risers 40-50 % higher than the 0.17 m ones those figures come from (young
+# adults descend 0.255 m risers: Foster et al., Gait Posture 73 (2019) 305-314); still 15 deg
+# inside the model's 130 deg knee range [A].
+DESCENT_KNEE_DEEP_RAD = np.radians(115.0)
+TOE_FIRST_RAD = tuple(np.radians([20.0, 30.0, 40.0]))
+BALL_FRACTION = 0.73  # ball of the foot (metatarsal heads) from the heel, fraction of the foot length [A]
+HEEL_DROP_S = 0.1  # shortest heel lowering after a forefoot landing, s [A]
+HEEL_RISE_DEEP_RAD = HEEL_RISE_RAD + (np.radians(40.0),)  # with forefoot landings the trailing heel may rise 40 deg [A]
 
 
 @dataclass(frozen=True)
@@ -169,11 +198,17 @@ class _Planner:
         self.terrain = Terrain(truth)
         self.grid = sole_grid_f(exo)
         self.front = self.grid[:, 0] >= 0.0
+        # with ``overhang`` only the sole from the ankle to the ball of the foot must rest on the surface
+        self.to_ball = self.front & (self.grid[:, 0] <= BALL_FRACTION * exo.foot_m - exo.heel_to_ankle_m + 1e-9)
         self.w = exo.hip_width_m
         self.normals = {s.surface_id: s.normal_w for s in truth.surfaces}
 
-    def foothold(self, sole_xy: np.ndarray, yaw: float) -> tuple[_Foot, float] | None:
-        """The foot placed with its sole point at ``sole_xy`` and heading ``yaw``, or None."""
+    def foothold(self, sole_xy: np.ndarray, yaw: float, overhang: bool = False) -> tuple[_Foot, float] | None:
+        """The foot placed with its sole point at ``sole_xy`` and heading ``yaw``, or None.
+
+        ``overhang``: only placements whose toes overhang a lower surface (or nothing) beyond the
+        ball of the foot, the rest of the sole from the ankle on the surface.
+        """
         z, sid = self.terrain.query(sole_xy[None, :])
         if sid[0] < 0:
             return None
@@ -188,15 +223,18 @@ class _Planner:
         sole = np.array([sole_xy[0], sole_xy[1], z[0]])
         pts = sole + np.outer(self.grid[:, 0], xf) + np.outer(self.grid[:, 1], y)
         tz, tid = self.terrain.query(pts[:, :2])
-        if np.any(tid[self.front] != sid[0]) or np.any(np.isfinite(tz) & (tz > pts[:, 2] + 1e-6)):
+        if np.any(np.isfinite(tz) & (tz > pts[:, 2] + 1e-6)):
+            return None
+        whole = not np.any(tid[self.front] != sid[0])
+        if whole == overhang or (overhang and np.any(tid[self.to_ball] != sid[0])):
             return None
         ankle = sole + self.exo.sole_height_m * zf
         return _Foot(ankle, pitch, int(sid[0])), float(z[0])
 
-    def place(self, A: np.ndarray, sg: float, yaw: float, a: float) -> tuple[_Foot, float] | None:
+    def place(self, A: np.ndarray, sg: float, yaw: float, a: float, overhang: bool = False) -> tuple[_Foot, float] | None:
         x = np.array([np.cos(yaw), np.sin(yaw)])
         y = np.array([-np.sin(yaw), np.cos(yaw)])
-        return self.foothold(A[:2] + a * x - sg * self.w * y, yaw)
+        return self.foothold(A[:2] + a * x - sg * self.w * y, yaw, overhang)
 
 
 def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
@@ -257,9 +295,6 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
         in_place = abs(err) > max_turn + 1e-9  # turn on the spot first
         final = arrived and not in_place
         a_nom = 0.0 if (arrived or in_place) else min(route.step_length_m, remaining)
-        options = _choose(pl, route, A, sg, yaw1, a_nom, feet, stance, swing, final)
-        if not options:
-            raise GaitError(f"no foothold for foot_{swing} ahead of ({A[0]:.2f}, {A[1]:.2f}) at t={t:.2f} s")
         sw = feet[swing]
         x0 = np.array([np.cos(yaw), np.sin(yaw), 0.0])
         x1 = np.array([np.cos(yaw1), np.sin(yaw1), 0.0])
@@ -267,38 +302,70 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
         a0 = float((sw.ankle - A) @ x0)
         f0, h0 = float((pelvis - A) @ x0), float(pelvis[2] - A[2])
         found = None
-        for new, _a in options:  # the first foothold the legs can reach and swing to
-            dz0 = float(new.ankle[2] - A[2])
-            # on stairs the trailing (stance) foot rises on its toes (only on straight steps)
-            rises = HEEL_RISE_RAD if abs(dz0) > 0.05 and yaw1 == yaw else (0.0,)
-            for rise in rises:
-                A_end = toe_pivot(exo, A, x1[None, :], np.array([beta0]), np.array([beta0 - rise]))[0] if rise else A
-                a1, dz = float((new.ankle - A_end) @ x1), float(new.ankle[2] - A_end[2])
-                pitch1 = CLIMB_LEAN_RAD if dz > 0.05 else np.radians(2.0)
-                knee_max = DESCENT_KNEE_MAX_RAD if dz < -0.05 else STANCE_KNEE_MAX_RAD
-                pelvis_opts = end_pelvis_options(exo, a1, dz, pitch1, (beta0 - rise, new.pitch), knee_max)
-                if not pelvis_opts:
-                    continue
-                plan = _SwingPlan(
-                    stance=stance, A=A.copy(), stance_pitch=(beta0, beta0 - rise), yaw=(yaw, yaw1),
-                    pitch=(pitch, pitch1), f=(f0, 0.0), h=(h0, 0.0), a=(a0, a1),
-                    z=(float(sw.ankle[2]), float(new.ankle[2])), swing_pitch=(sw.pitch, new.pitch),
-                )  # fmt: skip
-                for lag, dip in SWING_SHAPES:
-                    plan.lag, plan.dip = lag, dip
-                    apex = swing_apex_m(exo, pl.terrain, plan, clearance_m=route.clearance_m)
-                    found = _first_feasible(exo, plan, apex, f0, h0, pelvis_opts[:8])
+        straight = yaw1 == yaw
+        # pass 1: flat landings; pass 2 (straight steps down only): forefoot landings, the swing
+        # foot touching down on its toe tip pitched down by pw, first with the usual stance knee
+        # limit, then with the deeper one of steep stairs
+        variants = [(0.0, DESCENT_KNEE_MAX_RAD)]
+        if straight:
+            variants += [(pw, knee) for knee in (DESCENT_KNEE_MAX_RAD, DESCENT_KNEE_DEEP_RAD) for pw in TOE_FIRST_RAD]
+        n_options = 0
+        # the toes may overhang a tread's nosing (on the way down, treads shorter than the foot)
+        # only when no foothold of the whole foot works
+        for overhang in (False, True):
+            options = _choose(pl, route, A, sg, yaw1, a_nom, feet, stance, swing, final, overhang)
+            n_options += len(options)
+            for pw, knee_down in variants:
+                for new, _a in options:  # the first foothold the legs can reach and swing to
+                    dz0 = float(new.ankle[2] - A[2])
+                    if pw and dz0 >= -0.05:
+                        continue
+                    land = new.ankle
+                    if pw:  # the ankle of the foot on its toe tip, heel up (it lowers in the double support)
+                        land = toe_pivot(exo, new.ankle, x1[None, :], np.array([new.pitch]), np.array([new.pitch - pw]))[0]
+                    # on stairs the trailing (stance) foot rises on its toes (only on straight steps)
+                    rises = (HEEL_RISE_RAD if not pw else HEEL_RISE_DEEP_RAD) if abs(dz0) > 0.05 and straight else (0.0,)
+                    for rise in rises:
+                        A_end = toe_pivot(exo, A, x1[None, :], np.array([beta0]), np.array([beta0 - rise]))[0] if rise else A
+                        a1, dz = float((land - A_end) @ x1), float(land[2] - A_end[2])
+                        pitch1 = CLIMB_LEAN_RAD if dz > 0.05 else np.radians(2.0)
+                        knee_max = knee_down if dz < -0.05 else STANCE_KNEE_MAX_RAD
+                        pelvis_opts = end_pelvis_options(exo, a1, dz, pitch1, (beta0 - rise, new.pitch - pw), knee_max)
+                        if not pelvis_opts:
+                            continue
+                        plan = _SwingPlan(
+                            stance=stance, A=A.copy(), stance_pitch=(beta0, beta0 - rise), yaw=(yaw, yaw1),
+                            pitch=(pitch, pitch1), f=(f0, 0.0), h=(h0, 0.0), a=(a0, a1),
+                            z=(float(sw.ankle[2]), float(land[2])), swing_pitch=(sw.pitch, new.pitch - pw),
+                        )  # fmt: skip
+                        drop = None
+                        if pw:  # where the pelvis goes while the heel lowers: a double stance on the flat foot
+                            a2, dz2 = float((new.ankle - A_end) @ x1), float(new.ankle[2] - A_end[2])
+                            flat_opts = end_pelvis_options(exo, a2, dz2, pitch1, (beta0 - rise, new.pitch), knee_max)
+                            if not flat_opts:
+                                continue
+                            drop = (float(new.pitch), flat_opts[:8])
+                        for lag, dip in SWING_SHAPES:
+                            plan.lag, plan.dip = lag, dip
+                            apex = swing_apex_m(exo, pl.terrain, plan, clearance_m=route.clearance_m, exact_progress=True)
+                            found = _first_feasible(exo, plan, apex, f0, h0, pelvis_opts[:8], drop)
+                            if found:
+                                f1, h1, fh2 = found
+                                found = (new, A_end, beta0 - rise, f1, h1, pitch1, plan, apex, drop, fh2)
+                                break
+                        if found:
+                            break
                     if found:
-                        f1, h1 = found
-                        found = (new, A_end, beta0 - rise, f1, h1, pitch1, plan, apex)
                         break
                 if found:
                     break
             if found:
                 break
+        if not n_options:
+            raise GaitError(f"no foothold for foot_{swing} ahead of ({A[0]:.2f}, {A[1]:.2f}) at t={t:.2f} s")
         if found is None:
             raise GaitError(f"no reachable foothold for foot_{swing} ahead of ({A[0]:.2f}, {A[1]:.2f}) at t={t:.2f} s")
-        new, A_end, beta1, f1, h1, pitch1, plan, apex = found
+        new, A_end, beta1, f1, h1, pitch1, plan, apex, drop, fh2 = found
         if first_plan is None:
             first_plan = plan
             if route.still_s > 0:
@@ -306,12 +373,19 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
                 t = route.still_s
         segs.append(plan.segment(t, t + route.swing_s, apex))
         sole = new.ankle - exo.sole_height_m * np.array([-np.sin(new.pitch) * x1[0], -np.sin(new.pitch) * x1[1], np.cos(new.pitch)])
-        steps.append(Footstep(swing, t, t + route.swing_s, sole, float(yaw1), new.surface))
+        liftoff = t
         t += route.swing_s
         hold = route.double_support_s if not final else route.still_s
-        if hold > 0:
+        if drop is not None:  # forefoot landing: the heel lowers in the double support, the pelvis comes down
+            hold = max(hold, HEEL_DROP_S)
+            f1, h1 = fh2
+            segs.append(heel_drop_segment(exo, plan, t, t + hold, to_pitch=drop[0], f=f1, h=h1))
+            t += hold
+        elif hold > 0:
             segs.append(still_segment(exo, plan, t, t + hold, at_end=True))
             t += hold
+        # touch-down: the foot flat on its support (after the heel lowering of a forefoot landing)
+        steps.append(Footstep(swing, liftoff, t if drop is not None else liftoff + route.swing_s, sole, float(yaw1), new.surface))
         ylat = np.array([-np.sin(yaw1), np.cos(yaw1), 0.0])
         pelvis = A_end + f1 * x1 - sg * 0.5 * w * ylat
         pelvis[2] = A_end[2] + h1
@@ -331,35 +405,47 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
 
 
 def _first_feasible(
-    exo: ExoSpec, plan: _SwingPlan, apex: float, f0: float, h0: float, options: list[tuple[float, float]]
-) -> tuple[float, float] | None:
-    """The first pelvis end pose (f, h) whose whole swing the legs can follow."""
+    exo: ExoSpec, plan: _SwingPlan, apex: float, f0: float, h0: float, options: list[tuple[float, float]],
+    heel_drop: tuple[float, list[tuple[float, float]]] | None = None,
+) -> tuple[float, float, tuple[float, float] | None] | None:
+    """The first pelvis end pose (f, h) whose whole swing the legs can follow. After a forefoot
+    landing (``heel_drop`` = (pitch of the flat foot, pelvis poses over it)) also the first pose
+    the pelvis can move to while the heel lowers: (f, h, (f2, h2)); else (f, h, None)."""
     for f1, h1 in options:
         plan.f, plan.h = (f0, f1), (h0, h1)
         try:
             Motion(exo, [plan.segment(0.0, 1.0, apex)]).state(np.linspace(0.0, 1.0, 101))
         except GaitError:
             continue
-        return f1, h1
+        if heel_drop is None:
+            return f1, h1, None
+        for f2, h2 in heel_drop[1]:
+            seg = heel_drop_segment(exo, plan, 0.0, 1.0, to_pitch=heel_drop[0], f=f2, h=h2)
+            try:
+                Motion(exo, [seg]).state(np.linspace(0.0, 1.0, 51))
+            except GaitError:
+                continue
+            return f1, h1, (f2, h2)
     return None
 
 
 def _choose(
     pl: _Planner, route: Route, A: np.ndarray, sg: float, yaw: float, a_nom: float,
-    feet: dict[str, _Foot], stance: str, swing: str, final: bool,
+    feet: dict[str, _Foot], stance: str, swing: str, final: bool, overhang: bool = False,
 ) -> list[tuple[_Foot, float]]:  # fmt: skip
-    """Footholds for the swing foot with their distance ``a`` ahead of the stance ankle, best first."""
+    """Footholds for the swing foot with their distance ``a`` ahead of the stance ankle, best first
+    (with ``overhang``: only those with the toes over a lower surface, see :meth:`_Planner.foothold`)."""
     S_A = feet[stance].surface
     z_A = float(A[2])
     trailing_low = abs(float(feet[swing].ankle[2]) - z_A) > 0.05
     if not final and not (route.stairs == "step-to" and trailing_low):
-        got = pl.place(A, sg, yaw, a_nom)  # the nominal step, when it lands at about the same level
+        got = pl.place(A, sg, yaw, a_nom, overhang)  # the nominal step, when it lands at about the same level
         if got is not None and abs(got[0].ankle[2] - z_A) <= 0.03 + abs(a_nom) * np.tan(np.radians(25.0)):
             return [(got[0], a_nom)]
     grid = np.round(np.arange(-0.15, max(0.8, 2.0 * route.step_length_m) + 1e-9, 0.01), 6)
     cands: list[tuple[float, _Foot]] = []
     for a in grid:
-        got = pl.place(A, sg, yaw, float(a))
+        got = pl.place(A, sg, yaw, float(a), overhang)
         if got is not None and abs(got[0].ankle[2] - z_A) <= 0.35:
             cands.append((float(a), got[0]))
 

@@ -10,9 +10,9 @@ from exobench.core.transforms import rot_y, rot_z
 from exobench.envs.gait import GaitError, climb_step, leg_fk, leg_ik, walk
 from exobench.envs.scenarios import PAPER_CASES, StairScenario
 from exobench.envs.sim import compiled_staircase
-from exobench.envs.terrain import Terrain
+from exobench.envs.terrain import Terrain, sole_grid_f
 from exobench.envs.walk import Route
-from exobench.models.exo_spec import LEG_JOINTS, ExoSpec
+from exobench.models.exo_spec import JOINT_RANGES_RAD, LEG_JOINTS, ExoSpec
 from exobench.models.world_params import CourseParams
 from exobench.models.worlds import build_course, build_level, compose
 
@@ -195,3 +195,56 @@ def test_walk_up_and_down_stairs_lands_every_step_on_a_tread(mode):
         assert sid[0] == f.surface_id and f.sole_w[2] == pytest.approx(z[0], abs=1e-9)
     t = np.arange(0.0, motion.duration_s, 0.002)
     assert motion.max_penetration_m(truth, t) < 1e-9
+
+
+@pytest.mark.parametrize("height_m, tread_m", [(1.65, 0.30), (1.88, 0.25)])
+def test_walk_down_steep_stairs_lands_on_every_tread_without_penetration(height_m, tread_m):
+    """0.25 m risers (seeds/002): every foot flat on its own tread, no penetration; a 1.88 m user's
+    foot (0.279 m) is longer than a 0.25 m tread: its toes beyond the ball of the foot overhang."""
+    exo = ExoSpec(user_height_m=height_m)
+    riser, tread, n = 0.25, tread_m, 3
+    course = CourseParams(
+        segments=(
+            ("stairs", {"direction": "up", "n_steps": n, "riser_m": riser, "tread_m": tread}),
+            ("level", {"length_m": 1.2}),
+            ("stairs", {"direction": "down", "n_steps": n, "riser_m": riser, "tread_m": tread}),
+        ),
+        approach_m=1.0,
+        exit_m=1.2,
+    )
+    truth = build_course(course).truth
+    edge = (n - 1) * tread + 1.2  # x of the landing's edge (the first riser down)
+    toe = exo.foot_m - exo.heel_to_ankle_m
+    start_x = edge - toe - 0.08  # standing on the landing, toes 8 cm before its edge
+    route = Route(((start_x, 0.0), (edge + n * tread + 0.8, 0.0)), step_length_m=0.35, swing_s=0.42,
+                  double_support_s=0.12, max_turn_deg=45.0)  # fmt: skip
+    motion = walk(exo, truth, route)
+    terrain = Terrain(truth)
+    down = [s for s in truth.surfaces if s.kind == "tread" and s.polygon_w[:, 0].min() >= edge - 1e-9]
+    assert len(down) == n - 1  # the last tread down is the exit floor
+    landed = [f.surface_id for f in motion.footsteps]
+    for s in down:  # step-over: one foot on each tread of the flight
+        assert landed.count(s.surface_id) == 1
+    # each footstep: the sole flat on its surface when the foot is down (from the heel to the ball
+    # of the foot at least, 0.73 of the foot from the heel; all of it when it fits), heights
+    # falling riser by riser
+    grid = sole_grid_f(exo)
+    on = grid[:, 0] <= 0.73 * exo.foot_m - exo.heel_to_ankle_m if exo.foot_m > tread else np.ones(len(grid), bool)
+    z_prev = riser * n
+    for f in motion.footsteps:
+        st = motion.state(f.touchdown_s)
+        pts = st.sole_points_w(f.side, grid)[0]
+        z, ids = terrain.query(pts[:, :2])
+        assert np.all(ids[on] == f.surface_id)
+        np.testing.assert_allclose(pts[on, 2], z[on], atol=1e-9)
+        assert np.all(pts[:, 2] >= np.nan_to_num(z, nan=-np.inf) - 1e-9)
+        assert f.sole_w[2] == pytest.approx(z_prev, abs=1e-9) or f.sole_w[2] == pytest.approx(z_prev - riser, abs=1e-9)
+        z_prev = min(z_prev, float(f.sole_w[2]))
+    assert z_prev == pytest.approx(0.0, abs=1e-9)  # reached the floor
+    t = np.arange(0.0, motion.duration_s, 0.002)
+    assert motion.max_penetration_m(truth, t) < 1e-9
+    # the legs stay inside the model's joint ranges
+    q = motion.state(t).joints
+    for k, name in enumerate(LEG_JOINTS):
+        lo, hi = JOINT_RANGES_RAD[name[:-2]]
+        assert lo - 1e-9 <= q[:, k].min() and q[:, k].max() <= hi + 1e-9
