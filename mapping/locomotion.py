@@ -1,0 +1,522 @@
+"""Locomotion-mode prediction pipelines of seeds/002 (track ``locomotion``).
+
+``terrain-recon`` (:class:`TerrainReconstructionPipeline`), the paper's method: per RGB-D frame
+the camera pose from odometry, TSDF integration (eq. 19-22, :mod:`exobench.mapping.tsdf`), a
+ray-cast smoothed depth image I_D^s (at 1/``raycast_downsample`` of the input resolution [A: 1]),
+AHC plane extraction on it (:mod:`exobench.perception.plane_extraction`; its pixel thresholds
+apply to the image it is given), the plane set update by IoU (eq. 23) with the voxels seen in
+I_D^s as the scope, the terrain description (II-F) and the mode of the next step at the
+footprint predicted by eq. 16-18 (II-D).
+``single-frame`` (:class:`SingleFramePipeline`), the ablation baseline: AHC on the raw depth of the
+current frame only, a fresh plane set each frame, no TSDF; same footprint and mode logic.
+
+Inputs (frames):
+
+- :class:`RgbdFrame` of the selected camera (``Config.rgbd_sensor_id``; default the calibration's
+  ``extra["camera"]`` if it names an RGB-D mount, else its first RGB-D mount: ``rgbd_head``,
+  ``rgbd_chest``, ``rgbd_thigh_l/r``);
+- :class:`OdometrySample` with ``sensor_id`` ``odom_<mount>`` (``odom_head`` for ``rgbd_head``, or
+  ``extra["odometry"]["sensor_id"]`` when it ``tracks`` the camera; ``Config.odometry_sensor_id``
+  overrides, ``"*"`` takes any). Assumption: the odometry tracks the
+  camera's optical frame (T_odom_body = T_odom_cam), as the paper's D-VIO tracks the D455. If the
+  calibration has a mount for the odometry id on the camera's parent link, the camera pose is
+  T_odom_body @ inv(T_parent_odom) @ T_parent_cam instead. The odometry frame is gravity-aligned
+  (z up); the plane set, the terrain and the footprints live in it;
+- :class:`ContactSample` of the heel pads (calibration mounts of kind ``contact`` named
+  ``contact_<side>_heel``): a heel strike (contact after no contact,
+  :class:`~exobench.perception.footprint.GaitDivider`) records the odometry position and velocity;
+  a heel already in contact at its first sample is a standing foot, not a strike.
+
+The pose of a depth image and the state at a heel strike come from the odometry sample nearest
+to the measurement time (stamp minus the mount's ``latency_s`` parameter, if any) among the
+samples received so far, if at most ``max_odometry_age_s`` [A: 0.25 s; the odometry may run at
+the camera rate] away, otherwise the odometry is missing; at a heel strike the position is that
+sample's moved on at its velocity to the strike time.
+
+Footprints (eq. 16-18 with :func:`~exobench.perception.footprint.predict_footprint`): p_pd is the
+tracked body's position at the next heel strike. The body is about midway between the feet at a
+heel strike, so the next foot lands ``lead_fraction`` x delta_nxt ahead of p_pd, and the foot that
+has just struck lies ``lead_fraction`` x delta_n ahead of p_n [A: 0.5], plus the left/right
+offsets of ``footprint``. A walker that pauses at heel strikes (stop-and-go) has no velocity
+there; when ||v_xy|| < ``min_speed_m_s`` the walking direction is taken from p_n - p_{n-1} [A].
+The mode of the next step is :meth:`TerrainDescription.mode_of_step` from the current to the
+predicted footprint. When no plane lies under the current footprint (it has left the view, as it
+does at once for ``single-frame``), its terrain height is the one measured under it earlier: in
+a previous frame of the same step, or under the predicted footprint just before the heel strike.
+
+Output: one :class:`ModePrediction` per processed RGB-D frame (``process`` returns it as the
+online estimate; None for other frames); ``finalize`` returns the :class:`LocomotionEstimate`
+with the final plane set (kind: the terrain type, else the plane's slope class) and ``stats``.
+``latency_s`` is the wall time from the frame's arrival in ``process`` to its mode
+(``time.perf_counter``).
+
+Faulty input never raises. A malformed frame (``"bad_frame"``), no or stale odometry
+(``"no_odometry"``), an all-invalid depth image (sky, covered lens: ``"no_depth"``) or a numerical
+failure (``"error"``) leave the map and the plane set as they were; a valid frame without any
+plane (``"no_planes"``) is integrated and updates the plane set (eq. 23 rule 3); a wall in view
+(a plane, nothing walkable) is an ordinary frame. The prediction is still made from the kept
+state, with the reason as its status, and counted in ``stats``. Fewer than three heel strikes
+give ``"few_strikes"`` and mode ``""``; no terrain under either footprint keeps the previous mode
+(``"no_terrain"``); no plane under the predicted footprint gives ``"extrapolated"`` (the current
+terrain continues), none under the current one and no remembered height ``"current_unknown"``.
+Dropped frames (a gap of more than 1.5 frame periods at the mount's ``rate_hz``) are counted in
+``stats["n_dropped_frames"]``; frames skipped by ``every_k`` in ``n_skipped_rate``.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from exobench.core import (
+    Calibration,
+    ConfigError,
+    ContactSample,
+    ExobenchError,
+    Frame,
+    LocomotionEstimate,
+    ModePrediction,
+    OdometrySample,
+    RgbdFrame,
+    UnknownNameError,
+    check_range,
+)
+from exobench.mapping.tsdf import Tsdf, TsdfConfig
+from exobench.perception.footprint import (
+    FootprintConfig,
+    GaitDivider,
+    HeelStrike,
+    heading_frame,
+    predict_footprint,
+)
+from exobench.perception.plane_extraction import AhcConfig, extract_planes
+from exobench.perception.plane_tracking import PlaneSet, PlaneTrackingConfig, voxel_keys
+from exobench.perception.terrain_description import (
+    TerrainConfig,
+    TerrainDescription,
+    describe_terrain,
+    plane_height_at,
+)
+
+STATUSES = ("ok", "no_depth", "bad_frame", "no_odometry", "no_planes", "error", "few_strikes", "no_direction",
+            "no_terrain", "extrapolated", "current_unknown")
+_NUMERIC_ERRORS = (ValueError, ArithmeticError, np.linalg.LinAlgError)
+ODOM_HISTORY_S = 2.0
+
+
+def _latency(params: dict[str, Any]) -> float:
+    """A mount's delivery latency ``latency_s`` (0 when absent or not a finite number >= 0)."""
+    try:
+        x = float(params.get("latency_s", 0.0))
+    except (TypeError, ValueError):
+        return 0.0
+    return x if math.isfinite(x) and x >= 0.0 else 0.0
+
+
+def _check_config(cfg: Any) -> None:
+    if isinstance(cfg.every_k, bool) or not isinstance(cfg.every_k, (int, np.integer)) or cfg.every_k < 1:
+        raise ConfigError("every_k", cfg.every_k, "an integer >= 1")
+    check_range("max_odometry_age_s", cfg.max_odometry_age_s, 0.0)
+    check_range("lead_fraction", cfg.lead_fraction, 0.0, 1.0)
+    check_range("min_speed_m_s", cfg.min_speed_m_s, 0.0)
+
+
+def _finite_array(a: Any, shape: tuple[int, ...]) -> np.ndarray | None:
+    """``a`` as a float array of ``shape`` with finite entries, else None."""
+    try:
+        out = np.asarray(a, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return out if out.shape == shape and bool(np.all(np.isfinite(out))) else None
+
+
+def _inv(T: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = T[:3, :3].T
+    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return out
+
+
+def backproject(depth_m: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, stride: int = 1) -> np.ndarray:
+    """World points (N, 3) of the valid (> 0, finite) pixels of a z-depth image, every ``stride``-th
+    row and column."""
+    d = np.asarray(depth_m, dtype=float)[::stride, ::stride]
+    v, u = np.nonzero(np.isfinite(d) & (d > 0))
+    z = d[v, u]
+    u = u * stride
+    v = v * stride
+    x = (u - K[0, 2]) * z / K[0, 0]
+    y = (v - K[1, 2]) * z / K[1, 1]
+    p = np.column_stack([x, y, z])
+    return p @ T_world_cam[:3, :3].T + T_world_cam[:3, 3]
+
+
+def scale_intrinsics(K: np.ndarray, s: float) -> np.ndarray:
+    """K of the image resized by ``s`` (pixel centres at integer coordinates)."""
+    out = np.array(K, dtype=float)
+    out[0, 0] *= s
+    out[1, 1] *= s
+    out[0, 2] = (out[0, 2] + 0.5) * s - 0.5
+    out[1, 2] = (out[1, 2] + 0.5) * s - 0.5
+    return out
+
+
+class _LocomotionPipeline:
+    """Frame handling, walking information and mode prediction shared by both pipelines; the
+    subclasses differ in how a depth frame updates the plane set (:meth:`_update_planes`)."""
+
+    name = ""
+    track = "locomotion"
+
+    @dataclass(frozen=True)
+    class Config:
+        """``rgbd_sensor_id``: camera used ("" = the calibration's first RGB-D mount).
+        ``odometry_sensor_id``: odometry used ("" = ``odom_<mount>``, "*" = any). ``every_k``:
+        process every k-th frame of the camera. ``max_odometry_age_s``: the latest odometry
+        sample older than this (from a frame or heel strike) counts as missing. ``lead_fraction``,
+        ``min_speed_m_s``: footprints (module docstring). ``observed_stride_px``: pixel stride of
+        the points whose voxels make the update's scope. ``ahc``, ``planes``, ``terrain``,
+        ``footprint``: configs of plane extraction, eq. 23, the terrain description, eq. 16-18."""
+
+        rgbd_sensor_id: str = ""
+        odometry_sensor_id: str = ""
+        every_k: int = 1
+        max_odometry_age_s: float = 0.25
+        lead_fraction: float = 0.5
+        min_speed_m_s: float = 0.05
+        observed_stride_px: int = 4
+        ahc: AhcConfig = field(default_factory=AhcConfig)
+        planes: PlaneTrackingConfig = field(default_factory=PlaneTrackingConfig)
+        terrain: TerrainConfig = field(default_factory=TerrainConfig)
+        footprint: FootprintConfig = field(default_factory=FootprintConfig)
+
+        def __post_init__(self) -> None:
+            _check_config(self)
+
+    def __init__(self, config: Any | None = None) -> None:
+        self.config = config if config is not None else type(self).Config()
+        self._ready = False
+
+    # --- protocol ---
+    def reset(self, calibration: Calibration) -> None:
+        c = self.config
+        rgbd = calibration.mounts_of_kind("rgbd")
+        named = calibration.extra.get("camera")
+        if c.rgbd_sensor_id:
+            mount = calibration.mount(c.rgbd_sensor_id)
+            if mount.kind != "rgbd":
+                raise ConfigError("rgbd_sensor_id", c.rgbd_sensor_id, [m.sensor_id for m in rgbd])
+        elif isinstance(named, str) and named in [m.sensor_id for m in rgbd]:
+            mount = calibration.mount(named)
+        elif rgbd:
+            mount = rgbd[0]
+        else:
+            raise UnknownNameError("RGB-D sensor", "(first of the calibration)", [])
+        self._rgbd_id = mount.sensor_id
+        self._period_s = 1.0 / float(mount.params["rate_hz"]) if mount.params.get("rate_hz") else None
+        suffix = self._rgbd_id[len("rgbd_"):] if self._rgbd_id.startswith("rgbd_") else self._rgbd_id
+        odo_info = calibration.extra.get("odometry")
+        odo_named = odo_info.get("sensor_id") if isinstance(odo_info, dict) and odo_info.get("tracks") == mount.sensor_id \
+            else None
+        self._odom_id = c.odometry_sensor_id or (odo_named if isinstance(odo_named, str) else f"odom_{suffix}")
+        self._cam_latency_s = _latency(mount.params)
+        self._contact_latency_s = {m.sensor_id: _latency(m.params) for m in calibration.mounts_of_kind("contact")}
+        self._T_body_cam = np.eye(4)
+        self._odom_mount = "camera"
+        odom_mounts = [m for m in calibration.mounts if m.sensor_id == self._odom_id]
+        if odom_mounts:
+            om = odom_mounts[0]
+            if om.parent_link == mount.parent_link:
+                self._T_body_cam = _inv(np.asarray(om.T_parent_sensor, float)) @ np.asarray(mount.T_parent_sensor, float)
+                self._odom_mount = "calibrated"
+            else:
+                self._odom_mount = "unrelated_link_assumed_camera"
+        heels = {}
+        for m in calibration.mounts_of_kind("contact"):
+            parts = m.sensor_id.split("_")
+            if len(parts) == 3 and parts[2] == "heel" and parts[1] in ("l", "r"):
+                heels[m.sensor_id] = parts[1]
+        self._heels = heels or {"contact_l_heel": "l", "contact_r_heel": "r"}
+
+        self._divider = GaitDivider()
+        self._heel_seen: set[str] = set()
+        self._plane_set = PlaneSet(c.planes)
+        self._description: TerrainDescription | None = None
+        self._odom: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last ODOM_HISTORY_S of samples
+        self._last_stamp: dict[str, float] = {}
+        self._last_rgbd_s: float | None = None
+        self._n_rgbd = 0
+        self._last_mode = ""
+        self._cur_z: tuple[int, float | None] = (-1, None)  # terrain z under the current footprint, by strike count
+        self._next_z: tuple[int, float | None] = (-1, None)  # terrain z under the predicted one, by strike count
+        self._predictions: list[ModePrediction] = []
+        self._stats: dict[str, Any] = {k: 0 for k in (
+            "n_frames", "n_rgbd_frames", "n_processed", "n_skipped_rate", "n_dropped_frames", "n_out_of_order",
+            "n_bad_frame", "n_no_depth", "n_no_odometry", "n_no_planes", "n_errors", "n_bad_odometry",
+            "n_odometry", "n_contact", "n_heel_strikes", "n_strikes_without_odometry", "n_direction_from_positions",
+            "n_current_remembered", "n_initial_contacts", "n_ignored")}
+        self._stats.update(rgbd_sensor_id=self._rgbd_id, odometry_sensor_id=self._odom_id,
+                           odometry_mount=self._odom_mount, errors=[])
+        self._reset_map()
+        self._ready = True
+
+    def process(self, frame: Frame) -> ModePrediction | None:
+        t0 = time.perf_counter()
+        if not self._ready:
+            raise ExobenchError("process() called before reset()")
+        self._stats["n_frames"] += 1
+        if isinstance(frame, OdometrySample):
+            self._on_odometry(frame)
+        elif isinstance(frame, ContactSample):
+            self._on_contact(frame)
+        elif isinstance(frame, RgbdFrame) and frame.sensor_id == self._rgbd_id:
+            return self._on_rgbd(frame, t0)
+        else:
+            self._stats["n_ignored"] += 1
+        return None
+
+    def finalize(self) -> LocomotionEstimate:
+        if not self._ready:
+            raise ExobenchError("finalize() called before reset()")
+        desc = describe_terrain(self._plane_set, self.config.terrain)
+        planes = []
+        for pid, p in desc.planes.items():
+            planes.append({"id": int(pid), "normal": p.normal.copy(), "centroid": p.center_m.copy(),
+                           "kind": desc.terrain_kind(pid) or desc.plane_classes[pid], "score": int(p.score),
+                           "area_m2": float(p.area_m2)})
+        stats = dict(self._stats)
+        stats["errors"] = list(self._stats["errors"])
+        lat = [p.latency_s for p in self._predictions]
+        stats["latency_median_s"] = float(np.median(lat)) if lat else float("nan")
+        stats["n_planes"] = len(planes)
+        stats["status_counts"] = {s: sum(p.status == s for p in self._predictions) for s in STATUSES}
+        return LocomotionEstimate(tuple(self._predictions), tuple(planes), stats)
+
+    # --- subclass hooks ---
+    def _reset_map(self) -> None:
+        """Forget the map (TSDF) kept by a subclass."""
+
+    def _update_planes(self, depth_m: np.ndarray, K: np.ndarray, T_odom_cam: np.ndarray) -> int:
+        """Update the plane set from one valid depth frame; returns the number of planes detected."""
+        raise NotImplementedError
+
+    # --- frames ---
+    def _in_order(self, frame: Frame) -> bool:
+        stamp = float(frame.stamp_s)
+        last = self._last_stamp.get(frame.sensor_id)
+        if not math.isfinite(stamp) or (last is not None and stamp < last):
+            self._stats["n_out_of_order"] += 1
+            return False
+        self._last_stamp[frame.sensor_id] = stamp
+        return True
+
+    def _on_odometry(self, frame: OdometrySample) -> None:
+        if self._odom_id != "*" and frame.sensor_id != self._odom_id:
+            self._stats["n_ignored"] += 1
+            return
+        if not self._in_order(frame):
+            return
+        T = _finite_array(frame.T_odom_body, (4, 4))
+        v = _finite_array(frame.v_odom_m_s, (3,))
+        if T is None or v is None:
+            self._stats["n_bad_odometry"] += 1
+            return
+        self._stats["n_odometry"] += 1
+        stamp = float(frame.stamp_s)
+        self._odom.append((stamp, T.copy(), v.copy()))
+        if self._odom[0][0] < stamp - ODOM_HISTORY_S:
+            self._odom = [o for o in self._odom if o[0] >= stamp - ODOM_HISTORY_S]
+
+    def _odometry_at(self, t_s: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """(T_odom_body, v, t_s - sample stamp) of the odometry sample nearest to the measurement
+        time ``t_s`` (the earlier on a tie) if at most max_odometry_age_s away, else None."""
+        if not self._odom:
+            return None
+        stamps = [o[0] for o in self._odom]
+        i = bisect.bisect_left(stamps, t_s)
+        cand = [j for j in (i - 1, i) if 0 <= j < len(stamps)]
+        j = min(cand, key=lambda k: (abs(stamps[k] - t_s), k))
+        if abs(stamps[j] - t_s) > self.config.max_odometry_age_s:
+            return None
+        return self._odom[j][1], self._odom[j][2], t_s - stamps[j]
+
+    def _on_contact(self, frame: ContactSample) -> None:
+        side = self._heels.get(frame.sensor_id)
+        if side is None:
+            self._stats["n_ignored"] += 1
+            return
+        if not self._in_order(frame):
+            return
+        self._stats["n_contact"] += 1
+        odo = self._odometry_at(float(frame.stamp_s) - self._contact_latency_s.get(frame.sensor_id, 0.0))
+        nan3 = np.full(3, np.nan)
+        # the position at the strike instant: the nearest sample moved on at its velocity
+        p, v = (odo[0][:3, 3] + odo[1] * odo[2], odo[1]) if odo is not None else (nan3, nan3)
+        first = frame.sensor_id not in self._heel_seen
+        self._heel_seen.add(frame.sensor_id)
+        strike = self._divider.update(float(frame.stamp_s), side, bool(frame.in_contact), p, v)
+        if strike is None:
+            return
+        if first:  # a foot already on the ground when the stream starts: standing, not a strike
+            self._divider.strikes.pop()
+            self._stats["n_initial_contacts"] += 1
+        elif odo is None:
+            self._divider.strikes.pop()
+            self._stats["n_strikes_without_odometry"] += 1
+        else:
+            self._stats["n_heel_strikes"] += 1
+
+    def _on_rgbd(self, frame: RgbdFrame, t0: float) -> ModePrediction | None:
+        st = self._stats
+        st["n_rgbd_frames"] += 1
+        if not self._in_order(frame):
+            return None
+        stamp = float(frame.stamp_s)
+        if self._last_rgbd_s is not None and self._period_s:
+            gap = round((stamp - self._last_rgbd_s) / self._period_s)
+            if stamp - self._last_rgbd_s > 1.5 * self._period_s:
+                st["n_dropped_frames"] += max(1, int(gap) - 1)
+        self._last_rgbd_s = stamp
+        self._n_rgbd += 1
+        if (self._n_rgbd - 1) % self.config.every_k:
+            st["n_skipped_rate"] += 1
+            return None
+        st["n_processed"] += 1
+
+        status = "ok"
+        depth = np.asarray(frame.depth_m) if frame.depth_m is not None else np.zeros(0)
+        K = _finite_array(frame.K, (3, 3))
+        odo = self._odometry_at(stamp - self._cam_latency_s)
+        if depth.ndim != 2 or depth.size == 0 or not np.issubdtype(depth.dtype, np.number) or K is None \
+                or K[0, 0] <= 0 or K[1, 1] <= 0:
+            status = "bad_frame"
+        elif odo is None:
+            status = "no_odometry"
+        else:
+            depth = np.where(np.isfinite(depth) & (depth > 0), depth, 0.0).astype(np.float32)
+            if not np.any(depth > 0):
+                status = "no_depth"
+        if status == "ok":
+            try:
+                if self._update_planes(depth, K, odo[0] @ self._T_body_cam) == 0:
+                    status = "no_planes"
+            except _NUMERIC_ERRORS as e:  # a numerical failure on odd input keeps the last state
+                status = "error"
+                if len(st["errors"]) < 10:
+                    st["errors"].append(f"{stamp:.3f}: {type(e).__name__}: {e}")
+            self._description = None
+        if status != "ok":
+            st[f"n_{status}" if status != "error" else "n_errors"] += 1
+
+        mode, footprint, why = self._predict()
+        if status == "ok" and why != "ok":
+            status = why
+        t1 = time.perf_counter()
+        pred = ModePrediction(stamp, mode, footprint, len(self._divider.strikes), t1 - t0, status)
+        self._predictions.append(pred)
+        return pred
+
+    # --- walking information and mode ---
+    def _predict(self) -> tuple[str, np.ndarray, str]:
+        """(mode, predicted footprint (x, y, terrain z or NaN), reason) from the kept state."""
+        c = self.config
+        strikes = self._divider.strikes
+        nan3 = np.full(3, np.nan)
+        if len(strikes) < 3:
+            return self._last_mode, nan3, "few_strikes"
+        last, prev = strikes[-1], strikes[-2]
+        v = last.v_world
+        if float(np.hypot(v[0], v[1])) < max(c.min_speed_m_s, 1e-9):
+            d = last.p_world - prev.p_world
+            if float(np.hypot(d[0], d[1])) < 1e-6:
+                return self._last_mode, nan3, "no_direction"
+            self._stats["n_direction_from_positions"] += 1
+            strikes = [*strikes[:-1], HeelStrike(last.stamp_s, last.side, last.p_world, d)]
+        try:
+            pred = predict_footprint(strikes, c.footprint)
+        except ValueError:
+            return self._last_mode, nan3, "no_direction"
+        H = heading_frame(strikes[-1].v_world)
+        fwd = H[:, 0]
+        delta_n = float(pred.step_sizes_m[-1])
+        nxt = pred.footprint_world + c.lead_fraction * pred.delta_next_m * fwd
+        off_cur = np.asarray(c.footprint.offset_l_m if last.side == "l" else c.footprint.offset_r_m, dtype=float)
+        cur = last.p_world + c.lead_fraction * delta_n * fwd + H @ off_cur
+        if self._description is None:
+            self._description = describe_terrain(self._plane_set, c.terrain)
+        desc = self._description
+        n = len(self._divider.strikes)
+        remembered = self._cur_z[1] if self._cur_z[0] == n else (self._next_z[1] if self._next_z[0] == n - 1 else None)
+        dec = desc.mode_of_step(cur[:2], nxt[:2], remembered)
+        if dec.current_plane_id is not None:
+            self._cur_z = (n, plane_height_at(desc.planes[dec.current_plane_id], cur))
+        elif remembered is not None:
+            self._cur_z = (n, remembered)
+            self._stats["n_current_remembered"] += 1
+        z = float("nan")
+        if dec.next_plane_id is not None:
+            z = plane_height_at(desc.planes[dec.next_plane_id], nxt)
+            self._next_z = (n, z)
+        footprint = np.array([nxt[0], nxt[1], z])
+        if dec.mode == "":
+            return self._last_mode, footprint, dec.reason
+        self._last_mode = dec.mode
+        return dec.mode, footprint, "ok" if dec.reason == "current_remembered" else dec.reason
+
+
+class TerrainReconstructionPipeline(_LocomotionPipeline):
+    """The paper's pipeline: TSDF, ray-cast smoothed depth, AHC, plane set (eq. 23), terrain,
+    footprint (eq. 16-18), mode (module docstring)."""
+
+    name = "terrain-recon"
+
+    @dataclass(frozen=True)
+    class Config(_LocomotionPipeline.Config):
+        """``raycast_downsample``: I_D^s is ray cast at 1/n of the input resolution (K scaled)
+        [A: 1, full resolution; 2 halves the ray-cast cost (~100 ms at 640x480 on two cores, see
+        mapping/tsdf.py) but Open3D's ray cast was seen to hang on half-resolution images]."""
+
+        tsdf: TsdfConfig = field(default_factory=TsdfConfig)
+        raycast_downsample: int = 1
+
+        def __post_init__(self) -> None:
+            _check_config(self)
+            n = self.raycast_downsample
+            if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+                raise ConfigError("raycast_downsample", n, "an integer >= 1")
+
+    def _reset_map(self) -> None:
+        self._tsdf = Tsdf(self.config.tsdf)
+
+    def _update_planes(self, depth_m: np.ndarray, K: np.ndarray, T_odom_cam: np.ndarray) -> int:
+        h, w = depth_m.shape
+        n = self.config.raycast_downsample
+        self._tsdf.integrate(depth_m, K, T_odom_cam)
+        Ks = scale_intrinsics(K, 1.0 / n)
+        smooth = np.asarray(self._tsdf.raycast_depth(Ks, T_odom_cam, max(1, w // n), max(1, h // n)), dtype=np.float32)
+        smooth = np.where(np.isfinite(smooth) & (smooth > 0), smooth, 0.0).astype(np.float32)
+        detected = extract_planes(smooth, Ks, T_odom_cam, self.config.ahc, self.config.planes.cell_m) \
+            if np.any(smooth > 0) else []
+        stride = max(1, self.config.observed_stride_px // n)
+        observed = voxel_keys(backproject(smooth, Ks, T_odom_cam, stride), self.config.planes.cell_m)
+        self._plane_set.update(list(detected), observed)
+        return len(detected)
+
+
+class SingleFramePipeline(_LocomotionPipeline):
+    """Ablation baseline: planes from the current raw depth frame only (AHC, no TSDF), a fresh
+    plane set each frame; same footprint and mode logic (module docstring)."""
+
+    name = "single-frame"
+
+    def _update_planes(self, depth_m: np.ndarray, K: np.ndarray, T_odom_cam: np.ndarray) -> int:
+        detected = list(extract_planes(depth_m, K, T_odom_cam, self.config.ahc, self.config.planes.cell_m))
+        if detected:  # a frame without planes keeps the last plane set
+            self._plane_set = PlaneSet(self.config.planes)
+            self._plane_set.update(detected)
+        return len(detected)

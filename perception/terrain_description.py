@@ -1,0 +1,314 @@
+"""Terrain description from the tracked plane set and the locomotion mode of the next step
+(seeds/002, II-F "Finally, we reconstruct representations of terrain information ...").
+
+The paper builds T = {<tau, s, Gamma>} (type, terrain id, planes) from the existing plane set of
+eq. 23: "Ramps and level grounds are extracted directly based on slope theta and area a, while
+stairs are constructed iteratively from at least two planes with two preset thresholds, the
+distance of centres d_ij = |c_i - c_j| and the vertical distance h_ij = |z_i - z_j|". Terrains are
+hash tables (plane id -> terrain id, terrain id -> terrain) so a predicted footprint is projected
+on the ground by a look-up. Here, in a gravity-aligned frame (z up):
+
+- slope theta = arccos |n_z| of a plane's unit normal; a plane with theta <= ``level_max_slope_deg``
+  is *horizontal*, one with ``level_max_slope_deg`` < theta <= ``ramp_max_slope_deg`` a *ramp*
+  plane, steeper ones (risers, walls) are not walkable;
+- stairs: the horizontal planes (area >= ``stair_min_area_m2``) are linked pairwise when
+  d_ij <= ``stair_center_max_m`` and ``stair_rise_min_m`` <= h_ij <= ``stair_rise_max_m``
+  (h_ij from the plane centres); every connected group of at least two planes (grown iteratively
+  from a pair, as in the paper) is one stairs terrain;
+- level ground: every other horizontal plane with area >= ``level_min_area_m2``;
+- ramp: every ramp plane with area >= ``ramp_min_area_m2``;
+- a terrain's id s is the smallest plane id in Gamma, so it stays while its planes are tracked.
+
+Footprint projection: a walkable plane (of any terrain) *supports* (x, y) when some voxel of its
+support (the ``cells`` of :mod:`plane_tracking`) that lies on the plane (see
+:meth:`TerrainDescription.support_xy`) has its centre within ``support_margin_m`` of (x, y)
+horizontally; of the supporting planes the one with the most such voxels within
+``support_radius_m`` (then the highest) is the terrain under the point: near an edge, a few
+voxels of one plane reach over the other one's area (cells straddling the edge), and the plane
+that covers the neighbourhood wins. With a known current plane, planes more than ``max_step_rise_m`` above or below the current
+footprint are skipped (a table top, a floor seen down a stairwell).
+
+Mode of the next step, "the terrain under the predicted footprint relative to the current one"
+(:func:`predict_mode`), with T the plane under the predicted footprint and C the one under the
+current footprint:
+
+- T a ramp plane: RA when T rises from the current to the predicted footprint (along the walking
+  direction), else RD;
+- T horizontal, C horizontal: dz = z_T - z_C; SA if dz >= ``stair_rise_min_m``, SD if
+  dz <= -``stair_rise_min_m``, else LG. A step between two horizontal planes that far apart is a
+  stair step even when the lower one (a large floor, its centre far away) is not linked to the
+  stairs by d_ij;
+- T horizontal, C a ramp: LG (leaving the ramp); no plane under the current footprint: its
+  height ``current_height_m`` if the caller knows it (e.g. measured before the foot left the
+  view; reason ``"current_remembered"``), else LG, reason ``"current_unknown"``;
+- no plane under the predicted footprint: the current terrain is assumed to continue (C a ramp:
+  RA/RD along it; C horizontal: LG), reason ``"extrapolated"``; neither known: mode ``""``,
+  reason ``"no_terrain"``.
+
+The paper gives no values for its thresholds; the defaults are [A] choices: level ground up to
+6 deg (building codes allow 1:12 = 4.8 deg for ramps' landings), ramps up to 25 deg (the paper's
+steepest is 17.8 deg), risers 0.10-0.30 m (its stairs are 0.15-0.25 m), adjacent tread centres
+within 0.8 m (a tread 0.25-0.35 m deep plus the rise, with room for partly seen treads).
+Pure numpy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from exobench.core import ConfigError, check_range
+
+from .plane_tracking import PlaneSet, TrackedPlane, voxel_centers
+
+TERRAIN_TYPES = ("level", "ramp", "stairs")
+PLANE_CLASSES = ("horizontal", "ramp", "steep")
+
+
+@dataclass(frozen=True)
+class TerrainConfig:
+    """Thresholds of the terrain description and of the mode decision (module docstring)."""
+
+    level_max_slope_deg: float = 6.0
+    ramp_max_slope_deg: float = 25.0
+    level_min_area_m2: float = 0.05
+    ramp_min_area_m2: float = 0.05
+    stair_min_area_m2: float = 0.02
+    stair_center_max_m: float = 0.8
+    stair_rise_min_m: float = 0.10
+    stair_rise_max_m: float = 0.30
+    max_step_rise_m: float = 0.6
+    support_margin_m: float = 0.06
+    support_radius_m: float = 0.10
+    support_fit_tol_m: float = 0.01
+    min_score: int = 1
+
+    def __post_init__(self) -> None:
+        check_range("terrain.level_max_slope_deg", self.level_max_slope_deg, 0.0, 45.0)
+        check_range("terrain.ramp_max_slope_deg", self.ramp_max_slope_deg, self.level_max_slope_deg, 89.0)
+        for name in ("level_min_area_m2", "ramp_min_area_m2", "stair_min_area_m2"):
+            check_range(f"terrain.{name}", getattr(self, name), 0.0)
+        check_range("terrain.stair_center_max_m", self.stair_center_max_m, 0.0, low_open=True)
+        check_range("terrain.stair_rise_min_m", self.stair_rise_min_m, 0.0, low_open=True)
+        check_range("terrain.stair_rise_max_m", self.stair_rise_max_m, self.stair_rise_min_m)
+        check_range("terrain.max_step_rise_m", self.max_step_rise_m, self.stair_rise_min_m)
+        check_range("terrain.support_margin_m", self.support_margin_m, 0.0)
+        check_range("terrain.support_radius_m", self.support_radius_m, 0.0)
+        check_range("terrain.support_fit_tol_m", self.support_fit_tol_m, 0.0)
+        if isinstance(self.min_score, bool) or not isinstance(self.min_score, (int, np.integer)) or self.min_score < 1:
+            raise ConfigError("terrain.min_score", self.min_score, "an integer >= 1")
+
+
+@dataclass(frozen=True)
+class Terrain:
+    """T = <tau, s, Gamma>: type, terrain id, plane ids (stairs: ordered by height, lowest first)."""
+
+    kind: str
+    terrain_id: int
+    plane_ids: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class ModeDecision:
+    """The mode of the next step and how it was found.
+
+    ``reason``: ``"ok"``, ``"extrapolated"`` (no plane under the predicted footprint),
+    ``"current_unknown"`` (no plane under the current one), ``"current_remembered"`` (none,
+    but its height was given) or ``"no_terrain"`` (neither).
+    ``dz_m``: height of the terrain under the predicted footprint minus under the current one
+    (NaN when either is unknown).
+    """
+
+    mode: str
+    reason: str
+    next_plane_id: int | None
+    current_plane_id: int | None
+    next_terrain: str | None
+    current_terrain: str | None
+    dz_m: float
+
+
+def slope_deg(normal: np.ndarray) -> float:
+    """Slope theta of a plane from its normal (either orientation), deg, in [0, 90]."""
+    n = np.asarray(normal, dtype=float)
+    nz = abs(float(n[2])) / max(float(np.linalg.norm(n)), 1e-12)
+    return float(np.degrees(np.arccos(min(1.0, nz))))
+
+
+def plane_class(normal: np.ndarray, config: TerrainConfig) -> str:
+    """``"horizontal"``, ``"ramp"`` or ``"steep"`` by slope."""
+    th = slope_deg(normal)
+    if th <= config.level_max_slope_deg:
+        return "horizontal"
+    if th <= config.ramp_max_slope_deg:
+        return "ramp"
+    return "steep"
+
+
+def plane_height_at(plane: TrackedPlane, xy: np.ndarray) -> float:
+    """Height z of the (non-vertical) plane at (x, y)."""
+    n, c = plane.normal, plane.center_m
+    return float(c[2] - (n[0] * (xy[0] - c[0]) + n[1] * (xy[1] - c[1])) / n[2])
+
+
+@dataclass
+class TerrainDescription:
+    """The terrains of one plane set and the look-ups of the footprint projection.
+
+    ``terrains``: terrain id -> :class:`Terrain`; ``terrain_of_plane``: plane id -> terrain id
+    (walkable planes of some terrain only); ``planes``: plane id -> plane; ``plane_classes``:
+    plane id -> class of every plane considered (score >= min_score).
+    """
+
+    config: TerrainConfig
+    cell_m: float
+    planes: dict[int, TrackedPlane]
+    plane_classes: dict[int, str]
+    terrains: dict[int, Terrain]
+    terrain_of_plane: dict[int, int]
+    _support_xy: dict[int, np.ndarray] = field(default_factory=dict, repr=False)
+
+    def terrain_kind(self, plane_id: int | None) -> str | None:
+        """Type of the terrain a plane belongs to (None if none)."""
+        if plane_id is None or plane_id not in self.terrain_of_plane:
+            return None
+        return self.terrains[self.terrain_of_plane[plane_id]].kind
+
+    def support_xy(self, plane_id: int) -> np.ndarray:
+        """Horizontal positions (K, 2) of the voxel centres of a plane's support that lie on the
+        plane: within 0.5 cell (|n_x| + |n_y| + |n_z|) + ``support_fit_tol_m`` of it (a voxel
+        crossed by the plane has its centre that close; voxels of points of a neighbouring
+        surface merged in at an edge lie farther)."""
+        if plane_id not in self._support_xy:
+            p = self.planes[plane_id]
+            v = voxel_centers(p.cells, self.cell_m)
+            n = np.asarray(p.normal, dtype=float)
+            tol = 0.5 * self.cell_m * float(np.abs(n).sum()) + self.config.support_fit_tol_m
+            on = np.abs((v - p.center_m) @ n) <= tol
+            self._support_xy[plane_id] = v[on, :2]
+        return self._support_xy[plane_id]
+
+    def plane_under(self, xy: np.ndarray, ref_height_m: float | None = None) -> int | None:
+        """Id of the walkable plane under (x, y), or None: of the planes with a support voxel
+        within ``support_margin_m`` of (x, y), the one with the most support voxels within
+        ``support_radius_m`` (then the highest at (x, y), then the lowest id)."""
+        p = np.asarray(xy, dtype=float)[:2]
+        c = self.config
+        best: tuple[int, float, int] | None = None
+        for pid in sorted(self.terrain_of_plane):
+            sup = self.support_xy(pid)
+            if sup.size == 0:
+                continue
+            d2 = (sup[:, 0] - p[0]) ** 2 + (sup[:, 1] - p[1]) ** 2
+            if float(d2.min()) > c.support_margin_m ** 2:
+                continue
+            z = plane_height_at(self.planes[pid], p)
+            if ref_height_m is not None and abs(z - ref_height_m) > c.max_step_rise_m:
+                continue
+            key = (-int(np.count_nonzero(d2 <= c.support_radius_m ** 2)), -z, pid)
+            if best is None or key < best:
+                best = key
+        return None if best is None else best[2]
+
+    def mode_of_step(self, current_xy: np.ndarray, next_xy: np.ndarray,
+                     current_height_m: float | None = None) -> ModeDecision:
+        """Locomotion mode of the step from the current footprint to the predicted one.
+
+        ``current_height_m``: terrain height under the current footprint known otherwise (e.g.
+        measured before the foot left the view), used only when no plane lies under it; the
+        reason is then ``"current_remembered"``."""
+        cur = np.asarray(current_xy, dtype=float)[:2]
+        nxt = np.asarray(next_xy, dtype=float)[:2]
+        c_id = self.plane_under(cur)
+        if c_id is not None:
+            z_c: float | None = plane_height_at(self.planes[c_id], cur)
+        elif current_height_m is not None and np.isfinite(current_height_m):
+            z_c = float(current_height_m)
+        else:
+            z_c = None
+        n_id = self.plane_under(nxt, z_c)
+        c_cls = None if c_id is None else self.plane_classes[c_id]
+        c_kind, n_kind = self.terrain_kind(c_id), self.terrain_kind(n_id)
+        if n_id is None:
+            if c_id is None:
+                return ModeDecision("", "no_terrain", None, None, None, None, float("nan"))
+            mode = self._ramp_mode(c_id, cur, nxt) if c_cls == "ramp" else "LG"
+            return ModeDecision(mode, "extrapolated", None, c_id, None, c_kind, float("nan"))
+        z_n = plane_height_at(self.planes[n_id], nxt)
+        dz = float("nan") if z_c is None else z_n - z_c
+        reason = "ok" if c_id is not None else ("current_remembered" if z_c is not None else "current_unknown")
+        if self.plane_classes[n_id] == "ramp":
+            return ModeDecision(self._ramp_mode(n_id, cur, nxt), reason, n_id, c_id, n_kind, c_kind, dz)
+        mode = "LG"
+        if c_cls in ("horizontal", None) and z_c is not None:
+            if dz >= self.config.stair_rise_min_m:
+                mode = "SA"
+            elif dz <= -self.config.stair_rise_min_m:
+                mode = "SD"
+        return ModeDecision(mode, reason, n_id, c_id, n_kind, c_kind, dz)
+
+    def _ramp_mode(self, plane_id: int, cur: np.ndarray, nxt: np.ndarray) -> str:
+        """RA when the ramp plane rises from ``cur`` to ``nxt``, else RD."""
+        plane = self.planes[plane_id]
+        return "RA" if plane_height_at(plane, nxt) - plane_height_at(plane, cur) >= 0.0 else "RD"
+
+
+def describe_terrain(plane_set: PlaneSet, config: TerrainConfig | None = None) -> TerrainDescription:
+    """The terrain description T of the current plane set (module docstring)."""
+    c = config or TerrainConfig()
+    planes = {pid: p for pid, p in sorted(plane_set.planes.items()) if p.score >= c.min_score}
+    classes = {pid: plane_class(p.normal, c) for pid, p in planes.items()}
+    horiz = [pid for pid in planes if classes[pid] == "horizontal"]
+
+    # stairs: link horizontal planes pairwise by d_ij and h_ij, grow groups (union-find)
+    cand = [pid for pid in horiz if planes[pid].area_m2 >= c.stair_min_area_m2]
+    parent = {pid: pid for pid in cand}
+
+    def find(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    for a_i, a in enumerate(cand):
+        for b in cand[a_i + 1:]:
+            ca, cb = planes[a].center_m, planes[b].center_m
+            d = float(np.linalg.norm(ca - cb))
+            h = abs(float(ca[2] - cb[2]))
+            if d <= c.stair_center_max_m and c.stair_rise_min_m <= h <= c.stair_rise_max_m:
+                ra, rb = find(a), find(b)
+                if ra != rb:
+                    parent[max(ra, rb)] = min(ra, rb)
+    groups: dict[int, list[int]] = {}
+    for pid in cand:
+        groups.setdefault(find(pid), []).append(pid)
+
+    terrains: dict[int, Terrain] = {}
+    of_plane: dict[int, int] = {}
+    for members in groups.values():
+        if len(members) < 2:
+            continue
+        tid = min(members)
+        ordered = tuple(sorted(members, key=lambda i: (float(planes[i].center_m[2]), i)))
+        terrains[tid] = Terrain("stairs", tid, ordered)
+        for pid in members:
+            of_plane[pid] = tid
+    for pid, p in planes.items():
+        if pid in of_plane:
+            continue
+        if classes[pid] == "horizontal" and p.area_m2 >= c.level_min_area_m2:
+            terrains[pid] = Terrain("level", pid, (pid,))
+            of_plane[pid] = pid
+        elif classes[pid] == "ramp" and p.area_m2 >= c.ramp_min_area_m2:
+            terrains[pid] = Terrain("ramp", pid, (pid,))
+            of_plane[pid] = pid
+    terrains = dict(sorted(terrains.items()))
+    return TerrainDescription(c, plane_set.config.cell_m, planes, classes, terrains, of_plane)
+
+
+def predict_mode(plane_set: PlaneSet, next_xy: np.ndarray, current_xy: np.ndarray,
+                 config: TerrainConfig | None = None, current_height_m: float | None = None) -> ModeDecision:
+    """Mode of the next step: the terrain under the predicted footprint ``next_xy`` relative to
+    the one under the current footprint ``current_xy`` (module docstring)."""
+    return describe_terrain(plane_set, config).mode_of_step(current_xy, next_xy, current_height_m)

@@ -1,0 +1,217 @@
+"""Terrain description and next-step mode (seeds/002 II-F) on constructed plane sets."""
+
+import numpy as np
+import pytest
+
+from exobench.core import ConfigError
+from exobench.perception.plane_tracking import DetectedPlane, PlaneSet, PlaneTrackingConfig, voxel_keys
+from exobench.perception.terrain_description import (
+    TerrainConfig,
+    describe_terrain,
+    plane_class,
+    predict_mode,
+    slope_deg,
+)
+
+CELL = 0.05
+CFG = TerrainConfig()
+
+
+def patch(x0, x1, z0, slope_deg_=0.0, y0=-0.5, y1=0.5, center_z=None):
+    """A plane over [x0, x1] x [y0, y1] at height z0 at x0, rising along +x by ``slope_deg_``."""
+    t = np.tan(np.radians(slope_deg_))
+    xs = np.arange(x0 + 0.25 * CELL, x1, 0.5 * CELL)
+    ys = np.arange(y0 + 0.25 * CELL, y1, 0.5 * CELL)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    pts = np.column_stack([X.ravel(), Y.ravel(), z0 + t * (X.ravel() - x0)])
+    n = np.array([-np.sin(np.radians(slope_deg_)), 0.0, np.cos(np.radians(slope_deg_))])
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    c = np.array([cx, cy, z0 + t * (cx - x0) if center_z is None else center_z])
+    area = (x1 - x0) * (y1 - y0) / np.cos(np.radians(slope_deg_))
+    return DetectedPlane(c, n, float(area), voxel_keys(pts, CELL))
+
+
+def plane_set(*planes):
+    ps = PlaneSet(PlaneTrackingConfig(cell_m=CELL))
+    for p in planes:
+        ps.add(p)
+    return ps
+
+
+RISER, TREAD = 0.17, 0.30
+
+
+def staircase():
+    """Ground x in [0, 2] at z 0, four treads 0.3 m deep rising 0.17 m each, a top landing."""
+    planes = [patch(0.0, 2.0, 0.0)]
+    for k in range(1, 5):
+        planes.append(patch(2.0 + TREAD * (k - 1), 2.0 + TREAD * k, RISER * k))
+    planes.append(patch(3.2, 5.0, RISER * 5))
+    return plane_set(*planes)
+
+
+def tread_x(k):
+    return 2.0 + TREAD * (k - 0.5)
+
+
+def test_slope_and_plane_class():
+    assert slope_deg([0, 0, 1]) == 0.0
+    assert slope_deg([0, 0, -1]) == 0.0
+    assert slope_deg([np.sin(np.radians(15)), 0, np.cos(np.radians(15))]) == pytest.approx(15.0)
+    assert slope_deg([1, 0, 0]) == pytest.approx(90.0)
+    assert plane_class([0, 0, 1], CFG) == "horizontal"
+    assert plane_class([np.sin(np.radians(15)), 0, np.cos(np.radians(15))], CFG) == "ramp"
+    assert plane_class([1, 0, 0], CFG) == "steep"
+
+
+def test_staircase_description_and_modes_up_and_down():
+    desc = describe_terrain(staircase(), CFG)
+    stairs = [t for t in desc.terrains.values() if t.kind == "stairs"]
+    assert len(stairs) == 1
+    # the treads (ids 1-4) are linked; the ground's and the landing's centres are too far away
+    assert stairs[0].plane_ids == (1, 2, 3, 4)
+    assert desc.terrain_kind(0) == "level" and desc.terrain_kind(5) == "level"
+
+    up = [(1.6, tread_x(1), "SA"), (tread_x(1), tread_x(2), "SA"), (tread_x(3), tread_x(4), "SA"),
+          (tread_x(4), 3.6, "SA"), (3.6, 4.2, "LG"), (0.5, 1.1, "LG"), (tread_x(1), tread_x(3), "SA")]
+    for cur, nxt, mode in up:
+        d = desc.mode_of_step([cur, 0.1], [nxt, -0.1])
+        assert (d.mode, d.reason) == (mode, "ok"), (cur, nxt, d)
+        d = desc.mode_of_step([nxt, -0.1], [cur, 0.1])  # walking back down
+        assert d.mode == {"SA": "SD", "LG": "LG"}[mode], (nxt, cur, d)
+    d = desc.mode_of_step([tread_x(1), 0.0], [tread_x(2), 0.0])
+    assert d.dz_m == pytest.approx(RISER)
+    assert d.next_terrain == "stairs" and d.current_terrain == "stairs"
+
+
+def test_ramp_modes_by_walking_direction():
+    th = 15.8
+    rise = 2.0 * np.tan(np.radians(th))
+    ps = plane_set(patch(0.0, 2.0, 0.0), patch(2.0, 4.0, 0.0, th), patch(4.0, 6.0, rise))
+    desc = describe_terrain(ps, CFG)
+    assert [t.kind for t in desc.terrains.values()] == ["level", "ramp", "level"]
+    assert desc.mode_of_step([1.2, 0], [1.8, 0]).mode == "LG"
+    assert desc.mode_of_step([1.7, 0], [2.3, 0]).mode == "RA"
+    assert desc.mode_of_step([2.5, 0], [3.1, 0]).mode == "RA"
+    assert desc.mode_of_step([3.7, 0], [4.3, 0]).mode == "LG"  # off the ramp onto the landing
+    assert desc.mode_of_step([4.3, 0], [3.7, 0]).mode == "RD"
+    assert desc.mode_of_step([3.1, 0], [2.5, 0]).mode == "RD"
+    assert desc.mode_of_step([2.3, 0], [1.7, 0]).mode == "LG"
+    # across the ramp (no height change along the step): not a descent
+    assert desc.mode_of_step([3.0, -0.3], [3.0, 0.3]).mode == "RA"
+    # a ramp rising along -x, walked along -x, is ascended
+    ps2 = plane_set(DetectedPlane(np.array([3.0, 0, 0.3]), np.array([np.sin(np.radians(th)), 0, np.cos(np.radians(th))]),
+                                  2.0, patch(2.0, 4.0, 0.0, th).cells))
+    assert predict_mode(ps2, [2.5, 0], [3.0, 0], CFG).mode == "RA"
+
+
+def test_rise_threshold_boundary():
+    h = CFG.stair_rise_min_m
+    for dz, mode in ((h + 1e-6, "SA"), (h - 1e-6, "LG"), (-h - 1e-6, "SD"), (-h + 1e-6, "LG")):
+        ps = plane_set(patch(0.0, 1.0, 0.0, center_z=0.0), patch(1.0, 2.0, dz, center_z=dz))
+        assert predict_mode(ps, [1.5, 0.0], [0.5, 0.0], CFG).mode == mode, dz
+
+
+def test_slope_threshold_boundary():
+    lim = CFG.level_max_slope_deg
+    for th, kind in ((lim - 0.01, "level"), (lim + 0.01, "ramp")):
+        desc = describe_terrain(plane_set(patch(0.0, 2.0, 0.0, th)), CFG)
+        assert [t.kind for t in desc.terrains.values()] == [kind]
+    ramp_lim = CFG.ramp_max_slope_deg
+    assert describe_terrain(plane_set(patch(0.0, 2.0, 0.0, ramp_lim - 0.01)), CFG).terrains[0].kind == "ramp"
+    assert describe_terrain(plane_set(patch(0.0, 2.0, 0.0, ramp_lim + 0.01)), CFG).terrains == {}
+
+
+def test_stair_link_thresholds_at_their_boundaries():
+    """Two small horizontal planes form stairs iff d_ij <= d_max and h_min <= h_ij <= h_max."""
+    c = CFG
+
+    def pair(dx, h):
+        a = patch(0.0, 0.3, 0.0, center_z=0.0)
+        b = DetectedPlane(a.center_m + np.array([dx, 0.0, h]), a.normal, a.area_m2, patch(0.0 + dx, 0.3 + dx, h).cells)
+        return [t.kind for t in describe_terrain(plane_set(a, b), c).terrains.values()]
+
+    h = 0.15
+    dx_max = np.sqrt(c.stair_center_max_m**2 - h**2)
+    assert pair(dx_max - 1e-6, h) == ["stairs"]
+    assert pair(dx_max + 1e-6, h) == ["level", "level"]
+    assert pair(0.3, c.stair_rise_max_m - 1e-6) == ["stairs"]
+    assert pair(0.3, c.stair_rise_max_m + 1e-6) == ["level", "level"]
+    assert pair(0.3, c.stair_rise_min_m + 1e-6) == ["stairs"]
+    assert pair(0.3, c.stair_rise_min_m - 1e-6) == ["level", "level"]
+
+
+def test_area_and_score_filters():
+    tiny = patch(0.0, 0.1, 0.0, y0=0.0, y1=0.1)  # 0.01 m^2 < level_min_area_m2
+    assert describe_terrain(plane_set(tiny), CFG).terrains == {}
+    ps = plane_set(patch(0.0, 2.0, 0.0))
+    assert describe_terrain(ps, TerrainConfig(min_score=2)).terrains == {}
+    ps.planes[0].score = 2
+    assert list(describe_terrain(ps, TerrainConfig(min_score=2)).terrains) == [0]
+
+
+def test_unknown_terrain_extrapolation_and_reach():
+    th = 12.0
+    ps = plane_set(patch(0.0, 2.0, 0.0, th))
+    d = predict_mode(ps, [2.5, 0.0], [1.8, 0.0], CFG)  # off the mapped ramp: it continues
+    assert (d.mode, d.reason, d.next_plane_id) == ("RA", "extrapolated", None)
+    assert predict_mode(ps, [-0.5, 0.0], [0.2, 0.0], CFG).mode == "RD"
+    d = predict_mode(plane_set(patch(0.0, 2.0, 0.0)), [2.6, 0.0], [1.8, 0.0], CFG)
+    assert (d.mode, d.reason) == ("LG", "extrapolated")
+    d = predict_mode(plane_set(patch(0.0, 2.0, 0.0)), [10.0, 0.0], [9.5, 0.0], CFG)
+    assert (d.mode, d.reason) == ("", "no_terrain")
+    d = predict_mode(plane_set(patch(0.0, 2.0, 0.3)), [1.0, 0.0], [-3.0, 0.0], CFG)
+    assert (d.mode, d.reason, d.next_plane_id) == ("LG", "current_unknown", 0)
+    # a table top 0.75 m above the floor, over the footprint, is out of reach
+    ps = plane_set(patch(0.0, 3.0, 0.0), patch(1.5, 2.5, 0.75))
+    d = predict_mode(ps, [2.0, 0.0], [1.4, 0.0], CFG)
+    assert (d.mode, d.next_plane_id) == ("LG", 0)
+
+
+def test_nearest_supporting_plane_at_a_nosing():
+    desc = describe_terrain(staircase(), CFG)
+    # 1 cm before and after the first riser's line x = 2.0
+    assert desc.plane_under([1.99, 0.0]) == 0
+    assert desc.plane_under([2.01, 0.0]) == 1
+
+
+def test_config_errors():
+    with pytest.raises(ConfigError):
+        TerrainConfig(level_max_slope_deg=-1.0)
+    with pytest.raises(ConfigError):
+        TerrainConfig(ramp_max_slope_deg=3.0)
+    with pytest.raises(ConfigError):
+        TerrainConfig(stair_rise_max_m=0.05)
+    with pytest.raises(ConfigError):
+        TerrainConfig(min_score=0)
+    with pytest.raises(ConfigError):
+        TerrainConfig(stair_center_max_m=float("nan"))
+
+
+def test_stray_edge_voxels_do_not_claim_the_neighbouring_plane():
+    """A ramp's support holding voxels of the landing beyond its top edge (cells straddling the
+    edge merged in): a footprint 0.15 m onto the landing is on the landing, not on the ramp."""
+    th = 15.8
+    rise = 2.0 * np.tan(np.radians(th))
+    ramp = patch(0.0, 2.0, 0.0, th)
+    stray = patch(2.0, 2.25, rise).cells  # landing voxels wrongly in the ramp's support
+    ramp = DetectedPlane(ramp.center_m, ramp.normal, ramp.area_m2, np.union1d(ramp.cells, stray))
+    landing = patch(2.0, 3.5, rise)
+    desc = describe_terrain(plane_set(ramp, landing), CFG)
+    assert desc.plane_under([2.15, 0.0]) == 1
+    assert desc.mode_of_step([1.85, 0.0], [2.15, 0.0]).mode == "LG"
+    assert desc.plane_under([1.85, 0.0]) == 0
+
+
+def test_remembered_current_height():
+    """The current footprint out of the mapped area: a height known from before decides the step."""
+    ps = plane_set(patch(1.0, 2.0, 0.34))
+    d = predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.17)
+    assert (d.mode, d.reason, d.current_plane_id) == ("SA", "current_remembered", None)
+    assert d.dz_m == pytest.approx(0.17)
+    assert predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.51).mode == "SD"
+    assert predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.30).mode == "LG"
+    # a plane under the current footprint wins over the remembered height
+    ps = plane_set(patch(1.0, 2.0, 0.34), patch(0.0, 1.0, 0.17))
+    d = predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.34)
+    assert (d.mode, d.reason, d.current_plane_id) == ("SA", "ok", 1)
