@@ -156,12 +156,13 @@ def list_() -> None:
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["rtls", "sim", "lidar"]))
+@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion"]))
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
 def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
-    """Time the RTLS update against a batch refit (rtls), the simulator (sim) or the LiDAR (lidar)."""
+    """Time the RTLS update against a batch refit (rtls), the simulator (sim), the LiDAR (lidar) or
+    the locomotion track at 640x480 (locomotion: latency per prediction, TSDF and rendering fps)."""
     from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
     from .results import json_safe
 
@@ -175,12 +176,16 @@ def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
         result = bench_rtls(episode)
     elif what == "lidar":
         result = bench_lidar(seed=seed)
+    elif what == "locomotion":
+        from .bench import bench_locomotion
+
+        result = bench_locomotion(seed=seed)
     else:
         result = bench_sim(seed=seed)
     if as_json:
         click.echo(json.dumps(json_safe(result), indent=2))
         return
-    if what == "lidar":  # one figure per line: exobench.static.ms_per_sweep ...
+    if what in ("lidar", "locomotion"):  # one figure per line: exobench.static.ms_per_sweep ...
         result = _flat(result)
     w = max(28, *(len(k) + 1 for k in result))
     for key, value in json_safe(result).items():

@@ -33,6 +33,18 @@ BUILTIN_PIPELINES: dict[str, tuple[str, str]] = {
     "rtls": ("exobench.perception.pipelines:RtlsStairs", "stairs"),
     "rtls-htvr": ("exobench.perception.pipelines:RtlsHtvrStairs", "stairs"),
     "batch-ransac": ("exobench.perception.pipelines:BatchRansacStairs", "stairs"),
+    "filter-none": ("exobench.perception.filter_pipelines:FilterNone", "lidar-filter"),
+    "filter-threshold": ("exobench.perception.filter_pipelines:FilterThreshold", "lidar-filter"),
+    "filter-naive-ground": ("exobench.perception.filter_pipelines:FilterNaiveGround", "lidar-filter"),
+    "filter-normal-ground": ("exobench.perception.filter_pipelines:FilterNormalGround", "lidar-filter"),
+    "kiss-icp": ("exobench.mapping.kiss_icp_pipeline:KissIcpPipeline", "odometry"),
+    "leo-slam": ("exobench.mapping.leo_slam:LeoSlamPipeline", "odometry"),
+    "sc++": ("exobench.perception.place_recognition:ScanContextPPPipeline", "loop-closure"),
+    "gsc-height": ("exobench.perception.place_recognition:GscHeightPipeline", "loop-closure"),
+    "gsc-huber": ("exobench.perception.place_recognition:GscHuberPipeline", "loop-closure"),
+    "gsc-intensity": ("exobench.perception.place_recognition:GscIntensityPipeline", "loop-closure"),
+    "terrain-recon": ("exobench.mapping.locomotion:TerrainReconstructionPipeline", "locomotion"),
+    "single-frame": ("exobench.mapping.locomotion:SingleFramePipeline", "locomotion"),
 }
 
 

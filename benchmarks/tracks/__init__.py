@@ -7,6 +7,10 @@ from typing import Any
 
 TRACKS: dict[str, str] = {
     "stairs": "exobench.benchmarks.tracks.stairs:StairsTrack",
+    "lidar-filter": "exobench.benchmarks.tracks.lidar_filter:LidarFilterTrack",
+    "odometry": "exobench.benchmarks.tracks.odometry:OdometryTrack",
+    "locomotion": "exobench.benchmarks.tracks.locomotion:LocomotionTrack",
+    "loop-closure": "exobench.benchmarks.tracks.loop_closure:LoopClosureTrack",
 }
 
 

@@ -1,0 +1,206 @@
+"""The locomotion track: suites, the paper's grid and figures, bad input, and one tiny episode end to end."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from exobench.benchmarks.cli import cli
+from exobench.benchmarks.tracks import get_track
+from exobench.benchmarks.tracks.locomotion_paper import (
+    HEIGHT_GROUPS,
+    MOUNTS,
+    PATTERNS,
+    PROTOCOLS,
+    TABLE_II,
+    TABLE_III,
+    TERRAIN_GROUPS,
+    table_ii_value,
+)
+from exobench.core.estimates import LocomotionEstimate, ModePrediction
+from exobench.core.frames import RgbdFrame
+
+
+@pytest.fixture(scope="module")
+def track():
+    return get_track("locomotion")
+
+
+def test_every_case_of_every_suite_validates_and_names_are_unique(track):
+    for suite in track.suites:
+        cases = track.cases(suite)
+        assert len({c.name for c in cases}) == len(cases)
+        for c in cases:
+            values = track.validate_scenario(c.scenario)
+            assert all(values[k] == v for k, v in c.scenario.items())
+    assert len(track.cases("quick")) == 4
+    quick = {(c.scenario["terrain"], c.scenario["mount"]) for c in track.cases("quick")}
+    assert quick == set(itertools.product(("stairs", "ramp"), ("head", "chest")))
+
+
+def test_paper_grid_is_the_180_combinations_of_table_ii(track):
+    cases = [c for c in track.cases("paper") if c.group in TERRAIN_GROUPS]
+    assert len(cases) == 180
+    terrains = {"stairs 0.15 m": ("stairs", 0.15), "stairs 0.20 m": ("stairs", 0.20), "stairs 0.25 m": ("stairs", 0.25),
+                "ramp 11.8 deg": ("ramp", 11.8), "ramp 15.8 deg": ("ramp", 15.8), "ramp 17.8 deg": ("ramp", 17.8)}  # fmt: skip
+    got = set()
+    for c in cases:
+        s = track.validate_scenario(c.scenario)
+        kind, value = terrains[c.group]
+        assert s["terrain"] == kind and s["riser_m" if kind == "stairs" else "slope_deg"] == value
+        assert s["view"] == "normal" and s["pedestrians"] == 0
+        got.add((c.group, s["mount"], s["pattern"], s["user_height_m"]))
+    heights = (1.65, 1.71, 1.75, 1.82, 1.88)  # Sec. III-A group means 165.13 ... 187.70 cm
+    assert got == set(itertools.product(terrains, ("head", "chest"), ("wander", "walk", "jog"), heights))
+    others = [c for c in track.cases("paper") if c.group not in TERRAIN_GROUPS]
+    assert {c.group for c in others} == {"disturbance", "unconventional view", "multi-direction"}
+    for c in others:
+        s = track.validate_scenario(c.scenario)
+        assert (s["pedestrians"] == 2) == (c.group == "disturbance")
+        assert (s["view"] == "unconventional") == (c.group == "unconventional view")
+        assert (s["terrain"] == "parallel") == (c.group == "multi-direction")
+    full = track.cases("full")
+    assert [c.name for c in full[: len(track.cases("paper"))]] == [c.name for c in track.cases("paper")]
+    assert len(full) > len(track.cases("paper"))
+
+
+def test_table_iii_agrees_with_the_means_of_table_ii():
+    """An independent check of the transcription: each pooled figure of Table III is the mean of
+    its Table II cells (Table III pools the 540 trials, Table II their per-cell means: 0.1 %)."""
+    a = np.array(TABLE_II)
+    assert a.shape == (15, 12)
+    pools = {g: a[:, 2 * i : 2 * i + 2] for i, g in enumerate(TERRAIN_GROUPS)}
+    pools.update(stairs=a[:, :6], ramp=a[:, 6:], head=a[:, 0::2], chest=a[:, 1::2], all=a)
+    pools.update({p: a[i :: len(PATTERNS)] for i, p in enumerate(PATTERNS)})
+    assert set(pools) == set(TABLE_III)
+    for name, cells in pools.items():
+        assert abs(cells.mean() - TABLE_III[name][0]) < 0.1, name
+    assert table_ii_value("III", "jog", "stairs 0.15 m", "head") == 98.72
+    assert table_ii_value("V", "wander", "ramp 17.8 deg", "chest") == 98.39
+    assert [g for g, _ in HEIGHT_GROUPS] == ["I", "II", "III", "IV", "V"] and MOUNTS == ("head", "chest")
+
+
+def test_references_apply_to_the_right_groups(track):
+    refs = [r for r in track.references() if r.metric == "accuracy"]
+    groups = {c.group for c in track.cases("full")}
+    for group in groups:
+        mine = [r for r in refs if r.applies(group, "terrain-recon")]
+        expected = TABLE_III.get(group) or PROTOCOLS.get(group)
+        if expected is None:  # the full suite's variations have no published figure
+            assert mine == [], group
+            continue
+        assert len(mine) == 1, group
+        assert mine[0].value == pytest.approx(expected[0] / 100.0)
+        assert not mine[0].applies(group, "single-frame")  # the published figures are the paper's method
+    assert [r.value for r in refs if r.applies("disturbance", "terrain-recon")] == [pytest.approx(0.9859)]
+    assert [r.value for r in refs if r.applies("unconventional view", "terrain-recon")] == [pytest.approx(0.9907)]
+    assert [r.value for r in refs if r.applies("multi-direction", "terrain-recon")] == [pytest.approx(0.9818)]
+    assert [r.value for r in refs if r.applies("stairs 0.25 m", "terrain-recon")] == [pytest.approx(0.9882)]
+    lat = [r for r in track.references() if r.metric == "latency_ms_median"]
+    assert {r.value for r in lat} == {31.0, 34.0}
+
+
+@pytest.mark.parametrize(
+    ("assignment", "expected"),
+    [
+        ("mount=knee", "mount"),
+        ("pattern=run", "pattern"),
+        ("terrain=ladder", "terrain"),
+        ("user_height_m=2.5", "user_height_m"),
+        ("riser_m=nan", "riser_m"),
+        ("mounting=head", "mount"),  # unknown key: the valid names are listed
+    ],
+)
+def test_bad_scenario_values_exit_2_and_write_nothing(tmp_path, assignment, expected):
+    out = tmp_path / "run"
+    result = CliRunner().invoke(cli, ["run", "--track", "locomotion", "--set", assignment, "--out", str(out)], catch_exceptions=False)
+    assert result.exit_code == 2
+    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("exobench: error: ") and expected in lines[0], result.stderr
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------ one tiny episode end to end
+
+TINY = {"width_px": 96, "height_px": 72, "rate_hz": 10.0, "duration_cap_s": 4.5}
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory, track):
+    """The quick suite's first case (stairs, head) at 96x72 and 10 Hz, cut at 4.5 s, through the runner."""
+    from exobench.benchmarks.runner import execute, plan_run
+
+    plan = plan_run("locomotion", "quick", ["terrain-recon"], [0], {k: str(v) for k, v in TINY.items()})
+    plan.episodes = plan.episodes[:1]
+    out = tmp_path_factory.mktemp("loco") / "run"
+    outcome = execute(plan, out)
+    episode = track.simulate(plan.episodes[0].scenario, plan.episodes[0].seed)
+    return plan, outcome, episode
+
+
+def _oracle(episode) -> LocomotionEstimate:
+    """At every camera frame: the true mode of the next step to lift off, with the number of heel
+    strikes so far."""
+    steps = sorted(episode.truth.steps, key=lambda s: s.index)
+    preds = []
+    for f in episode.frames:
+        if not isinstance(f, RgbdFrame):
+            continue
+        nxt = next((s for s in steps if s.liftoff_s >= f.stamp_s), None)
+        if nxt is None:
+            continue
+        strikes = sum(s.heel_strike_s <= f.stamp_s for s in steps)
+        preds.append(ModePrediction(f.stamp_s, nxt.mode, np.full(3, np.nan), strikes, 0.001))
+    return LocomotionEstimate(tuple(preds))
+
+
+def test_a_tiny_episode_is_scored_end_to_end(tiny_run):
+    plan, outcome, episode = tiny_run
+    assert len(outcome.records) == 1
+    m = outcome.records[0]["metrics"]
+    steps = sorted(episode.truth.steps, key=lambda s: s.index)
+    scored = [s for s in steps if s.index >= 3]
+    assert m["n_steps"] == len(scored) > 0 and m["n_warmup_steps"] == 3
+    assert sum(m[f"n_steps_{k}"] for k in ("LG", "SA", "SD", "RA", "RD")) == m["n_steps"]
+    assert m["n_steps_SA"] == sum(s.mode == "SA" for s in scored) > 0  # the cut walk reaches the stairs
+    assert sum(map(sum, m["confusion"])) == m["n_decided"] == m["n_steps"] - m["n_undecided"]
+    assert 0.0 <= m["accuracy"] <= 1.0 and m["latency_ms_median"] > 0
+    n_rgbd = sum(isinstance(f, RgbdFrame) for f in episode.frames)
+    assert m["n_predictions"] == n_rgbd  # one prediction per camera frame
+    assert outcome.records[0]["scenario"]["width_px"] == 96
+
+
+def test_an_oracle_scores_perfectly_and_its_anticipation_is_the_frame_timing(tiny_run, track):
+    _, _, episode = tiny_run
+    m = track.score(episode, _oracle(episode))
+    assert m["failed"] is False and m["accuracy"] == 1.0 and m["n_undecided"] == 0
+    assert m["n_stale_decisions"] == 0
+    steps = sorted(episode.truth.steps, key=lambda s: s.index)
+    stamps = np.array([f.stamp_s for f in episode.frames if isinstance(f, RgbdFrame)])
+    expected = []
+    for prev, s in itertools.pairwise(steps):
+        if s.mode != prev.mode and s.index >= 3:
+            first = stamps[stamps > prev.liftoff_s].min()  # the oracle switches right after the previous liftoff
+            expected.append(s.liftoff_s - first)
+    assert len(expected) == m["n_transitions"] > 0
+    assert m["anticipation_s"] == pytest.approx(np.mean(expected))
+
+
+def test_report_and_recording_of_the_tiny_run(tiny_run, track, tmp_path):
+    from exobench.benchmarks.report import write_report
+
+    plan, outcome, episode = tiny_run
+    report = write_report(outcome.out_dir).read_text()
+    assert "Table III layout" in report and "Tab. III" in report and "99.09 ± 0.88" in report
+    assert (outcome.out_dir / "confusion.png").stat().st_size > 0
+    assert (outcome.out_dir / "anticipation.png").exists()
+    assert list((outcome.out_dir / "figures").glob("*.png"))  # the mode timeline of the figure case
+    est = _oracle(episode)
+    est = LocomotionEstimate(est.predictions, ({"id": 3, "normal": np.array([0, 0, 1.0]), "centroid": np.zeros(3), "kind": "ground", "score": 4},))
+    path = track.write_recording(episode, {"oracle": est}, tmp_path / "tiny.rrd")
+    assert path.exists() and path.stat().st_size > 1000
+    assert not math.isnan(track.score(episode, est)["accuracy"])
