@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
 import click
@@ -39,8 +40,8 @@ def cli() -> None:
     """exobench: a MuJoCo benchmark for exoskeleton perception.
 
     \b
-    exobench run                   the default suite (stairs/quick) with every pipeline
-    exobench run paper --jobs 2    the staircase paper's protocol
+    exobench run                   the quick suite of every track with every pipeline
+    exobench run paper --track stairs --jobs 2    the staircase paper's protocol
     exobench list                  suites, tracks, pipelines, scenario parameters
     """
 
@@ -67,15 +68,15 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 
 @cli.command()
 @click.argument("suite", required=False)
-@click.option("--track", default="stairs", show_default=True, help="Track to run.")
+@click.option("--track", default="all", show_default=True, help="Track to run, or 'all' (each track in turn).")
 @click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
 @click.option("--seed", type=int, default=None, help="Run seed (default 0).")
 @click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
-@click.option("--out", type=click.Path(file_okay=False), default=None, help="Run folder (default runs/<suite>-<time>).")
+@click.option("--out", type=click.Path(file_okay=False), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
 @click.option("--resume", is_flag=True, help="Continue the run in --out, skipping finished episodes.")
-@click.option("--rerun", "rerun_path", type=click.Path(dir_okay=False), default=None, help="Also write the first episode as a rerun .rrd.")
+@click.option("--rerun", "rerun_path", type=click.Path(dir_okay=False), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and its plots.")
 def run(
     suite: str | None,
@@ -90,20 +91,43 @@ def run(
     rerun_path: str | None,
     no_report: bool,
 ) -> None:
-    """Run SUITE (default: the track's quick suite) and print the summary table."""
-    from tqdm import tqdm
-
+    """Run SUITE (default: each track's quick suite) of one track or of all, and print the tables."""
     from exobench.core.errors import ConfigError
 
-    from .report import summary_text, write_report
-    from .runner import execute, parse_assignments, plan_run, rerun_first_episode
+    from .runner import parse_assignments, plan_run
+    from .tracks import track_names
 
     if jobs < 1:
         raise ConfigError("--jobs", jobs, "--jobs >= 1")
     if resume and out is None:
         raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
-    plan = plan_run(track, suite, pipelines or None, _seeds(seed, seeds), parse_assignments(assignments))
-    out_dir = out or _default_out(plan.suite)
+    run_seeds = _seeds(seed, seeds)
+    overrides = parse_assignments(assignments)
+    if track != "all":
+        plan = plan_run(track, suite, pipelines or None, run_seeds, overrides)
+        _run_plan(plan, out or _default_out(f"{plan.track.name}-{plan.suite}"), jobs, resume, rerun_path, no_report)
+        return
+    if pipelines or overrides:
+        raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
+    # every plan is validated before anything runs, so a bad suite name writes nothing
+    plans = [plan_run(name, suite, None, run_seeds, {}) for name in track_names()]
+    root = out or _default_out(f"all-{suite or 'quick'}")
+    for plan in plans:
+        click.echo(f"\n== track {plan.track.name} / {plan.suite}")
+        rrd = None
+        if rerun_path:
+            p = Path(rerun_path)
+            rrd = str(p.with_name(f"{p.stem}-{plan.track.name}{p.suffix or '.rrd'}"))
+        _run_plan(plan, str(Path(root) / plan.track.name), jobs, resume, rrd, no_report)
+
+
+def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool) -> None:
+    """Execute one validated plan with a progress bar; print its table and where it went."""
+    from tqdm import tqdm
+
+    from .report import summary_text, write_report
+    from .runner import execute, rerun_first_episode
+
     bar: dict[str, Any] = {}
 
     def on_start(n_todo: int, n_skipped: int) -> None:

@@ -42,7 +42,7 @@ def _one_error_line(result) -> str:
 )
 def test_bad_scenario_values_exit_2_and_write_nothing(tmp_path, assignment, expected):
     out = tmp_path / "run"
-    result = _run(["run", "--set", assignment, "--out", str(out)])
+    result = _run(["run", "--track", "stairs", "--set", assignment, "--out", str(out)])
     assert result.exit_code == 2
     assert expected in _one_error_line(result)
     assert not out.exists()
@@ -51,13 +51,14 @@ def test_bad_scenario_values_exit_2_and_write_nothing(tmp_path, assignment, expe
 @pytest.mark.parametrize(
     ("args", "expected"),
     [
-        (["run", "--pipeline", "nope"], "rtls-htvr"),
+        (["run", "--track", "stairs", "--pipeline", "nope"], "rtls-htvr"),
         (["run", "fast"], "quick"),
         (["run", "--track", "ladders"], "stairs"),
         (["run", "--seed", "1", "--seeds", "2"], "--seed"),
         (["run", "--seeds", "0"], "--seeds"),
         (["run", "--jobs", "0"], "--jobs"),
-        (["run", "--set", "rtls.no_such_param=1", "--pipeline", "rtls"], "no_such_param"),
+        (["run", "--track", "stairs", "--set", "rtls.no_such_param=1", "--pipeline", "rtls"], "no_such_param"),
+        (["run", "--set", "riser_m=0.2"], "--track"),
         (["run", "--resume"], "--resume"),
     ],
 )
@@ -87,7 +88,7 @@ def test_help_in_a_fresh_process_imports_nothing_heavy():
 def test_console_script_refuses_bad_riser_in_a_real_call(tmp_path):
     out = tmp_path / "run"
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
-    proc = subprocess.run([str(EXOBENCH), "run", "--set", "riser_m=0.31", "--out", str(out)], capture_output=True, text=True, env=env)
+    proc = subprocess.run([str(EXOBENCH), "run", "--track", "stairs", "--set", "riser_m=0.31", "--out", str(out)], capture_output=True, text=True, env=env)
     assert proc.returncode == 2
     assert proc.stderr.startswith("exobench: error: ") and "riser_m" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
@@ -118,14 +119,14 @@ def fake_stairs(monkeypatch):
 
 def test_run_prints_the_table_and_writes_the_run_folder(tmp_path, fake_stairs):
     out = tmp_path / "run"
-    result = _run(["run", "--out", str(out), "--seeds", "2", "--set", "tof_noise_m=0"])
+    result = _run(["run", "--track", "stairs", "--out", str(out), "--seeds", "2", "--set", "tof_noise_m=0"])
     assert result.exit_code == 0, result.output + result.stderr
     assert "alpha S2 (deg)" in result.output and "Tab. III" in result.output
     assert "episode" in result.stderr  # the progress bar
     records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert len(records) == 12 and all(r["scenario"]["tof_noise_m"] == 0.0 for r in records)
     assert (out / "report.md").exists() and (out / "run_config.json").exists()
-    again = _run(["run", "--out", str(out), "--seeds", "2", "--set", "tof_noise_m=0", "--resume", "--no-report"])
+    again = _run(["run", "--track", "stairs", "--out", str(out), "--seeds", "2", "--set", "tof_noise_m=0", "--resume", "--no-report"])
     assert again.exit_code == 0 and "12 finished episodes kept" in again.stderr
     assert len((out / "results.jsonl").read_text().splitlines()) == 12
     report = _run(["report", str(out)])

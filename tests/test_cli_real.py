@@ -70,6 +70,6 @@ def test_interrupted_run_says_how_to_resume(tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     monkeypatch.setattr("exobench.benchmarks.runner.execute", interrupted)
-    result = CliRunner().invoke(cli, ["run", "--out", str(tmp_path / "run"), "--pipeline", "rtls"])
+    result = CliRunner().invoke(cli, ["run", "--track", "stairs", "--out", str(tmp_path / "run"), "--pipeline", "rtls"])
     assert result.exit_code == 130 and "--resume" in result.stderr
     assert read_records(tmp_path / "run" / "results.jsonl") == []

@@ -20,7 +20,7 @@ NOISE_OFF = ["tof_noise_m=0", "imu_noise_scale=0", "imu_orientation_deg=0", "enc
 
 def _run(tmp_path, name, sets=()):
     out = tmp_path / name
-    args = ["run", "quick", "--pipeline", "rtls", "--pipeline", "rtls-htvr", "--out", str(out), "--no-report"]
+    args = ["run", "quick", "--track", "stairs", "--pipeline", "rtls", "--pipeline", "rtls-htvr", "--out", str(out), "--no-report"]
     for s in sets:
         args += ["--set", s]
     result = CliRunner().invoke(cli, args, catch_exceptions=False)
