@@ -1,4 +1,4 @@
-# exobench quick start:  make run   (install everything, run the default suite)
+# exobench quick start:  make run   (install everything, run every track's quick suite)
 #                        make test  (install everything, run the tests)
 SHELL := /bin/bash
 PYTHON ?= python3
@@ -22,6 +22,7 @@ bench: $(STAMP)
 	$(VENV)/bin/exobench bench rtls
 	$(VENV)/bin/exobench bench sim
 	$(VENV)/bin/exobench bench lidar
+	$(VENV)/bin/exobench bench locomotion
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

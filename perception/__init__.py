@@ -12,8 +12,11 @@ Modules (import them directly; this package imports nothing heavy):
   recognition on scans and submaps.
 - ``footprint``: gait division by heel strikes and next-footprint prediction (seeds/002 eq. 16-18).
 - ``plane_tracking``: plane set update by IoU with scores (seeds/002 eq. 23).
+- ``plane_extraction``: agglomerative hierarchical clustering of depth-image cells into planes.
+- ``terrain_description``: level ground, ramps and stairs from the plane set; the next step's mode.
+- ``filter_pipelines``: the lidar-filter pipelines (footprint transform from kinematics and tilt).
+- ``place_recognition``: the loop-closure pipelines ``sc++``, ``gsc-height``, ``gsc-huber``,
+  ``gsc-intensity``.
 
-Not yet registered as pipelines or scored by a track (later LiDAR tracks):
-``intensity_filter``, ``scan_context``, ``gaussian_scan_context``, ``footprint``,
-``plane_tracking``.
+Perception never imports ``exobench.mapping`` (mapping builds on perception, not the reverse).
 """
