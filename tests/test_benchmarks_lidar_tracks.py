@@ -93,13 +93,13 @@ def test_trajectory_metrics_on_a_constructed_loop():
 
 @pytest.fixture(scope="module")
 def walk():
-    """One 1.5 m corridor walk, every lidar-filter pipeline (scored through kiss-icp too) and kiss-icp."""
+    """One short corridor walk, every lidar-filter pipeline (scored through kiss-icp too), kiss-icp and leo-slam."""
     overrides = {"route": "corridor", "max_distance_m": WALK_M, "score_odometry": True}
     plan = plan_run("lidar-filter", "quick", None, (0,), overrides)
     ep_plan = plan.episodes[0]
     episode = plan.track.simulate(ep_plan.scenario, ep_plan.seed)
     est, metrics, _, _ = run_pipelines(plan.track, episode, plan.pipelines)
-    odo = plan_run("odometry", "quick", ["kiss-icp"], (0,), {"route": "corridor", "max_distance_m": WALK_M})
+    odo = plan_run("odometry", "quick", ["kiss-icp", "leo-slam"], (0,), {"route": "corridor", "max_distance_m": WALK_M})
     odo_est, odo_metrics, _, _ = run_pipelines(odo.track, episode, odo.pipelines)
     return SimpleNamespace(episode=episode, est={**est, **odo_est}, metrics={**metrics, **odo_metrics})
 
@@ -162,6 +162,13 @@ def test_kiss_icp_on_a_short_corridor(walk):
     # through the naive ground-aware filter (Table 5.4's setting) the ATE is small
     naive = walk.metrics["filter-naive-ground"]
     assert naive["odom_ate_m"] < 0.3, naive["odom_ate_m"]
+
+
+def test_leo_slam_beats_kiss_icp_on_the_same_scans(walk):
+    """The odometry target: the SLAM pipeline's ATE at most 0.7 times KISS-ICP's."""
+    leo, kiss = walk.metrics["leo-slam"], walk.metrics["kiss-icp"]
+    assert not leo["failed"] and leo["failures"] == 0
+    assert leo["ate_m"] <= 0.7 * kiss["ate_m"], (leo["ate_m"], kiss["ate_m"])
 
 
 # ------------------------------------------------------------------ command line
