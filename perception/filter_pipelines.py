@@ -267,7 +267,7 @@ class FilterNone(_FilterPipeline):
 
     @dataclass(frozen=True)
     class Config(_BaseConfig):
-        pass
+        """Only the common fields: the filter itself has no parameters."""
 
     def _make_filter(self) -> NoFilter:
         return NoFilter()

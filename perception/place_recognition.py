@@ -64,6 +64,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from abc import ABC, abstractmethod
 from collections import Counter, deque
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -275,7 +276,7 @@ def remove_ceiling(points_level: np.ndarray, config: PlaceRecognitionConfig) -> 
     return z <= cut, float(cut)
 
 
-class PlaceRecognitionPipeline:
+class PlaceRecognitionPipeline(ABC):
     """Keyframe place recognition (see the module docstring); subclasses pick the descriptor."""
 
     name: ClassVar[str] = ""
@@ -288,9 +289,9 @@ class PlaceRecognitionPipeline:
             raise ConfigError(f"{self.name}.config", type(self.config).__name__, "a PlaceRecognitionConfig")
         self._reset_state()
 
-    # the descriptor of the pipeline
+    @abstractmethod
     def _recognizer(self) -> PlaceRecognizer:
-        raise NotImplementedError
+        """The descriptor of the pipeline (a fresh database)."""
 
     def _reset_state(self) -> None:
         self.recognizer = self._recognizer()
