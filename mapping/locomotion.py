@@ -2,9 +2,9 @@
 
 ``terrain-recon`` (:class:`TerrainReconstructionPipeline`), the paper's method: per RGB-D frame
 the camera pose from odometry, TSDF integration (eq. 19-22, :mod:`exobench.mapping.tsdf`), a
-ray-cast smoothed depth image I_D^s (at 1/``raycast_downsample`` of the input resolution [A: 1]),
-AHC plane extraction on it (:mod:`exobench.perception.plane_extraction`; its pixel thresholds
-apply to the image it is given), the plane set update by IoU (eq. 23) with the voxels seen in
+ray-cast smoothed depth image I_D^s (cast at 1/``raycast_downsample`` of the input resolution
+[A: 2] and interpolated back to it, :func:`upsample_depth`), AHC plane extraction on it
+(:mod:`exobench.perception.plane_extraction`; its pixel thresholds apply at the input resolution), the plane set update by IoU (eq. 23) with the voxels seen in
 I_D^s as the scope, the terrain description (II-F) and the mode of the next step at the
 footprint predicted by eq. 16-18 (II-D).
 ``single-frame`` (:class:`SingleFramePipeline`), the ablation baseline: AHC on the raw depth of the
@@ -34,16 +34,35 @@ the camera rate] away, otherwise the odometry is missing; at a heel strike the p
 sample's moved on at its velocity to the strike time.
 
 Footprints (eq. 16-18 with :func:`~exobench.perception.footprint.predict_footprint`): p_pd is the
-tracked body's position at the next heel strike. The body is about midway between the feet at a
-heel strike, so the next foot lands ``lead_fraction`` x delta_nxt ahead of p_pd, and the foot that
-has just struck lies ``lead_fraction`` x delta_n ahead of p_n [A: 0.5], plus the left/right
-offsets of ``footprint``. A walker that pauses at heel strikes (stop-and-go) has no velocity
-there; when ||v_xy|| < ``min_speed_m_s`` the walking direction is taken from p_n - p_{n-1} [A].
-The mode of the next step is :meth:`TerrainDescription.mode_of_step` from the current to the
-predicted footprint. When no plane lies under the current footprint (it has left the view, as it
-does at once for ``single-frame``), its terrain height is the one measured under it earlier: in
-a previous frame of the same step, or under the predicted footprint just before the heel strike.
+tracked body's position at the next heel strike, delta_nxt by ``footprint.step_estimate``
+[deviation, default ``"eq17_capped"``: eq. 17 bounded by 0 and the longest of the last three
+steps. The simulated exoskeleton walker is stop-and-go: it shuffles 0.08-0.15 m to stop before
+every stair or ramp and then starts with a full step, where plain eq. 17 predicts steps
+backwards or longer than any seen; ``"eq17"`` is the paper's]. The striking foot lands
+``foot_lead_m`` + ``lead_fraction`` x delta ahead of the tracked body at its heel strike [A:
+0.10 m + 0: measured on the simulated walker, the foot is 0.06-0.16 m ahead of a head or chest
+camera at heel strike on level ground and ramps, not half a step], plus the left/right offsets of
+``footprint``; the next footprint is that far ahead of p_pd, the current one of p_n. A walker
+that pauses at heel strikes has no velocity there; when ||v_xy|| < ``min_speed_m_s`` the walking
+direction is taken from p_n - p_{n-1} [A]. Stop-and-go [A]: when no heel strike came for
+``pause_s`` the walker stands with its feet together; its next footprint is
+``start_step_fraction`` x the longest of the last three steps ahead of the body's current
+position (measured: a standing start lands 0.22-0.27 m ahead of the camera after 0.38-0.42 m
+steps); the step after such a start has no meaningful eq. 17 (the body hardly moves in a start
+step), so delta_nxt is the longest recent step.
 
+Mode of the next step: :meth:`TerrainDescription.mode_of_step` from the reference footprint to
+the predicted one. The reference (``mode_reference``) is by default the *swinging* foot's own last
+footprint (its strike before the last): a step's mode is the change of terrain of the foot that
+moves (the track's truth: SA for the trailing foot that leaves the last tread for the landing,
+where the other foot already stands) [A; the paper says "relative to the current one"];
+``"stance"`` takes the foot that struck last. The terrain height under a footprint is the plane
+under it now; else the one measured under it earlier (while it was the current foot, in view);
+else the body's height at its strike minus the body's median height above the terrain under
+the striking foot over the last strikes where that was measured (a head camera above a
+descending flight hardly sees the treads its feet stand on); else the height predicted under it
+before it struck; else, for the swinging foot, the stance foot's. The plane class measured with
+it is kept too (a foot leaving a ramp for level ground makes an LG step).
 Output: one :class:`ModePrediction` per processed RGB-D frame (``process`` returns it as the
 online estimate; None for other frames); ``finalize`` returns the :class:`LocomotionEstimate`
 with the final plane set (kind: the terrain type, else the plane's slope class) and ``stats``.
@@ -58,7 +77,9 @@ plane (``"no_planes"``) is integrated and updates the plane set (eq. 23 rule 3);
 state, with the reason as its status, and counted in ``stats``. Fewer than three heel strikes
 give ``"few_strikes"`` and mode ``""``; no terrain under either footprint keeps the previous mode
 (``"no_terrain"``); no plane under the predicted footprint gives ``"extrapolated"`` (the current
-terrain continues), none under the current one and no remembered height ``"current_unknown"``.
+terrain continues) unless lower ground lies ahead (SD, ``"drop_ahead"`` of the terrain
+description, reported as ``"ok"`` and counted in ``stats["n_drop_ahead"]``), none under the
+reference one and no remembered height ``"current_unknown"``.
 Dropped frames (a gap of more than 1.5 frame periods at the mount's ``rate_hz``) are counted in
 ``stats["n_dropped_frames"]``; frames skipped by ``every_k`` in ``n_skipped_rate``.
 """
@@ -68,6 +89,7 @@ from __future__ import annotations
 import bisect
 import math
 import time
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -107,6 +129,7 @@ STATUSES = ("ok", "no_depth", "bad_frame", "no_odometry", "no_planes", "error", 
             "no_terrain", "extrapolated", "current_unknown")
 _NUMERIC_ERRORS = (ValueError, ArithmeticError, np.linalg.LinAlgError)
 ODOM_HISTORY_S = 2.0
+MODE_REFERENCES = ("swing", "stance")
 
 
 def _latency(params: dict[str, Any]) -> float:
@@ -123,6 +146,11 @@ def _check_config(cfg: Any) -> None:
         raise ConfigError("every_k", cfg.every_k, "an integer >= 1")
     check_range("max_odometry_age_s", cfg.max_odometry_age_s, 0.0)
     check_range("lead_fraction", cfg.lead_fraction, 0.0, 1.0)
+    check_range("foot_lead_m", cfg.foot_lead_m, -1.0, 1.0)
+    check_range("pause_s", cfg.pause_s, 0.0, low_open=True)
+    check_range("start_step_fraction", cfg.start_step_fraction, 0.0, 2.0)
+    if cfg.mode_reference not in MODE_REFERENCES:
+        raise ConfigError("mode_reference", cfg.mode_reference, list(MODE_REFERENCES))
     check_range("min_speed_m_s", cfg.min_speed_m_s, 0.0)
 
 
@@ -156,6 +184,36 @@ def backproject(depth_m: np.ndarray, K: np.ndarray, T_world_cam: np.ndarray, str
     return p @ T_world_cam[:3, :3].T + T_world_cam[:3, 3]
 
 
+def upsample_depth(depth_m: np.ndarray, n: int, shape: tuple[int, int], jump_m: float = 0.05) -> np.ndarray:
+    """A z-depth image ray cast at 1/n resolution (K scaled by :func:`scale_intrinsics`) brought
+    back to ``shape``: bilinear interpolation of the inverse depth, which is exact on planes
+    (1/z is affine in the pixel coordinates of a plane); where a neighbour is invalid or the
+    four neighbours' depths span more than ``jump_m`` (an edge), the nearest sample instead."""
+    d = np.asarray(depth_m, dtype=np.float32)
+    h, w = shape
+    hs, ws = d.shape
+    # pixel u of the full image is at (u + 0.5) / n - 0.5 in the small one
+    y = np.clip((np.arange(h) + 0.5) / n - 0.5, 0.0, hs - 1.0)
+    x = np.clip((np.arange(w) + 0.5) / n - 0.5, 0.0, ws - 1.0)
+    y0 = np.minimum(np.floor(y).astype(int), hs - 1)
+    x0 = np.minimum(np.floor(x).astype(int), ws - 1)
+    y1, x1 = np.minimum(y0 + 1, hs - 1), np.minimum(x0 + 1, ws - 1)
+    fy, fx = (y - y0).astype(np.float32)[:, None], (x - x0).astype(np.float32)[None, :]
+    inv_small = np.zeros_like(d)
+    np.divide(1.0, d, out=inv_small, where=d > 0)
+    rows0, rows1 = d[y0], d[y1]
+    c = (rows0[:, x0], rows0[:, x1], rows1[:, x0], rows1[:, x1])  # 00, 01, 10, 11
+    cmax = np.maximum(np.maximum(c[0], c[1]), np.maximum(c[2], c[3]))
+    cmin = np.minimum(np.minimum(c[0], c[1]), np.minimum(c[2], c[3]))
+    smooth = (cmin > 0) & (cmax - cmin <= jump_m)
+    i0, i1 = inv_small[y0], inv_small[y1]
+    iv = (i0[:, x0] * (1 - fx) + i0[:, x1] * fx) * (1 - fy) + (i1[:, x0] * (1 - fx) + i1[:, x1] * fx) * fy
+    near = d[np.clip(np.rint(y).astype(int), 0, hs - 1)][:, np.clip(np.rint(x).astype(int), 0, ws - 1)]
+    out = near.copy()
+    np.divide(1.0, iv, out=out, where=smooth)
+    return out
+
+
 def scale_intrinsics(K: np.ndarray, s: float) -> np.ndarray:
     """K of the image resized by ``s`` (pixel centres at integer coordinates)."""
     out = np.array(K, dtype=float)
@@ -166,7 +224,7 @@ def scale_intrinsics(K: np.ndarray, s: float) -> np.ndarray:
     return out
 
 
-class _LocomotionPipeline:
+class _LocomotionPipeline(ABC):
     """Frame handling, walking information and mode prediction shared by both pipelines; the
     subclasses differ in how a depth frame updates the plane set (:meth:`_update_planes`)."""
 
@@ -179,7 +237,8 @@ class _LocomotionPipeline:
         ``odometry_sensor_id``: odometry used ("" = ``odom_<mount>``, "*" = any). ``every_k``:
         process every k-th frame of the camera. ``max_odometry_age_s``: the latest odometry
         sample older than this (from a frame or heel strike) counts as missing. ``lead_fraction``,
-        ``min_speed_m_s``: footprints (module docstring). ``observed_stride_px``: pixel stride of
+        ``foot_lead_m``, ``min_speed_m_s``, ``pause_s``, ``start_step_fraction``: footprints;
+        ``mode_reference``: ``"swing"`` or ``"stance"`` (module docstring). ``observed_stride_px``: pixel stride of
         the points whose voxels make the update's scope. ``ahc``, ``planes``, ``terrain``,
         ``footprint``: configs of plane extraction, eq. 23, the terrain description, eq. 16-18."""
 
@@ -187,13 +246,17 @@ class _LocomotionPipeline:
         odometry_sensor_id: str = ""
         every_k: int = 1
         max_odometry_age_s: float = 0.25
-        lead_fraction: float = 0.5
+        lead_fraction: float = 0.0
+        foot_lead_m: float = 0.10
+        mode_reference: str = "swing"
+        pause_s: float = 0.8
+        start_step_fraction: float = 0.6
         min_speed_m_s: float = 0.05
         observed_stride_px: int = 4
         ahc: AhcConfig = field(default_factory=AhcConfig)
         planes: PlaneTrackingConfig = field(default_factory=PlaneTrackingConfig)
         terrain: TerrainConfig = field(default_factory=TerrainConfig)
-        footprint: FootprintConfig = field(default_factory=FootprintConfig)
+        footprint: FootprintConfig = field(default_factory=lambda: FootprintConfig(step_estimate="eq17_capped"))
 
         def __post_init__(self) -> None:
             _check_config(self)
@@ -252,14 +315,18 @@ class _LocomotionPipeline:
         self._last_rgbd_s: float | None = None
         self._n_rgbd = 0
         self._last_mode = ""
-        self._cur_z: tuple[int, float | None] = (-1, None)  # terrain z under the current footprint, by strike count
-        self._next_z: tuple[int, float | None] = (-1, None)  # terrain z under the predicted one, by strike count
+        self._foot_z: dict[int, float] = {}  # terrain z measured under the footprint of strike j (0-based)
+        self._foot_cls: dict[int, str] = {}  # class of the plane of that measurement
+        self._next_z: dict[int, float] = {}  # terrain z predicted under it before strike j
+        self._next_cls: dict[int, str] = {}  # class of that plane
+        self._body_h: dict[int, float] = {}  # tracked body's height above that terrain at strike j
         self._predictions: list[ModePrediction] = []
         self._stats: dict[str, Any] = {k: 0 for k in (
             "n_frames", "n_rgbd_frames", "n_processed", "n_skipped_rate", "n_dropped_frames", "n_out_of_order",
             "n_bad_frame", "n_no_depth", "n_no_odometry", "n_no_planes", "n_errors", "n_bad_odometry",
             "n_odometry", "n_contact", "n_heel_strikes", "n_strikes_without_odometry", "n_direction_from_positions",
-            "n_current_remembered", "n_initial_contacts", "n_ignored")}
+            "n_current_remembered", "n_initial_contacts", "n_ignored", "n_height_from_odometry", "n_drop_ahead",
+            "n_standing_starts", "n_steps_after_start")}
         self._stats.update(rgbd_sensor_id=self._rgbd_id, odometry_sensor_id=self._odom_id,
                            odometry_mount=self._odom_mount, errors=[])
         self._reset_map()
@@ -298,12 +365,13 @@ class _LocomotionPipeline:
         return LocomotionEstimate(tuple(self._predictions), tuple(planes), stats)
 
     # --- subclass hooks ---
+    @abstractmethod
     def _reset_map(self) -> None:
         """Forget the map (TSDF) kept by a subclass."""
 
+    @abstractmethod
     def _update_planes(self, depth_m: np.ndarray, K: np.ndarray, T_odom_cam: np.ndarray) -> int:
         """Update the plane set from one valid depth frame; returns the number of planes detected."""
-        raise NotImplementedError
 
     # --- frames ---
     def _in_order(self, frame: Frame) -> bool:
@@ -413,7 +481,7 @@ class _LocomotionPipeline:
         if status != "ok":
             st[f"n_{status}" if status != "error" else "n_errors"] += 1
 
-        mode, footprint, why = self._predict()
+        mode, footprint, why = self._predict(stamp, None if odo is None else odo[0][:3, 3].copy())
         if status == "ok" and why != "ok":
             status = why
         t1 = time.perf_counter()
@@ -422,8 +490,16 @@ class _LocomotionPipeline:
         return pred
 
     # --- walking information and mode ---
-    def _predict(self) -> tuple[str, np.ndarray, str]:
-        """(mode, predicted footprint (x, y, terrain z or NaN), reason) from the kept state."""
+    def _foot_xy(self, strike: HeelStrike, fwd: np.ndarray, H: np.ndarray) -> np.ndarray:
+        """Footprint of the foot that struck at ``strike``: ``foot_lead_m`` ahead of the tracked
+        body plus the foot's sideways offset."""
+        c = self.config
+        off = np.asarray(c.footprint.offset_l_m if strike.side == "l" else c.footprint.offset_r_m, dtype=float)
+        return strike.p_world + c.foot_lead_m * fwd + H @ off
+
+    def _predict(self, stamp_s: float = math.nan, p_now: np.ndarray | None = None) -> tuple[str, np.ndarray, str]:
+        """(mode, predicted footprint (x, y, terrain z or NaN), reason) from the kept state at
+        time ``stamp_s``, the tracked body then at ``p_now`` (None: unknown)."""
         c = self.config
         strikes = self._divider.strikes
         nan3 = np.full(3, np.nan)
@@ -443,30 +519,72 @@ class _LocomotionPipeline:
             return self._last_mode, nan3, "no_direction"
         H = heading_frame(strikes[-1].v_world)
         fwd = H[:, 0]
-        delta_n = float(pred.step_sizes_m[-1])
-        nxt = pred.footprint_world + c.lead_fraction * pred.delta_next_m * fwd
-        off_cur = np.asarray(c.footprint.offset_l_m if last.side == "l" else c.footprint.offset_r_m, dtype=float)
-        cur = last.p_world + c.lead_fraction * delta_n * fwd + H @ off_cur
+        n_recent = pred.step_sizes_m[-c.footprint.n_recent:]
+        delta_nxt = pred.delta_next_m
+        if strikes[-1].stamp_s - strikes[-2].stamp_s > c.pause_s:
+            # the last step started from standing: its size says nothing about the next one
+            delta_nxt = float(np.max(n_recent))
+            self._stats["n_steps_after_start"] += 1
+        nxt = pred.footprint_world + (delta_nxt - pred.delta_next_m) * pred.direction_world \
+            + (c.lead_fraction * delta_nxt + c.foot_lead_m) * fwd
+        if p_now is not None and stamp_s - strikes[-1].stamp_s > c.pause_s:
+            # standing (stop-and-go): the next step starts from the feet together under the body
+            off_nxt = np.asarray(c.footprint.offset_l_m if pred.side == "l" else c.footprint.offset_r_m, dtype=float)
+            nxt = p_now + c.start_step_fraction * float(np.max(n_recent)) * fwd + H @ off_nxt
+            self._stats["n_standing_starts"] += 1
+        n = len(self._divider.strikes)
+        cur = self._foot_xy(strikes[-1], fwd, H) + c.lead_fraction * float(pred.step_sizes_m[-1]) * fwd
+        # the reference footprint: the swinging foot's last one (its strike before the last), or
+        # the stance foot's (the last strike), see Config.mode_reference
+        j_ref = n - 2 if c.mode_reference == "swing" else n - 1
+        ref = cur if j_ref == n - 1 else self._foot_xy(strikes[-2], fwd, H) \
+            + c.lead_fraction * float(pred.step_sizes_m[-2]) * fwd
         if self._description is None:
             self._description = describe_terrain(self._plane_set, c.terrain)
         desc = self._description
-        n = len(self._divider.strikes)
-        remembered = self._cur_z[1] if self._cur_z[0] == n else (self._next_z[1] if self._next_z[0] == n - 1 else None)
-        dec = desc.mode_of_step(cur[:2], nxt[:2], remembered)
+        # terrain height under the current foot while it is in view, kept for later (a foot's
+        # height is remembered by its strike index), and the body's height above it
+        cur_id = desc.plane_under(cur[:2])
+        if cur_id is not None:
+            self._foot_z[n - 1] = plane_height_at(desc.planes[cur_id], cur)
+            self._foot_cls[n - 1] = desc.plane_classes[cur_id]
+            self._body_h[n - 1] = float(strikes[-1].p_world[2]) - self._foot_z[n - 1]
+        remembered = self._foot_z.get(j_ref)
+        if remembered is None and len(self._body_h) >= 2:
+            # never seen: the body's height at its strike minus its usual height above the feet
+            remembered = float(self._divider.strikes[j_ref].p_world[2]) - float(np.median(list(self._body_h.values())))
+            self._stats["n_height_from_odometry"] += 1
+        ref_cls = self._foot_cls.get(j_ref, self._next_cls.get(j_ref))
+        if remembered is None:
+            remembered = self._next_z.get(j_ref)  # predicted under it before it struck
+        if remembered is None and j_ref != n - 1:  # unknown: the stance foot's, as a last resort
+            remembered = self._foot_z.get(n - 1, self._next_z.get(n - 1))
+            ref_cls = self._foot_cls.get(n - 1, self._next_cls.get(n - 1))
+            if remembered is None and cur_id is not None:
+                remembered = plane_height_at(desc.planes[cur_id], cur)
+        dec = desc.mode_of_step(ref[:2], nxt[:2], remembered, ref_cls)
         if dec.current_plane_id is not None:
-            self._cur_z = (n, plane_height_at(desc.planes[dec.current_plane_id], cur))
+            self._foot_z[j_ref] = plane_height_at(desc.planes[dec.current_plane_id], ref)
+            self._foot_cls[j_ref] = desc.plane_classes[dec.current_plane_id]
         elif remembered is not None:
-            self._cur_z = (n, remembered)
             self._stats["n_current_remembered"] += 1
         z = float("nan")
         if dec.next_plane_id is not None:
             z = plane_height_at(desc.planes[dec.next_plane_id], nxt)
-            self._next_z = (n, z)
+            self._next_z[n] = z
+            self._next_cls[n] = desc.plane_classes[dec.next_plane_id]
+        elif dec.reason == "drop_ahead":
+            self._stats["n_drop_ahead"] += 1
+        for d in (self._foot_z, self._foot_cls, self._next_z, self._next_cls):
+            for j in [j for j in d if j < n - 3]:
+                del d[j]
+        for j in [j for j in self._body_h if j < n - 9]:
+            del self._body_h[j]
         footprint = np.array([nxt[0], nxt[1], z])
         if dec.mode == "":
             return self._last_mode, footprint, dec.reason
         self._last_mode = dec.mode
-        return dec.mode, footprint, "ok" if dec.reason == "current_remembered" else dec.reason
+        return dec.mode, footprint, "ok" if dec.reason in ("current_remembered", "drop_ahead") else dec.reason
 
 
 class TerrainReconstructionPipeline(_LocomotionPipeline):
@@ -478,17 +596,21 @@ class TerrainReconstructionPipeline(_LocomotionPipeline):
     @dataclass(frozen=True)
     class Config(_LocomotionPipeline.Config):
         """``raycast_downsample``: I_D^s is ray cast at 1/n of the input resolution (K scaled)
-        [A: 1, full resolution; 2 halves the ray-cast cost (~100 ms at 640x480 on two cores, see
-        mapping/tsdf.py) but Open3D's ray cast was seen to hang on half-resolution images]."""
+        and brought back to it by :func:`upsample_depth` (``upsample_jump_m``), so plane
+        extraction and its pixel thresholds see the input resolution [A: 2: the ray cast and its
+        refinement cost about a quarter; the planes stay those of the full-resolution cast on
+        the quick suite]."""
 
         tsdf: TsdfConfig = field(default_factory=TsdfConfig)
-        raycast_downsample: int = 1
+        raycast_downsample: int = 2
+        upsample_jump_m: float = 0.05
 
         def __post_init__(self) -> None:
             _check_config(self)
             n = self.raycast_downsample
             if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
                 raise ConfigError("raycast_downsample", n, "an integer >= 1")
+            check_range("upsample_jump_m", self.upsample_jump_m, 0.0)
 
     def _reset_map(self) -> None:
         self._tsdf = Tsdf(self.config.tsdf)
@@ -500,10 +622,12 @@ class TerrainReconstructionPipeline(_LocomotionPipeline):
         Ks = scale_intrinsics(K, 1.0 / n)
         smooth = np.asarray(self._tsdf.raycast_depth(Ks, T_odom_cam, max(1, w // n), max(1, h // n)), dtype=np.float32)
         smooth = np.where(np.isfinite(smooth) & (smooth > 0), smooth, 0.0).astype(np.float32)
-        detected = extract_planes(smooth, Ks, T_odom_cam, self.config.ahc, self.config.planes.cell_m) \
+        if n > 1:
+            smooth = upsample_depth(smooth, n, (h, w), self.config.upsample_jump_m)
+        detected = extract_planes(smooth, K, T_odom_cam, self.config.ahc, self.config.planes.cell_m) \
             if np.any(smooth > 0) else []
-        stride = max(1, self.config.observed_stride_px // n)
-        observed = voxel_keys(backproject(smooth, Ks, T_odom_cam, stride), self.config.planes.cell_m)
+        stride = max(1, self.config.observed_stride_px)
+        observed = voxel_keys(backproject(smooth, K, T_odom_cam, stride), self.config.planes.cell_m)
         self._plane_set.update(list(detected), observed)
         return len(detected)
 
@@ -513,6 +637,9 @@ class SingleFramePipeline(_LocomotionPipeline):
     plane set each frame; same footprint and mode logic (module docstring)."""
 
     name = "single-frame"
+
+    def _reset_map(self) -> None:
+        """Nothing to forget: this baseline keeps no map between frames."""
 
     def _update_planes(self, depth_m: np.ndarray, K: np.ndarray, T_odom_cam: np.ndarray) -> int:
         detected = list(extract_planes(depth_m, K, T_odom_cam, self.config.ahc, self.config.planes.cell_m))

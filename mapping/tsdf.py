@@ -62,6 +62,10 @@ W >= raycast_min_weight to stop a ray.
 ``ray_cast`` keeps a buffer of range-map fragments in the grid that it sizes on its first call
 and that overflows silently (rays find nothing) and sometimes crashes open3d 0.20 when a later
 call needs more; :meth:`Tsdf._prime` therefore makes the first call itself with a large buffer.
+Its range map is the image // 8; when the width or height is not a multiple of 8 (212 x 120, a
+424 x 240 camera at half resolution) the rays of the last partial cell read outside the range
+map and ``ray_cast`` was seen to hang there. :meth:`Tsdf.raycast_depth` therefore casts an image
+padded to whole cells (same K: the extra rays lie beyond the right / bottom edge) and crops it.
 
 Choices the paper leaves open [A]: voxel 0.02 m, t_delta = 0.06 m, w_j = 1, W_max = 50 (once
 capped, each frame has weight w / (W_max + w) = 1/51: a forgetting time constant of ~1.7 s at
@@ -295,7 +299,11 @@ class Tsdf:
         buf, keys = buf[sel], keys[sel]
         order = np.lexsort((keys[:, 2], keys[:, 1], keys[:, 0]))  # fixed order, whatever the hash map's
         buf, keys = buf[order], keys[order]
-        h_down, w_down = out.shape[0] // _RANGE_DOWN, out.shape[1] // _RANGE_DOWN
+        # Open3D's range map is image // _RANGE_DOWN; the rays of a last partial cell (width or
+        # height not a multiple of it) read outside the range map and were seen to hang
+        # ray_cast (212 x 120): the image is padded to whole cells and cropped afterwards.
+        hp, wp = -(-out.shape[0] // _RANGE_DOWN) * _RANGE_DOWN, -(-out.shape[1] // _RANGE_DOWN) * _RANGE_DOWN
+        h_down, w_down = hp // _RANGE_DOWN, wp // _RANGE_DOWN
         max_blocks = _PRIME_FRAGMENTS // max(1, -(-h_down // 16) * -(-w_down // 16)) - 1
         if len(keys) > max_blocks:  # keep the nearest blocks (see _prime)
             dist = np.linalg.norm((keys + 0.5) * c.voxel_size_m * c.block_resolution - T[:3, 3], axis=1)
@@ -306,12 +314,12 @@ class Tsdf:
         T_shift[:3, 3] += 0.5 * c.voxel_size_m  # nearest-voxel lookups, see module docstring
         try:
             res = vbg.ray_cast(o3c.Tensor(np.ascontiguousarray(keys.astype(np.int32))), o3c.Tensor(Km),
-                               o3c.Tensor(np.linalg.inv(T_shift)), out.shape[1], out.shape[0], ["depth"],
+                               o3c.Tensor(np.linalg.inv(T_shift)), wp, hp, ["depth"],
                                1.0, c.depth_min_m, c.depth_max_m, c.raycast_min_weight / c.obs_weight,
                                self._trunc_mult, _RANGE_DOWN)
         except (RuntimeError, np.linalg.LinAlgError):
             return out
-        d = res["depth"].numpy().reshape(out.shape).astype(np.float32)
+        d = np.ascontiguousarray(res["depth"].numpy().reshape(hp, wp)[:out.shape[0], :out.shape[1]], dtype=np.float32)
         d[~np.isfinite(d) | (d < c.depth_min_m) | (d > c.depth_max_m)] = 0.0
         if c.refine_raycast:
             self._refine(d, Km, T, buf, keys)

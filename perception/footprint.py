@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from exobench.core import ConfigError
+
 SIDES = ("l", "r")
 
 
@@ -48,6 +50,38 @@ def next_step_size(deltas_m: np.ndarray) -> float:
     return float(2.0 * d[-1] - d[-2])
 
 
+STEP_ESTIMATES = ("eq17", "eq17_clamped", "eq17_capped", "median")
+
+
+def robust_next_step_size(deltas_m: np.ndarray, method: str = "eq17_clamped", n_recent: int = 3) -> float:
+    """Next step size from the recent ones, by ``method``:
+
+    - ``"eq17"``: eq. 17 as published (first-order extrapolation of the last two);
+    - ``"eq17_clamped"`` [deviation]: eq. 17 clamped to the range of the last ``n_recent`` step
+      sizes. A stop-and-go (exoskeleton) walker makes very uneven steps near transitions (a
+      0.1 m shuffle to stop before a stair, a full step after it): unclamped, eq. 17 then predicts
+      a step backwards or a step longer than any seen, far off the terrain ahead;
+    - ``"eq17_capped"`` [deviation]: eq. 17 bounded by 0 and the longest of the last ``n_recent``
+      step sizes (a slowing walker keeps eq. 17's shorter step, no step backwards or longer
+      than any seen);
+    - ``"median"`` [deviation]: the median of the last ``n_recent`` step sizes.
+    """
+    d = np.asarray(deltas_m, dtype=float)
+    if method not in STEP_ESTIMATES:
+        raise ValueError(f"method must be one of {STEP_ESTIMATES}, got {method!r}")
+    if d.size < 2:
+        raise ValueError(f"the next step size needs at least two step sizes, got {d.size}")
+    recent = d[-max(2, int(n_recent)):]
+    if method == "median":
+        return float(np.median(recent))
+    delta = next_step_size(d)
+    if method == "eq17_clamped":
+        delta = float(np.clip(delta, recent.min(), recent.max()))
+    elif method == "eq17_capped":
+        delta = float(np.clip(delta, 0.0, recent.max()))
+    return delta
+
+
 def predict_position(p_last_m: np.ndarray, v_last_m_s: np.ndarray, delta_next_m: float) -> np.ndarray:
     """Eq. 18: p_pd = p_n + v_n / ||v_n|| * delta_nxt."""
     v = np.asarray(v_last_m_s, dtype=float)
@@ -73,12 +107,21 @@ class FootprintConfig:
     """Offsets of the left and right footprint from p_pd in the heading frame, m.
 
     ``min_step_m``: lower bound of delta_nxt (None = eq. 17 unchanged, as in the paper, where a
-    slowing walker can get a negative next step).
+    slowing walker can get a negative next step). ``step_estimate``, ``n_recent``: how delta_nxt
+    is found (:func:`robust_next_step_size`; ``"eq17"`` is the paper's eq. 17).
     """
 
     offset_l_m: tuple[float, float, float] = (0.0, 0.08, 0.0)
     offset_r_m: tuple[float, float, float] = (0.0, -0.08, 0.0)
     min_step_m: float | None = None
+    step_estimate: str = "eq17"
+    n_recent: int = 3
+
+    def __post_init__(self) -> None:
+        if self.step_estimate not in STEP_ESTIMATES:
+            raise ConfigError("footprint.step_estimate", self.step_estimate, list(STEP_ESTIMATES))
+        if isinstance(self.n_recent, bool) or not isinstance(self.n_recent, (int, np.integer)) or self.n_recent < 2:
+            raise ConfigError("footprint.n_recent", self.n_recent, "an integer >= 2")
 
 
 @dataclass(frozen=True)
@@ -102,7 +145,7 @@ def predict_footprint(strikes: list[HeelStrike], config: FootprintConfig | None 
     if last.side not in SIDES:
         raise ValueError(f"heel strike side must be one of {SIDES}, got {last.side!r}")
     deltas = step_sizes(np.array([s.p_world for s in strikes]))
-    delta = next_step_size(deltas)
+    delta = robust_next_step_size(deltas, c.step_estimate, c.n_recent)
     if c.min_step_m is not None:
         delta = max(delta, c.min_step_m)
     p_pd = predict_position(last.p_world, last.v_world, delta)

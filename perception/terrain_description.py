@@ -41,9 +41,15 @@ current footprint:
 - T horizontal, C a ramp: LG (leaving the ramp); no plane under the current footprint: its
   height ``current_height_m`` if the caller knows it (e.g. measured before the foot left the
   view; reason ``"current_remembered"``), else LG, reason ``"current_unknown"``;
-- no plane under the predicted footprint: the current terrain is assumed to continue (C a ramp:
-  RA/RD along it; C horizontal: LG), reason ``"extrapolated"``; neither known: mode ``""``,
-  reason ``"no_terrain"``.
+- no plane under the predicted footprint, but the first walkable plane beyond it along the
+  walking direction (within ``drop_lookahead_m``) lies ``stair_rise_min_m`` or more below the
+  current terrain: SD, reason ``"drop_ahead"`` [A]. A head or chest camera above a descending
+  flight sees the floor beyond it, but the treads below its own level are hidden by the nosings
+  (or out of the view of a camera looking ahead), so the footprint beyond the edge of the
+  current level has no plane under it;
+- otherwise no plane under the predicted footprint: the current terrain is assumed to continue
+  (C a ramp: RA/RD along it; C horizontal: LG), reason ``"extrapolated"``; neither known: mode
+  ``""``, reason ``"no_terrain"``.
 
 The paper gives no values for its thresholds; the defaults are [A] choices: level ground up to
 6 deg (building codes allow 1:12 = 4.8 deg for ramps' landings), ramps up to 25 deg (the paper's
@@ -83,6 +89,7 @@ class TerrainConfig:
     support_radius_m: float = 0.10
     support_fit_tol_m: float = 0.01
     min_score: int = 1
+    drop_lookahead_m: float = 1.0
 
     def __post_init__(self) -> None:
         check_range("terrain.level_max_slope_deg", self.level_max_slope_deg, 0.0, 45.0)
@@ -96,6 +103,7 @@ class TerrainConfig:
         check_range("terrain.support_margin_m", self.support_margin_m, 0.0)
         check_range("terrain.support_radius_m", self.support_radius_m, 0.0)
         check_range("terrain.support_fit_tol_m", self.support_fit_tol_m, 0.0)
+        check_range("terrain.drop_lookahead_m", self.drop_lookahead_m, 0.0)
         if isinstance(self.min_score, bool) or not isinstance(self.min_score, (int, np.integer)) or self.min_score < 1:
             raise ConfigError("terrain.min_score", self.min_score, "an integer >= 1")
 
@@ -114,6 +122,7 @@ class ModeDecision:
     """The mode of the next step and how it was found.
 
     ``reason``: ``"ok"``, ``"extrapolated"`` (no plane under the predicted footprint),
+    ``"drop_ahead"`` (none, lower ground beyond it: SD),
     ``"current_unknown"`` (no plane under the current one), ``"current_remembered"`` (none,
     but its height was given) or ``"no_terrain"`` (neither).
     ``dz_m``: height of the terrain under the predicted footprint minus under the current one
@@ -212,12 +221,13 @@ class TerrainDescription:
         return None if best is None else best[2]
 
     def mode_of_step(self, current_xy: np.ndarray, next_xy: np.ndarray,
-                     current_height_m: float | None = None) -> ModeDecision:
+                     current_height_m: float | None = None, current_class: str | None = None) -> ModeDecision:
         """Locomotion mode of the step from the current footprint to the predicted one.
 
         ``current_height_m``: terrain height under the current footprint known otherwise (e.g.
         measured before the foot left the view), used only when no plane lies under it; the
-        reason is then ``"current_remembered"``."""
+        reason is then ``"current_remembered"``; ``current_class`` the class of the plane it was
+        measured on, if known (a foot that was on a ramp leaves it: LG)."""
         cur = np.asarray(current_xy, dtype=float)[:2]
         nxt = np.asarray(next_xy, dtype=float)[:2]
         c_id = self.plane_under(cur)
@@ -228,9 +238,12 @@ class TerrainDescription:
         else:
             z_c = None
         n_id = self.plane_under(nxt, z_c)
-        c_cls = None if c_id is None else self.plane_classes[c_id]
+        c_cls = current_class if c_id is None else self.plane_classes[c_id]
         c_kind, n_kind = self.terrain_kind(c_id), self.terrain_kind(n_id)
         if n_id is None:
+            drop = self._drop_ahead(cur, nxt, z_c)
+            if drop is not None:
+                return ModeDecision("SD", "drop_ahead", None, c_id, None, c_kind, drop)
             if c_id is None:
                 return ModeDecision("", "no_terrain", None, None, None, None, float("nan"))
             mode = self._ramp_mode(c_id, cur, nxt) if c_cls == "ramp" else "LG"
@@ -247,6 +260,31 @@ class TerrainDescription:
             elif dz <= -self.config.stair_rise_min_m:
                 mode = "SD"
         return ModeDecision(mode, reason, n_id, c_id, n_kind, c_kind, dz)
+
+    def _drop_ahead(self, cur: np.ndarray, nxt: np.ndarray, z_c: float | None) -> float | None:
+        """Height change to the first walkable plane found beyond ``nxt`` along the walking
+        direction (``cur`` -> ``nxt``, up to ``drop_lookahead_m``, steps of ``support_margin_m``)
+        if it lies ``stair_rise_min_m`` or more below ``z_c``; else None. Used when no plane
+        lies under ``nxt``: a camera above a descending flight sees the floor beyond it but
+        hardly the treads below its own (nosings hide them), so the footprint beyond the edge
+        of the current level with lower ground ahead is a step down ("drop_ahead")."""
+        c = self.config
+        if z_c is None or c.drop_lookahead_m <= 0.0:
+            return None
+        d = nxt - cur
+        norm = float(np.hypot(d[0], d[1]))
+        if norm < 1e-9:
+            return None
+        d = d / norm
+        step = max(c.support_margin_m, 1e-3)
+        for s in np.arange(step, c.drop_lookahead_m + 0.5 * step, step):
+            q = nxt + s * d
+            pid = self.plane_under(q, z_c)
+            if pid is None:
+                continue
+            dz = plane_height_at(self.planes[pid], q) - z_c
+            return dz if dz <= -c.stair_rise_min_m else None
+        return None
 
     def _ramp_mode(self, plane_id: int, cur: np.ndarray, nxt: np.ndarray) -> str:
         """RA when the ramp plane rises from ``cur`` to ``nxt``, else RD."""

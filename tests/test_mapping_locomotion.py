@@ -111,6 +111,8 @@ def true_mode(segs, f_from, f_to):
     land = segment_at(segs, f_to)
     if land.slope_deg != 0.0:
         return "RA" if land.z(f_to) > land.z(f_from) else "RD"
+    if segment_at(segs, f_from).slope_deg != 0.0:  # leaving a ramp (as in step_truths)
+        return "LG"
     dz = land.z(f_to) - height(segs, f_from)
     return "SA" if dz >= 0.1 else "SD" if dz <= -0.1 else "LG"
 
@@ -191,12 +193,14 @@ def run(pipe, frames, cal=None):
 
 def expected(est: LocomotionEstimate, strikes, segs):
     """(prediction, true mode of the next step) for each prediction with a footprint: after
-    strike n-1 (strike_index n) the next foot lands at strikes[n]."""
+    strike n-1 (strike_index n) the next foot lands at strikes[n], coming from its own last
+    footprint strikes[n-2] (the mode of a step is the swinging foot's change of terrain, as in
+    the track's truth, envs/locomotion_world.step_truths)."""
     out = []
     for p in est.predictions:
         n = p.strike_index
         if 3 <= n < len(strikes):
-            out.append((p, true_mode(segs, strikes[n - 1][1], strikes[n][1])))
+            out.append((p, true_mode(segs, strikes[n - 2][1], strikes[n][1])))
     return out
 
 
@@ -209,8 +213,11 @@ def last_before_strike(pairs):
 
 
 AHC = AhcConfig(min_support_px=150)  # [34]'s 800 px is for 640x480; these images are 160x120
-TR_CFG = TerrainReconstructionPipeline.Config(ahc=AHC, raycast_downsample=1)
-SF_CFG = SingleFramePipeline.Config(ahc=AHC)
+# the synthetic walker's camera is midway between the feet at each heel strike (walk()): the foot
+# that strikes is half a step ahead of it
+GAIT = dict(lead_fraction=0.5, foot_lead_m=0.0)
+TR_CFG = TerrainReconstructionPipeline.Config(ahc=AHC, **GAIT)
+SF_CFG = SingleFramePipeline.Config(ahc=AHC, **GAIT)
 N_STEPS = 18
 
 
@@ -361,7 +368,7 @@ def test_odometry_of_a_calibrated_body_and_sensor_selection(stairs_walk):
             moved.append(RgbdFrame(f.stamp_s, "rgbd_head", f.rgb, np.zeros_like(f.depth_m), f.K))  # other camera
         moved.append(f)
     ref = run(SingleFramePipeline(SF_CFG), short)
-    est = run(SingleFramePipeline(SingleFramePipeline.Config(ahc=AHC, rgbd_sensor_id="rgbd_chest")), moved, cal2)
+    est = run(SingleFramePipeline(SingleFramePipeline.Config(ahc=AHC, rgbd_sensor_id="rgbd_chest", **GAIT)), moved, cal2)
     assert est.stats["odometry_mount"] == "calibrated"
     assert [p.mode for p in est.predictions] == [p.mode for p in ref.predictions]
     np.testing.assert_allclose([p.footprint_odom for p in est.predictions], [p.footprint_odom for p in ref.predictions],
@@ -377,7 +384,7 @@ def test_processing_rate_and_config_errors(stairs_walk):
     segs, frames, strikes = stairs_walk
     short = [f for f in frames if f.stamp_s <= 3.0]
     n_rgbd = sum(isinstance(f, RgbdFrame) for f in short)
-    est = run(SingleFramePipeline(SingleFramePipeline.Config(ahc=AHC, every_k=3)), short)
+    est = run(SingleFramePipeline(SingleFramePipeline.Config(ahc=AHC, every_k=3, **GAIT)), short)
     assert len(est.predictions) == est.stats["n_processed"] == -(-n_rgbd // 3)
     assert est.stats["n_skipped_rate"] == n_rgbd - est.stats["n_processed"]
     assert est.stats["n_dropped_frames"] == 0  # skipping by rate is not dropping
@@ -387,6 +394,12 @@ def test_processing_rate_and_config_errors(stairs_walk):
         TerrainReconstructionPipeline.Config(raycast_downsample=0)
     with pytest.raises(ConfigError):
         SingleFramePipeline.Config(lead_fraction=1.5)
+    with pytest.raises(ConfigError):
+        SingleFramePipeline.Config(mode_reference="left")
+    with pytest.raises(ConfigError):
+        SingleFramePipeline.Config(pause_s=0.0)
+    with pytest.raises(ConfigError):
+        TerrainReconstructionPipeline.Config(upsample_jump_m=-1.0)
     with pytest.raises(UnknownNameError):
         SingleFramePipeline(SingleFramePipeline.Config(rgbd_sensor_id="rgbd_knee")).reset(calibration())
 
@@ -451,3 +464,45 @@ def test_camera_latency_and_named_camera(stairs_walk):
 
 def _shift(f, dt):
     return RgbdFrame(f.stamp_s + dt, f.sensor_id, f.rgb, f.depth_m, f.K)
+
+
+def test_upsampled_raycast_is_exact_on_planes():
+    """upsample_depth: bilinear in 1/z reproduces a plane's full-resolution depth (1/z is affine
+    in the pixel coordinates of a plane); across a depth jump it takes the nearest sample."""
+    from exobench.mapping.locomotion import scale_intrinsics, upsample_depth
+
+    def plane_depth(Km, w, h, n, d0):
+        u, v = np.meshgrid(np.arange(w), np.arange(h))
+        ray = np.stack([(u - Km[0, 2]) / Km[0, 0], (v - Km[1, 2]) / Km[1, 1], np.ones((h, w))], axis=-1)
+        return (d0 / (ray @ n)).astype(np.float32)  # z-depth of n . p = d0
+
+    n = np.array([0.0, 0.8, 0.6])
+    full = plane_depth(K, W, H, n, 1.5)
+    half = plane_depth(scale_intrinsics(K, 0.5), W // 2, H // 2, n, 1.5)
+    up = upsample_depth(half, 2, (H, W), jump_m=1.0)
+    inner = (slice(1, H - 1), slice(1, W - 1))  # the border pixels lie outside the small image's grid
+    np.testing.assert_allclose(up[inner], full[inner], rtol=1e-4)
+    step = half.copy()
+    step[:, W // 4:] += 0.5  # a depth jump: no blend of the two sides
+    up = upsample_depth(step, 2, (H, W), jump_m=0.05)
+    close = np.zeros_like(full, bool)
+    close[inner] = full[inner] < 3.0  # farther, one pixel spans more depth than jump_m: nearest there
+    near, far = up[close], full[close]
+    assert np.all(np.isclose(near, far, rtol=2e-2) | np.isclose(near, far + 0.5, rtol=2e-2))
+    assert np.any(np.isclose(near, far + 0.5, rtol=2e-2)) and np.any(np.isclose(near, far, rtol=2e-2))
+
+
+def test_mode_refers_to_the_swinging_foot(stairs_walk):
+    """At the top of a flight the foot that left the last tread lands on the landing next to the
+    other foot: SA relative to its own last footprint (``swing``, the track's definition), LG
+    relative to the standing foot (``stance``)."""
+    segs, frames, strikes = stairs_walk
+    swing = run(TerrainReconstructionPipeline(TR_CFG), frames)
+    stance = run(TerrainReconstructionPipeline(TerrainReconstructionPipeline.Config(ahc=AHC, mode_reference="stance",
+                                                                                    **GAIT)), frames)
+    by_n = {n: (p.mode, q.mode) for (p, _), (q, _) in zip(last_before_strike(expected(swing, strikes, segs)),
+                                                           last_before_strike(expected(stance, strikes, segs)))
+            for n in [p.strike_index]}
+    top = next(n for n in range(3, len(strikes)) if height(segs, strikes[n][1]) == height(segs, strikes[n - 1][1])
+               and height(segs, strikes[n][1]) > height(segs, strikes[n - 2][1]) + 0.1)
+    assert by_n[top] == ("SA", "LG")

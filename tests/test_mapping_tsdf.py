@@ -102,6 +102,30 @@ def test_raycast_from_a_new_pose_and_at_half_resolution():
     assert np.median(err) < 0.002 and np.percentile(err, 99) < VOXEL
 
 
+def test_raycast_of_an_image_not_a_multiple_of_8_pixels():
+    """Open3D's range map is 1/8 of the image; a size that is not a multiple of 8 (212 x 122, as
+    a 424 x 240 camera at half resolution gives 212 x 120) is padded, cast and cropped: the
+    right and bottom pixels are hit like the others, and the result equals the padded cast's
+    crop."""
+    T = POSES[0]
+    tsdf = Tsdf()
+    tsdf.integrate(render(T)[0], K, T)
+    w, h = 212, 122
+    Ks = K.copy()
+    Ks[:2] *= w / W
+    depth, fid = render(T, Ks, w, h)
+    out = tsdf.raycast_depth(Ks, T, w, h)
+    assert out.shape == (h, w)
+    m = interior(fid, margin=1, border=1)
+    hit = m & (out > 0)
+    part = m.copy()
+    part[:120, :208] = False  # the pixels of the last, partial range-map cells
+    assert hit.sum() > 0.95 * m.sum() and part.sum() > 0 and hit[part].sum() > 0.9 * part.sum()
+    err = np.abs(out[hit] - depth[hit])
+    assert np.median(err) < 0.002 and np.percentile(err, 99) < VOXEL
+    np.testing.assert_array_equal(out, tsdf.raycast_depth(Ks, T, 216, 128)[:h, :w])
+
+
 def test_fusing_noisy_frames_from_several_poses_reduces_the_error():
     rng = np.random.default_rng(3)
     poses = [camera(0.05 * i - 0.1, 38.0 + i, y=0.03 * (i % 3) - 0.03) for i in range(6)]

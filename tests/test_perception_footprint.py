@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from exobench.core import ConfigError
 from exobench.perception.footprint import (
     FootprintConfig,
     GaitDivider,
@@ -11,6 +12,7 @@ from exobench.perception.footprint import (
     next_step_size,
     predict_footprint,
     predict_position,
+    robust_next_step_size,
     step_sizes,
 )
 
@@ -98,3 +100,26 @@ def test_errors():
         predict_position(np.zeros(3), np.zeros(3), 0.5)
     with pytest.raises(ValueError):
         GaitDivider().update(0.0, "x", True, np.zeros(3), np.zeros(3))
+
+
+def test_robust_next_step_sizes_of_a_stop_and_go_walker():
+    """Steps 0.40, 0.42, 0.27 then a 0.08 m shuffle (stopping before a stair): eq. 17 predicts
+    2 x 0.08 - 0.27 < 0; clamped to the last three it is the shortest of them, capped it is 0,
+    the median the middle one."""
+    d = np.array([0.40, 0.42, 0.27, 0.08])
+    assert robust_next_step_size(d, "eq17") == pytest.approx(2 * 0.08 - 0.27)
+    assert robust_next_step_size(d, "eq17_clamped") == pytest.approx(0.08)
+    assert robust_next_step_size(d, "eq17_capped") == pytest.approx(0.0)
+    assert robust_next_step_size(d, "median") == pytest.approx(0.27)
+    up = np.array([0.30, 0.35, 0.45])  # speeding up: eq. 17 gives 0.55, more than any step seen
+    assert robust_next_step_size(up, "eq17_clamped") == pytest.approx(0.45)
+    assert robust_next_step_size(up, "eq17_capped") == pytest.approx(0.45)
+    assert robust_next_step_size(np.array([0.3, 0.4]), "eq17_capped", n_recent=5) == pytest.approx(0.4)
+    s = [HeelStrike(float(i), "lr"[i % 2], np.array([x, 0.0, 1.0]), np.array([0.5, 0.0, 0.0]))
+         for i, x in enumerate(np.cumsum([0.0, *d]))]
+    pred = predict_footprint(s, FootprintConfig(step_estimate="eq17_capped"))
+    assert pred.delta_next_m == pytest.approx(0.0)
+    with pytest.raises(ConfigError):
+        FootprintConfig(step_estimate="mean")
+    with pytest.raises(ConfigError):
+        FootprintConfig(n_recent=1)

@@ -215,3 +215,29 @@ def test_remembered_current_height():
     ps = plane_set(patch(1.0, 2.0, 0.34), patch(0.0, 1.0, 0.17))
     d = predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.34)
     assert (d.mode, d.reason, d.current_plane_id) == ("SA", "ok", 1)
+
+
+def test_drop_ahead_of_an_unseen_descending_flight():
+    """From a landing (z 0.45) whose treads below are not mapped, with the floor (z 0) seen
+    1 m beyond its edge: a footprint past the edge is SD ("drop_ahead"); short of a mapped
+    lower plane within drop_lookahead_m, or with the ground ahead at the same level, LG."""
+    landing, floor = patch(0.0, 2.0, 0.45), patch(3.0, 5.0, 0.0)
+    d = predict_mode(plane_set(landing, floor), [2.3, 0.0], [1.8, 0.0], CFG)
+    assert (d.mode, d.reason, d.next_plane_id) == ("SD", "drop_ahead", None)
+    assert d.dz_m == pytest.approx(-0.45)
+    d = predict_mode(plane_set(landing, floor), [2.3, 0.0], [1.8, 0.0], TerrainConfig(drop_lookahead_m=0.5))
+    assert (d.mode, d.reason) == ("LG", "extrapolated")
+    d = predict_mode(plane_set(landing, patch(3.0, 5.0, 0.45)), [2.3, 0.0], [1.8, 0.0], CFG)
+    assert (d.mode, d.reason) == ("LG", "extrapolated")
+    # walking away from the floor: nothing lower ahead
+    d = predict_mode(plane_set(patch(1.0, 2.0, 0.45), floor), [0.7, 0.0], [1.2, 0.0], CFG)
+    assert (d.mode, d.reason) == ("LG", "extrapolated")
+
+
+def test_remembered_class_of_a_ramp_footprint():
+    """A foot that was on a ramp (its class known from before) lands on level ground: LG, even
+    0.2 m lower (RD ended), as the track's truth labels leaving a ramp."""
+    ps = plane_set(patch(1.0, 2.0, 0.0))
+    assert predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.2).mode == "SD"
+    desc = describe_terrain(ps, CFG)
+    assert desc.mode_of_step([0.7, 0.0], [1.5, 0.0], 0.2, "ramp").mode == "LG"
