@@ -333,10 +333,11 @@ PAPER_MS_PER_PREDICTION = 31.0  # Tab. IV: D-VIO time per frame; Sec. III-A: pre
 RENDER_POSES = 8
 
 
-def _render_fps(terrain: str, seed: int, repeats: int) -> dict[str, Any]:
-    """RGB-D frames per second at 640x480 (render colour, depth and segmentation, then the depth
-    noise model: :meth:`RgbdCamera.capture`) of the head camera on one course, the walker standing
-    on the level approach facing the course at RENDER_POSES positions and headings."""
+def _render_fps(terrain: str, seed: int, repeats: int, segmentation: bool = False) -> dict[str, Any]:
+    """RGB-D frames per second at 640x480 (render colour and depth, with ``segmentation`` also
+    the geom-id truth, then the depth noise model: :meth:`RgbdCamera.capture`) of the head camera
+    on one course, the walker standing on the level approach facing the course at RENDER_POSES
+    positions and headings."""
     import mujoco
 
     from exobench.envs.locomotion_sim import LocomotionScenario
@@ -352,7 +353,7 @@ def _render_fps(terrain: str, seed: int, repeats: int) -> dict[str, Any]:
     root = int(model.jnt_qposadr[0])
     x0 = data.qpos[root : root + 3].copy()
     q0 = data.qpos[root + 3 : root + 7].copy()
-    cam = RgbdCamera("rgbd_head", RgbdConfig(width_px=640, height_px=480), model, seed)
+    cam = RgbdCamera("rgbd_head", RgbdConfig(width_px=640, height_px=480, segmentation=segmentation), model, seed)
     try:
         cam.capture(model, data, 0.0)  # warm-up: GL context and buffers
         walls, valid = [], []
@@ -435,8 +436,9 @@ def _pipeline_latency(name: str, episode: Episode) -> dict[str, Any]:
 def bench_locomotion(seed: int = 0, *, repeats: int = 2, pipelines: tuple[str, ...] = ("terrain-recon",)) -> dict[str, Any]:
     """Speed of the locomotion track at 640x480 (seeds/002 reports 31 ms per frame).
 
-    - ``render``: RGB-D frames per second of the head camera on the stairs, ramp and parallel
-      courses (:func:`_render_fps`);
+    - ``render``: RGB-D (colour + depth) frames per second of the head camera on the stairs,
+      ramp and parallel courses (:func:`_render_fps`); ``render_with_segmentation`` with the
+      geom-id truth pass the simulation also renders;
     - ``tsdf``: TSDF integration frames per second on the frames of one episode
       (:data:`LOCOMOTION_BENCH_SCENARIO`: short stair course, head camera, 640x480, 15 Hz),
       plus the half-resolution ray cast;
@@ -457,6 +459,7 @@ def bench_locomotion(seed: int = 0, *, repeats: int = 2, pipelines: tuple[str, .
         "latency": {name: _pipeline_latency(name, episode) for name in pipelines},
         "tsdf": _tsdf_fps(episode, repeats),
         "render": {t: _render_fps(t, seed, repeats) for t in ("stairs", "ramp", "parallel")},
+        "render_with_segmentation": {t: _render_fps(t, seed, repeats, segmentation=True) for t in ("stairs", "ramp", "parallel")},
         "paper_ms_per_prediction": PAPER_MS_PER_PREDICTION,
     }
     return result

@@ -103,11 +103,15 @@ class RgbdCamera:
         r.scene.flags[self._shadow_flag] = bool(self.config.shadows)
         r.enable_depth_rendering()
         depth = r.render().copy()
-        r.enable_segmentation_rendering()
-        seg = r.render()
-        r.disable_segmentation_rendering()
+        if self.config.segmentation:
+            r.enable_segmentation_rendering()
+            seg = r.render()
+            r.disable_segmentation_rendering()
+            geom_id = np.where(seg[..., 1] == self._geom_type, seg[..., 0], -1).astype(np.int32)
+        else:
+            r.disable_depth_rendering()
+            geom_id = np.full(depth.shape, -1, dtype=np.int32)
         rgb = r.render().copy()
-        geom_id = np.where(seg[..., 1] == self._geom_type, seg[..., 0], -1).astype(np.int32)
         far = self.renderer.model.vis.map.zfar * self.renderer.model.stat.extent
         depth[depth >= _FAR_FRACTION * far] = 0.0
         return rgb, depth, geom_id

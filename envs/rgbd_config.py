@@ -54,6 +54,8 @@ class RgbdConfig:
             surfaces) [A: 0].
         shadows: render shadows in the colour image (off by default: with software OpenGL
             they make a frame about five times slower; depth is not affected).
+        segmentation: also render the per-pixel geom ids (ground truth, a third render pass);
+            off, the truth's ``geom_id`` is -1 everywhere and a frame costs two passes.
     """
 
     width_px: int = 640
@@ -73,6 +75,7 @@ class RgbdConfig:
     dropout_prob: float = 0.0
     pixel_dropout_prob: float = 0.0
     shadows: bool = False
+    segmentation: bool = True
 
     def __post_init__(self) -> None:
         w = _int_px("rgbd.width_px", self.width_px)
@@ -105,8 +108,9 @@ class RgbdConfig:
         check_range("rgbd.resolution_m", self.resolution_m, 0.0, 0.05)
         check_range("rgbd.dropout_prob", self.dropout_prob, 0.0, 1.0, high_open=True)
         check_range("rgbd.pixel_dropout_prob", self.pixel_dropout_prob, 0.0, 1.0)
-        if not isinstance(self.shadows, (bool, np.bool_)):
-            raise ConfigError("rgbd.shadows", self.shadows, "True or False")
+        for name in ("shadows", "segmentation"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ConfigError(f"rgbd.{name}", getattr(self, name), "True or False")
 
 
 def intrinsics(config: RgbdConfig) -> np.ndarray:

@@ -222,6 +222,21 @@ def test_same_seed_gives_identical_frames(stairs):
     assert not np.array_equal(out[0][0].depth_m, out[2][0].depth_m)  # another seed
 
 
+def test_without_segmentation_the_images_are_the_same(stairs):
+    """``segmentation=False`` skips the geom-id pass only: colour and depth are unchanged."""
+    model, data = stairs
+    caps = []
+    for seg in (True, False):
+        with RgbdCamera("rgbd_chest", RgbdConfig(segmentation=seg), model, seed=3) as cam:
+            caps.append(cam.capture(model, data, 0.0))
+    (f_on, t_on), (f_off, t_off) = caps
+    np.testing.assert_array_equal(f_on.rgb, f_off.rgb)
+    np.testing.assert_array_equal(f_on.depth_m, f_off.depth_m)
+    assert (t_on["geom_id"] >= 0).any() and (t_off["geom_id"] == -1).all()
+    with pytest.raises(ConfigError, match="rgbd.segmentation"):
+        RgbdConfig(segmentation="yes")
+
+
 def test_dropout_latency_and_unknown_camera():
     model, data = _camera_scene(make_T(R_FORWARD, np.zeros(3)), wall_x_m=2.0)
     config = RgbdConfig(width_px=160, height_px=120, dropout_prob=0.5, pixel_dropout_prob=0.2, latency_s=0.05)
