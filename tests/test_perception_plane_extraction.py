@@ -1,5 +1,5 @@
 """AHC plane extraction (seeds/002 II-F, ref. [34]) on depth images of a staircase computed
-analytically here (ray-rectangle intersection), checked against the true treads and risers."""
+analytically (tests/analytic_staircase.py), checked against the true treads and risers."""
 
 import numpy as np
 import pytest
