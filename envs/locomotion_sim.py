@@ -14,9 +14,11 @@ risers up, a ``landing_m`` landing, the same flight down); ``ramp`` LG -> RA -> 
 course and the ramp course side by side; the walker walks the ``parallel_first`` lane out, makes a
 U-turn on the floor beyond its end and walks back along the other lane (LG SA LG SD LG, U-turn,
 LG RA LG RD LG or the reverse). Side walls (``walls``) run along the lanes so that walls fill the
-view when the camera turns. The walker stops (standing, feet together) about 8 cm before every
-transition from level ground to stairs or a ramp: the planner finds the transition step from a
-standing start far more reliably, and exoskeleton users walk stop-and-go anyway.
+view when the camera turns. By default (``stops="none"``) the course is walked through every
+transition without stopping, as the paper's subjects walked; with ``stops="transitions"`` the
+walker stops (standing, feet together) about 8 cm before every transition from level ground to
+stairs or a ramp, as exoskeleton users often do (the short step that brings the feet together
+is not what eq. 17 extrapolates: mode prediction is harder there).
 
 Limits of the walker (:mod:`exobench.envs.walk`, kinematic, stop-and-go), measured: 0.15, 0.20
 and 0.25 m risers with 0.25, 0.30 and 0.32 m treads (and 0.18 m risers with 0.30 m treads), and
@@ -113,6 +115,7 @@ MOUNTS = ("head", "chest", "thigh")
 PATTERNS_NAMES = ("wander", "walk", "jog")
 VIEWS = ("normal", "unconventional")
 PARALLEL_FIRST = ("stairs", "ramp")
+STOPS = ("none", "transitions")
 
 PARAMS: dict[str, ParamSpec] = {
     "terrain": ParamSpec("stairs", None, None, "", "course: stairs (LG SA LG SD LG), ramp (LG RA LG RD LG), parallel (a stair lane beside a ramp lane, up one, down the other)", choices=TERRAINS),
@@ -126,6 +129,7 @@ PARAMS: dict[str, ParamSpec] = {
     "width_m": ParamSpec(1.2, 0.9, 3.0, "m", "width of a flight / ramp lane"),
     "walls": ParamSpec(True, None, None, "", "side walls along the course", choices=(False, True)),
     "parallel_first": ParamSpec("stairs", None, None, "", "parallel course: the lane walked first (out along +x; back along the other after a U-turn)", choices=PARALLEL_FIRST),
+    "stops": ParamSpec("none", None, None, "", "none: walk through every transition without stopping, as the paper's subjects did; transitions: stop-and-go, standing with the feet together just before every transition from level ground to stairs or a ramp (and after the parallel course's U-turn), as exoskeleton users often do", choices=STOPS),
     "mount": ParamSpec("head", None, None, "", "camera mount: head (helmet), chest (chest bag), thigh", choices=MOUNTS),
     "pattern": ParamSpec("walk", None, None, "", "walking pattern: wander, walk, jog (step length and cadence, see PATTERNS)", choices=PATTERNS_NAMES),
     "user_height_m": ParamSpec(1.75, 1.60, 1.90, "m", "user's standing height (paper: 1.65-1.88)"),
@@ -174,6 +178,7 @@ class LocomotionScenario:
     width_m: float = PARAMS["width_m"].default
     walls: bool = PARAMS["walls"].default
     parallel_first: str = PARAMS["parallel_first"].default
+    stops: str = PARAMS["stops"].default
     mount: str = PARAMS["mount"].default
     pattern: str = PARAMS["pattern"].default
     user_height_m: float = PARAMS["user_height_m"].default
@@ -245,7 +250,7 @@ def sensor_ids(mount: str) -> tuple[str, str, str]:
 
 def _world_key(sc: LocomotionScenario) -> tuple:
     return (sc.terrain, sc.riser_m, sc.tread_m, sc.n_steps, sc.slope_deg, sc.ramp_length_m, sc.landing_m,
-            sc.approach_m, sc.width_m, bool(sc.walls), sc.parallel_first)  # fmt: skip
+            sc.approach_m, sc.width_m, bool(sc.walls), sc.parallel_first, sc.stops)  # fmt: skip
 
 
 @lru_cache(maxsize=8)
@@ -270,7 +275,7 @@ def _plan_cached(key: tuple, exo: ExoSpec, pattern: str) -> tuple[Any, tuple, An
 
 
 _WORLD_FIELDS = ("terrain", "riser_m", "tread_m", "n_steps", "slope_deg", "ramp_length_m", "landing_m",
-                 "approach_m", "width_m", "walls", "parallel_first")  # fmt: skip
+                 "approach_m", "width_m", "walls", "parallel_first", "stops")  # fmt: skip
 
 
 def plan_locomotion(scenario: LocomotionScenario) -> tuple[Any, tuple, Motion, dict[str, float]]:

@@ -136,13 +136,16 @@ def build_locomotion_world(sc: Any, toe_m: float = 0.2, descents: bool = True) -
     """(world, route pieces) of a :class:`~exobench.envs.locomotion_sim.LocomotionScenario`.
 
     The route is a sequence of pieces, each a polyline of ``(x, y)`` waypoints walked from a
-    standing start to a standing stop (see :func:`plan_pieces`): the walker stops before every
-    transition from level ground to stairs or a ramp (:func:`stop_points_x`; stop-and-go, as
-    exoskeleton users do, and the planner of :mod:`exobench.envs.walk` finds the transition step
-    far more reliably from a standing start) and, on the ``parallel`` course, on the second
-    lane's level approach after the U-turn. ``descents=False`` leaves out the stops before
-    stairs or ramps going down (the walker walks over the landing's edge), which some users
-    manage where the descent from a standing start at the edge fails.
+    standing start to a standing stop (see :func:`plan_pieces`). With ``sc.stops ==
+    "transitions"`` the walker stops before every transition from level ground to stairs or a
+    ramp (:func:`stop_points_x`; stop-and-go, as exoskeleton users often do) and, on the
+    ``parallel`` course, on the second lane's level approach after the U-turn; ``descents=False``
+    then leaves out the stops before stairs or ramps going down. With ``"none"`` (the default)
+    a stairs or ramp course is one piece, walked through every transition as the paper's
+    subjects did (the planner of :mod:`exobench.envs.walk` places the transition steps; every
+    terrain, pattern and user height of the generality grid plans); the parallel course keeps
+    one stop, on the second lane's approach after the U-turn (walked through, the planner finds
+    no foothold on the second lane).
     """
     stairs = stairs_segments(sc.riser_m, sc.tread_m, sc.n_steps, sc.landing_m)
     ramps = ramp_segments(sc.slope_deg, sc.ramp_length_m, sc.landing_m)
@@ -154,7 +157,8 @@ def build_locomotion_world(sc: Any, toe_m: float = 0.2, descents: bool = True) -
     if sc.terrain in ("stairs", "ramp"):
         w = course(stairs if sc.terrain == "stairs" else ramps, sc.approach_m, sc.approach_m)
         x0, x1 = -sc.approach_m + START_INSET_M, course_length(w) - START_INSET_M
-        xs = [x0, *stop_points_x(w, toe_m, descents), x1]
+        stops = stop_points_x(w, toe_m, descents) if sc.stops == "transitions" else []
+        xs = [x0, *stops, x1]
         return w, tuple(((xs[i], 0.0), (xs[i + 1], 0.0)) for i in range(len(xs) - 1))
     first, second = (stairs, ramps) if sc.parallel_first == "stairs" else (ramps, stairs)
     ap = sc.approach_m + PARALLEL_EXTRA_APPROACH_M
@@ -172,8 +176,11 @@ def build_locomotion_world(sc: Any, toe_m: float = 0.2, descents: bool = True) -
     world = merge_lanes(a, b, T_b)
     turn_x = L + U_TURN_M
     x0 = -ap + START_INSET_M
-    xa = [x0, *stop_points_x(a, toe_m, descents)]
+    stops = sc.stops == "transitions"
+    xa = [x0, *(stop_points_x(a, toe_m, descents) if stops else [])]
     xb = [float(L - ap - x) for x in stop_points_x(b, toe_m, descents)]
+    if not stops:  # one stop only: after the U-turn, where the planner needs a standing start
+        xb = xb[:1]
     local = [[(xa[i], 0.0), (xa[i + 1], 0.0)] for i in range(len(xa) - 1)]
     local.append([(xa[-1], 0.0), (turn_x - 0.6, 0.0), (turn_x, -0.5 * gap), (turn_x - 0.6, -gap), (xb[0], -gap)])
     xb.append(x0)

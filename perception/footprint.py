@@ -158,20 +158,31 @@ def predict_footprint(strikes: list[HeelStrike], config: FootprintConfig | None 
 
 @dataclass
 class GaitDivider:
-    """Records a :class:`HeelStrike` on each rising edge of a heel contact signal."""
+    """Records a :class:`HeelStrike` on each rising edge of a heel contact signal that follows at
+    least ``min_off_s`` without contact (a swing). Shorter gaps are contact chatter, not steps: a
+    heel rocking on the pad's threshold while the foot shuffles or the weight shifts (the usual
+    debounce of insole gait-event detection; 0 counts every rising edge)."""
 
     strikes: list[HeelStrike] = field(default_factory=list)
+    min_off_s: float = 0.1
     _in_contact: dict[str, bool] = field(default_factory=lambda: {s: False for s in SIDES})
+    _off_since: dict[str, float] = field(default_factory=lambda: {s: -np.inf for s in SIDES})
+    n_chatter: int = 0
 
     def update(self, stamp_s: float, side: str, heel_in_contact: bool, p_world: np.ndarray,
                v_world: np.ndarray) -> HeelStrike | None:
         """Feed one heel contact sample with the odometry state at its time; returns the new
-        division on a heel strike (contact after no contact), else None."""
+        division on a heel strike (contact after at least ``min_off_s`` without), else None."""
         if side not in SIDES:
             raise ValueError(f"side must be one of {SIDES}, got {side!r}")
         was = self._in_contact[side]
         self._in_contact[side] = bool(heel_in_contact)
+        if was and not heel_in_contact:
+            self._off_since[side] = float(stamp_s)
         if heel_in_contact and not was:
+            if float(stamp_s) - self._off_since[side] < self.min_off_s:
+                self.n_chatter += 1
+                return None
             strike = HeelStrike(stamp_s, side, np.array(p_world, dtype=float), np.array(v_world, dtype=float))
             self.strikes.append(strike)
             return strike

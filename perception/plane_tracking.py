@@ -15,13 +15,26 @@ Update rules of the paper, per frame:
    merges them all into one ("merging multiple planes"): the survivor is the one with the highest
    score (then the lowest id) and its score becomes the highest score of the group + 1;
 2. a detected plane with no match is added with score 1 and a new id;
-3. an existing plane in the scope of I_D^s (at least ``scope_min_cells`` of its voxels observed)
+3. an existing plane in the scope of I_D^s (at least ``scope_min_cells`` of its voxels, and at
+   least ``scope_min_fraction`` of them, observed)
    without a matching detected plane has its score decremented by 1; out-of-scope planes keep
    their score;
 4. planes whose score reaches 0 are deleted.
 
+Geometric gate [deviation]: a pair counts as a match only if, besides the IoU, their normals
+differ by at most ``match_angle_deg`` [A: 6 deg] and each centre lies within ``match_offset_m``
+[A: 0.05 m] of the other plane (None disables either gate: eq. 23 alone); the voxels that a
+detection incompatible with an existing plane covers do not count as that plane's seen part
+(neither for its IoU nor for its scope). Regions alone match
+neighbouring planes of different slope: the voxels of a ramp and of the landing it meets share
+the crease, a frame sees only a strip of each, and IoU >= 0.5 on the seen part merged a
+11.8 deg ramp into its landing (one "horizontal" plane 5 deg off), so the ramp vanished from
+the terrain on the ramp courses.
+
 Choices the text leaves open [A]: ``iou_min`` = 0.5 ("high IoU"), ``cell_m`` = 0.05 m,
-``scope_min_cells`` = 10; a score rises by 1 per frame however many detections merge into a plane;
+``scope_min_cells`` = 10, ``scope_min_fraction`` = 0.3 (a plane mostly out of view, e.g. the
+landing under the walker's feet while a head camera looks at the ramp beyond it, shows only a
+strip at the image border that the segmentation often misses: that is not a plane gone); a score rises by 1 per frame however many detections merge into a plane;
 no upper bound on the score (``max_score`` = None). Merging two planes p, q (areas a_p, a_q):
 n = normalise(a_p n_p + a_q sign(n_p . n_q) n_q); the plane offset is the area-weighted mean of
 n . c_p and n . c_q; the centre is the mean of the union's voxel centres moved onto that plane;
@@ -111,14 +124,22 @@ class PlaneTrackingConfig:
     cell_m: float = 0.05
     iou_min: float = 0.5
     scope_min_cells: int = 10
+    scope_min_fraction: float = 0.3
     max_score: int | None = None
+    match_angle_deg: float | None = 6.0
+    match_offset_m: float | None = 0.05
 
     def __post_init__(self) -> None:
         check_range("plane_tracking.cell_m", self.cell_m, 0.0, 10.0, low_open=True)
+        if self.match_angle_deg is not None:
+            check_range("plane_tracking.match_angle_deg", self.match_angle_deg, 0.0, 90.0, low_open=True)
+        if self.match_offset_m is not None:
+            check_range("plane_tracking.match_offset_m", self.match_offset_m, 0.0, 10.0, low_open=True)
         check_range("plane_tracking.iou_min", self.iou_min, 0.0, 1.0, low_open=True)
         if isinstance(self.scope_min_cells, bool) or not isinstance(self.scope_min_cells, (int, np.integer)) \
                 or self.scope_min_cells < 1:
             raise ConfigError("plane_tracking.scope_min_cells", self.scope_min_cells, "an integer >= 1")
+        check_range("plane_tracking.scope_min_fraction", self.scope_min_fraction, 0.0, 1.0)
         if self.max_score is not None and (isinstance(self.max_score, bool) or not isinstance(
                 self.max_score, (int, np.integer)) or self.max_score < 1):
             raise ConfigError("plane_tracking.max_score", self.max_score, "None or an integer >= 1")
@@ -133,6 +154,20 @@ class UpdateReport:
     added: list[int] = field(default_factory=list)
     decremented: list[int] = field(default_factory=list)
     deleted: list[int] = field(default_factory=list)
+
+
+def compatible(p: TrackedPlane | DetectedPlane, q: TrackedPlane | DetectedPlane, config: PlaneTrackingConfig) -> bool:
+    """The geometric gate of a match (module docstring): normals within ``match_angle_deg`` (either
+    orientation) and each centre within ``match_offset_m`` of the other plane."""
+    if config.match_angle_deg is not None:
+        cos = abs(float(np.asarray(p.normal) @ np.asarray(q.normal)))
+        if cos < np.cos(np.radians(config.match_angle_deg)):
+            return False
+    if config.match_offset_m is not None:
+        d = np.asarray(q.center_m, dtype=float) - np.asarray(p.center_m, dtype=float)
+        if abs(float(d @ p.normal)) > config.match_offset_m or abs(float(d @ q.normal)) > config.match_offset_m:
+            return False
+    return True
 
 
 def merge_planes(p: TrackedPlane | DetectedPlane, q: TrackedPlane | DetectedPlane,
@@ -180,7 +215,15 @@ class PlaneSet:
             seen = np.union1d(np.asarray(observed_cells, dtype=np.int64), np.concatenate(
                 [d.cells for d in detected] + [np.zeros(0, np.int64)]))
             visible = [np.intersect1d(e.cells, seen, assume_unique=True) for e in existing]
-        in_scope = [v.size >= c.scope_min_cells for v in visible]
+        if c.match_angle_deg is not None or c.match_offset_m is not None:
+            # voxels a detection of another (incompatible) plane claims are not this plane's seen
+            # part: a ramp detection reaching over the crease onto a landing that is out of view
+            # neither matches nor decrements the landing
+            for j, e in enumerate(existing):
+                other = [d.cells for d in detected if not compatible(e, d, c)]
+                if other and visible[j].size:
+                    visible[j] = np.setdiff1d(visible[j], np.concatenate(other), assume_unique=False)
+        in_scope = [v.size >= max(c.scope_min_cells, c.scope_min_fraction * e.cells.size) for v, e in zip(visible, existing)]
 
         # components of the graph (existing + detected, edges IoU >= iou_min): union-find
         n_e = len(existing)
@@ -194,7 +237,7 @@ class PlaneSet:
 
         for i, d in enumerate(detected):
             for j in range(n_e):
-                if visible[j].size and iou(d.cells, visible[j]) >= c.iou_min:
+                if visible[j].size and iou(d.cells, visible[j]) >= c.iou_min and compatible(existing[j], d, c):
                     parent[find(n_e + i)] = find(j)
         groups: dict[int, list[int]] = {}
         for k in range(n_e + len(detected)):

@@ -89,7 +89,7 @@ class TerrainConfig:
     support_radius_m: float = 0.10
     support_fit_tol_m: float = 0.01
     min_score: int = 1
-    drop_lookahead_m: float = 1.0
+    drop_lookahead_m: float = 1.5
 
     def __post_init__(self) -> None:
         check_range("terrain.level_max_slope_deg", self.level_max_slope_deg, 0.0, 45.0)
@@ -279,7 +279,7 @@ class TerrainDescription:
         step = max(c.support_margin_m, 1e-3)
         for s in np.arange(step, c.drop_lookahead_m + 0.5 * step, step):
             q = nxt + s * d
-            pid = self.plane_under(q, z_c)
+            pid = self.plane_under(q)  # the floor below a whole flight may lie beyond max_step_rise_m
             if pid is None:
                 continue
             dz = plane_height_at(self.planes[pid], q) - z_c

@@ -1,7 +1,7 @@
 """Locomotion-mode pipelines (seeds/002) on synthetic streams: analytic depth images of a known
 staircase / ramp seen from a camera walking along x, odometry and heel-strike frames."""
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
@@ -419,8 +419,13 @@ def test_stop_and_go_walker_direction_from_positions(stairs_walk):
     segs, frames, strikes = stairs_walk
     still = [OdometrySample(f.stamp_s, f.sensor_id, f.T_odom_body, np.zeros(3)) if isinstance(f, OdometrySample) else f
              for f in frames]
-    est = run(SingleFramePipeline(SF_CFG), still)
+    est = run(SingleFramePipeline(replace(SF_CFG, direction="velocity")), still)
     assert est.stats["n_direction_from_positions"] > 0
+    steps = last_before_strike(expected(est, strikes, segs))
+    assert [p.mode for p, _ in steps] == [m for _, m in steps]
+    # the default direction (the last stride) never needs the velocity
+    est = run(SingleFramePipeline(replace(SF_CFG, direction="stride")), still)
+    assert est.stats["n_direction_from_positions"] == 0
     steps = last_before_strike(expected(est, strikes, segs))
     assert [p.mode for p, _ in steps] == [m for _, m in steps]
 
@@ -439,7 +444,10 @@ def test_exoskeleton_calibration():
     st = pipe.finalize().stats  # standing at the start is not a heel strike
     assert (st["n_contact"], st["n_initial_contacts"], st["n_strikes_without_odometry"], st["n_ignored"]) == (1, 1, 0, 1)
     pipe.process(ContactSample(0.01, "contact_l_heel", 0.0, False))
-    pipe.process(ContactSample(0.02, "contact_l_heel", 300.0, True))
+    pipe.process(ContactSample(0.02, "contact_l_heel", 300.0, True))  # 10 ms off: chatter, not a strike
+    assert (pipe.finalize().stats["n_strikes_without_odometry"], pipe.finalize().stats["n_contact_chatter"]) == (0, 1)
+    pipe.process(ContactSample(0.03, "contact_l_heel", 0.0, False))
+    pipe.process(ContactSample(0.50, "contact_l_heel", 300.0, True))
     assert pipe.finalize().stats["n_strikes_without_odometry"] == 1
 
 

@@ -92,6 +92,18 @@ def test_gait_divider_records_rising_edges_only():
     assert len(div.strikes) == 3
 
 
+def test_gait_divider_ignores_contact_chatter_shorter_than_a_swing():
+    div = GaitDivider(min_off_s=0.1)
+    # r heel: on, off at 0.37, chatter on/off every 0.02-0.04 s, off 0.53, real strike at 0.87
+    seq = [(0.0, True), (0.37, False), (0.41, True), (0.43, False), (0.44, True), (0.46, False), (0.48, True),
+           (0.53, False), (0.87, True)]
+    events = [e for t, c in seq if (e := div.update(t, "r", c, np.array([t, 0.0, 0.0]), np.ones(3))) is not None]
+    assert [e.stamp_s for e in events] == [0.0, 0.87]
+    assert div.n_chatter == 3
+    every = GaitDivider(min_off_s=0.0)
+    assert sum(every.update(t, "r", c, np.zeros(3), np.ones(3)) is not None for t, c in seq) == 5
+
+
 def test_errors():
     s = _strikes([(0, 0, 0), (0.6, 0, 0)], [(1, 0, 0)] * 2)
     with pytest.raises(ValueError):
