@@ -10,6 +10,13 @@ footprint predicted by eq. 16-18 (II-D).
 ``single-frame`` (:class:`SingleFramePipeline`), the ablation baseline: AHC on the raw depth of the
 current frame only, a fresh plane set each frame, no TSDF; same footprint and mode logic.
 
+Working resolution [deviation]: a depth image wider than ``max_work_width_px`` [A: 424, the
+D455's 424x240 mode] is decimated to every m-th pixel (m = ceil(width / 424): 640x480 and
+848x480 become 320x240 and 424x240) with K adjusted; TSDF integration, the ray cast and AHC
+(whose pixel thresholds are set for that size) then run on it. A 640x480 frame cost 48 ms at
+full resolution on the 2-core machine; the 5 cm plane cells and voxels gain nothing from the
+extra pixels.
+
 Inputs (frames):
 
 - :class:`RgbdFrame` of the selected camera (``Config.rgbd_sensor_id``; default the calibration's
@@ -160,6 +167,9 @@ def _check_config(cfg: Any) -> None:
         raise ConfigError("mode_reference", cfg.mode_reference, list(MODE_REFERENCES))
     check_range("min_speed_m_s", cfg.min_speed_m_s, 0.0)
     check_range("min_heel_off_s", cfg.min_heel_off_s, 0.0, 1.0)
+    if isinstance(cfg.max_work_width_px, bool) or not isinstance(cfg.max_work_width_px, (int, np.integer)) \
+            or cfg.max_work_width_px < 16:
+        raise ConfigError("max_work_width_px", cfg.max_work_width_px, "an integer >= 16")
     if cfg.direction not in DIRECTIONS:
         raise ConfigError("direction", cfg.direction, list(DIRECTIONS))
 
@@ -224,6 +234,23 @@ def upsample_depth(depth_m: np.ndarray, n: int, shape: tuple[int, int], jump_m: 
     return out
 
 
+def decimate(depth_m: np.ndarray, K: np.ndarray, max_width_px: int) -> tuple[np.ndarray, np.ndarray]:
+    """(depth, K) of the image kept at every m-th pixel, m = ceil(width / ``max_width_px``) (the
+    pixel at the centre of each m x m block, (m - 1) // 2 in; K exact for those pixels); the
+    image itself when it is no wider than ``max_width_px``."""
+    w = depth_m.shape[1]
+    m = -(-w // max(1, int(max_width_px)))
+    if m <= 1:
+        return depth_m, K
+    off = (m - 1) // 2
+    out = np.array(K, dtype=float)
+    out[0, 0] /= m
+    out[1, 1] /= m
+    out[0, 2] = (out[0, 2] - off) / m
+    out[1, 2] = (out[1, 2] - off) / m
+    return np.ascontiguousarray(depth_m[off::m, off::m]), out
+
+
 def scale_intrinsics(K: np.ndarray, s: float) -> np.ndarray:
     """K of the image resized by ``s`` (pixel centres at integer coordinates)."""
     out = np.array(K, dtype=float)
@@ -250,7 +277,9 @@ class _LocomotionPipeline(ABC):
         ``foot_lead_m``, ``min_speed_m_s``, ``pause_s``, ``start_step_fraction``: footprints;
         ``mode_reference``: ``"swing"`` or ``"stance"`` (module docstring). ``observed_stride_px``: pixel stride of
         the points whose voxels make the update's scope. ``ahc``, ``planes``, ``terrain``,
-        ``min_heel_off_s``: heel-strike debounce. ``direction``: walking direction at a strike,
+        ``max_work_width_px``: wider depth images are decimated
+        to every m-th pixel, m = ceil(width / max_work_width_px), before anything else (module
+        docstring). ``min_heel_off_s``: heel-strike debounce. ``direction``: walking direction at a strike,
         ``"stride"`` or ``"velocity"`` (module docstring). ``footprint``: configs of plane extraction, eq. 23, the terrain description, eq. 16-18."""
 
         rgbd_sensor_id: str = ""
@@ -265,6 +294,7 @@ class _LocomotionPipeline(ABC):
         min_speed_m_s: float = 0.05
         min_heel_off_s: float = 0.1
         direction: str = "stride"
+        max_work_width_px: int = 424
         observed_stride_px: int = 4
         ahc: AhcConfig = field(default_factory=AhcConfig)
         planes: PlaneTrackingConfig = field(default_factory=PlaneTrackingConfig)
@@ -454,7 +484,7 @@ class _LocomotionPipeline(ABC):
             self._stats["n_heel_strikes"] += 1
 
     def _on_rgbd(self, frame: RgbdFrame, t0: float) -> ModePrediction | None:
-        st = self._stats
+        st, c = self._stats, self.config
         st["n_rgbd_frames"] += 1
         if not self._in_order(frame):
             return None
@@ -485,7 +515,8 @@ class _LocomotionPipeline(ABC):
                 status = "no_depth"
         if status == "ok":
             try:
-                if self._update_planes(depth, K, odo[0] @ self._T_body_cam) == 0:
+                work_depth, work_K = decimate(depth, K, c.max_work_width_px)
+                if self._update_planes(work_depth, work_K, odo[0] @ self._T_body_cam) == 0:
                     status = "no_planes"
             except _NUMERIC_ERRORS as e:  # a numerical failure on odd input keeps the last state
                 status = "error"

@@ -514,3 +514,27 @@ def test_mode_refers_to_the_swinging_foot(stairs_walk):
     top = next(n for n in range(3, len(strikes)) if height(segs, strikes[n][1]) == height(segs, strikes[n - 1][1])
                and height(segs, strikes[n][1]) > height(segs, strikes[n - 2][1]) + 0.1)
     assert by_n[top] == ("SA", "LG")
+
+
+@pytest.mark.parametrize("m_width", [(2, 640), (2, 848), (4, 1280), (1, 424)])
+def test_decimated_image_projects_points_where_the_full_one_does(m_width):
+    """decimate(): the kept pixel (i, j) of the small image is pixel (m i + off, m j + off) of the
+    full one, and the adjusted K projects 3-D points onto it (independent check by projection)."""
+    from exobench.mapping.locomotion import decimate
+
+    m, width = m_width
+    h = 480
+    Kf = np.array([[390.0 * width / 640, 0.0, 0.5 * width - 0.3], [0.0, 390.0 * width / 640, 0.5 * h + 0.7], [0.0, 0.0, 1.0]])
+    depth = np.arange(h * width, dtype=np.float32).reshape(h, width)
+    small, Ks = decimate(depth, Kf, 424)
+    assert small.shape == (len(range(off_ := (m - 1) // 2, h, m)), len(range(off_, width, m)))
+    off = (m - 1) // 2
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        i, j = rng.integers(0, small.shape[0] - 1), rng.integers(0, small.shape[1] - 1)
+        v, u = m * i + off, m * j + off
+        assert small[i, j] == depth[v, u]
+        # a point on the ray of full-image pixel (u, v) projects onto (j, i) with the small K
+        p = np.linalg.solve(Kf, [u, v, 1.0]) * 2.3
+        q = Ks @ p
+        np.testing.assert_allclose(q[:2] / q[2], [j, i], atol=1e-9)
