@@ -379,7 +379,9 @@ def _render_fps(terrain: str, seed: int, repeats: int, segmentation: bool = Fals
 
 def _tsdf_fps(episode: Episode, repeats: int) -> dict[str, Any]:
     """TSDF integration (eq. 19-22) of every RGB-D frame of ``episode`` at its odometry pose, and
-    the ray cast of the smoothed depth at half resolution, as the ``terrain-recon`` pipeline does."""
+    the ray cast of the smoothed depth at half resolution, on the frames at their full resolution
+    (the issue's 640x480 figure; ``terrain-recon`` itself decimates frames wider than
+    ``max_work_width_px`` first, which its latency figure includes)."""
     from exobench.core.frames import OdometrySample, RgbdFrame
     from exobench.mapping.locomotion import scale_intrinsics
     from exobench.mapping.tsdf import Tsdf, TsdfConfig

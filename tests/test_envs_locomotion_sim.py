@@ -57,6 +57,29 @@ def test_ramp_course_modes_follow_the_course():
             assert s.terrain == "ramp"
 
 
+@pytest.mark.parametrize("terrain", ["stairs", "ramp"])
+def test_walk_through_transitions_or_stop_before_them(terrain):
+    """stops="none": no standing stop, every step about as long as a nominal step and the steps
+    evenly timed; stops="transitions": the walker stands (a join, a step that brings the feet
+    together, far shorter) before each stair or ramp it meets from level ground."""
+    def plan(stops):
+        sc = LocomotionScenario(terrain=terrain, stops=stops)
+        world, _, motion, info = plan_locomotion(sc)
+        return motion, step_truths(motion, world.truth, sc.exo_spec()), info
+
+    motion, steps, info = plan("none")
+    assert not [k for k in motion.events if k.startswith("join_")]
+    period = info["swing_s"] + info["double_support_s"]
+    np.testing.assert_allclose(np.diff([s.liftoff_s for s in steps]), period, atol=1e-6)
+    x = np.array([s.footprint_w[0] for s in steps])
+    gaps = np.diff(x)[1:-1]  # the first and last steps start and end standing
+    assert np.all(gaps > 0.1), gaps  # no shuffle: feet never brought together mid-course
+    motion_s, steps_s, _ = plan("transitions")
+    joins = [k for k in motion_s.events if k.startswith("join_")]
+    assert len(joins) >= 2  # before the way up and before the way down
+    assert _runs([s.mode for s in steps_s]) == _runs([s.mode for s in steps])
+
+
 def test_parallel_course_switches_lanes_and_direction():
     sc = LocomotionScenario(terrain="parallel", parallel_first="stairs")
     world, _, motion, _ = plan_locomotion(sc)
