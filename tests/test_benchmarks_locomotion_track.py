@@ -204,3 +204,35 @@ def test_report_and_recording_of_the_tiny_run(tiny_run, track, tmp_path):
     path = track.write_recording(episode, {"oracle": est}, tmp_path / "tiny.rrd")
     assert path.exists() and path.stat().st_size > 1000
     assert not math.isnan(track.score(episode, est)["accuracy"])
+
+
+def test_footprint_error_is_measured_in_the_odometry_frame_at_the_prediction(tiny_run, track):
+    """A pipeline that knows the true next footprint and expresses it in its drifting odometry
+    frame through its own odometry pose of the moment (world -> camera by the true pose, camera ->
+    odometry by the odometry sample) has no footprint error; the fixed start alignment would
+    charge it the odometry's drift."""
+    from exobench.benchmarks.tracks.locomotion_metrics import score_predictions
+    from exobench.core import OdometrySample
+
+    _, _, episode = tiny_run
+    assert episode.scenario["odom_drift_pct"] > 0
+    steps = sorted(episode.truth.steps, key=lambda s: s.index)
+    odo = {round(f.stamp_s, 6): np.asarray(f.T_odom_body) for f in episode.frames if isinstance(f, OdometrySample)}
+    t_cam, T_cam = episode.truth.extra["camera_stamps_s"], episode.truth.extra["camera_T_world"]
+    preds = []
+    for f in episode.frames:
+        if not isinstance(f, RgbdFrame):
+            continue
+        nxt = next((s for s in steps if s.liftoff_s >= f.stamp_s), None)
+        if nxt is None:
+            continue
+        k = int(np.argmin(np.abs(t_cam - f.stamp_s)))
+        T_odom_world = odo[round(float(t_cam[k]), 6)] @ np.linalg.inv(T_cam[k])
+        fp = T_odom_world[:3, :3] @ nxt.footprint_w + T_odom_world[:3, 3]
+        strikes = sum(s.heel_strike_s <= f.stamp_s for s in steps)
+        preds.append(ModePrediction(f.stamp_s, nxt.mode, fp, strikes, 0.001))
+    est = LocomotionEstimate(tuple(preds))
+    m = track.score(episode, est)
+    assert m["footprint_error_m"] == pytest.approx(0.0, abs=1e-9)
+    fixed = score_predictions(steps, est, T_world_odom=episode.truth.T_world_estimator)
+    assert fixed["footprint_error_m"] > 1e-4

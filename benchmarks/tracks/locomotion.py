@@ -33,7 +33,7 @@ the per-pattern and per-mount rows of Table III and the 180 cells of Table II.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -159,6 +159,46 @@ SUMMARY_ROWS = [
 ]
 
 
+def local_odometry_alignment(episode: Episode) -> Callable[[float], np.ndarray] | np.ndarray | None:
+    """T_world_odom at a time: the true camera pose (times the calibration's ``T_camera_body``)
+    times the inverse of the odometry's body pose at the odometry sample nearest to it (the odometry named in the calibration, which
+    tracks the camera's optical frame; truth ``camera_T_world`` at ``camera_stamps_s``). Without
+    those, the fixed ``T_world_estimator`` (None if absent)."""
+    from exobench.core.frames import OdometrySample
+
+    truth = episode.truth
+    extra = truth.extra or {}
+    info = (episode.calibration.extra or {}).get("odometry") if episode.calibration is not None else None
+    odom_id = info.get("sensor_id") if isinstance(info, dict) else None
+    try:
+        T_fixed = np.asarray(truth.T_world_estimator, dtype=float).reshape(4, 4)
+    except (TypeError, ValueError):
+        T_fixed = None
+    if odom_id is None or "camera_T_world" not in extra or "camera_stamps_s" not in extra:
+        return T_fixed
+    t_cam = np.asarray(extra["camera_stamps_s"], dtype=float)
+    T_cam = np.asarray(extra["camera_T_world"], dtype=float)
+    odo = [f for f in episode.frames if isinstance(f, OdometrySample) and f.sensor_id == odom_id]
+    if not odo or len(t_cam) == 0:
+        return T_fixed
+    t_odo = np.array([float(f.stamp_s) for f in odo])
+    k_cam = np.clip(np.searchsorted(t_cam, t_odo), 0, len(t_cam) - 1)
+    k_cam = np.where((k_cam > 0) & (np.abs(t_cam[k_cam - 1] - t_odo) <= np.abs(t_cam[k_cam] - t_odo)), k_cam - 1, k_cam)
+    try:  # the tracked body in the camera frame (identity: the optical frame itself)
+        T_cb = np.asarray(info.get("T_camera_body", np.eye(4)), dtype=float).reshape(4, 4)
+    except (TypeError, ValueError):
+        T_cb = np.eye(4)
+    aligned = np.array([T_cam[k] @ T_cb @ np.linalg.inv(np.asarray(f.T_odom_body, dtype=float)) for k, f in zip(k_cam, odo)])
+
+    def at(t_s: float) -> np.ndarray:
+        i = int(np.clip(np.searchsorted(t_odo, t_s), 0, len(t_odo) - 1))
+        if i > 0 and abs(t_odo[i - 1] - t_s) <= abs(t_odo[i] - t_s):
+            i -= 1
+        return aligned[i]
+
+    return at
+
+
 def _param_info(name: str, row: Any) -> ParamInfo:
     low_open = bool(getattr(row, "low_open", False))
     return ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, low_open)
@@ -199,11 +239,7 @@ class LocomotionTrack:
         steps = episode.truth.steps
         if not isinstance(estimate, LocomotionEstimate):
             return failure_metrics(len(steps), f"finalize() returned {type(estimate).__name__}, not LocomotionEstimate")
-        try:
-            T = np.asarray(episode.truth.T_world_estimator, dtype=float).reshape(4, 4)
-        except (TypeError, ValueError):
-            T = None
-        return score_predictions(steps, estimate, T_world_odom=T)
+        return score_predictions(steps, estimate, T_world_odom=local_odometry_alignment(episode))
 
     def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
         return failure_metrics(len(episode.truth.steps) if episode is not None else 0, reason)

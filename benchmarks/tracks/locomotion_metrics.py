@@ -39,9 +39,12 @@ by index and by stamp on entry). Definitions:
   interpolation) of ``latency_s`` over every prediction with a finite latency, ms.
 - ``n_status_{status}`` for every status of :data:`KNOWN_STATUSES` and any other seen, and
   ``n_faults``: predictions whose status is not ``"ok"`` (over the whole episode, warm-up included).
-- ``footprint_error_m``: when the truth gives the odometry frame's pose (``T_world_odom``), the
-  mean horizontal distance between the footprint of each decision made for its own step
-  (``strike_index == k``, finite footprint) and the true footprint of step k (eq. 16-18), m.
+- ``footprint_error_m``: when the odometry frame's pose is known (``T_world_odom``, a pose or a
+  function of the prediction's stamp), the mean horizontal distance between the footprint of
+  each decision made for its own step (``strike_index == k``, finite footprint), mapped to the
+  world, and the true footprint of step k (eq. 16-18), m. The track passes the odometry's local
+  alignment at the prediction (true camera pose times the inverse of the odometry's camera
+  pose), so the error is the prediction's, not the drift accumulated since the start.
 - ``failed`` / ``failed_reason``: the pipeline raised, returned no estimate, or made no
   prediction at all; the simulation raised (no episode).
 
@@ -51,7 +54,7 @@ Missing values are NaN (the result store writes them as JSON null).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -216,11 +219,12 @@ def footprint_errors(
     steps: Sequence[StepTruth],
     predictions: Sequence[ModePrediction],
     decisions: Sequence[StepDecision],
-    T_world_odom: np.ndarray,
+    T_world_odom: np.ndarray | Callable[[float], np.ndarray],
 ) -> list[float]:
     """Horizontal distance (m) between each decision's footprint, mapped to the world, and the
-    true footprint of its step, for decisions made for their own step (``strike_index == k``)."""
-    T = np.asarray(T_world_odom, dtype=float)
+    true footprint of its step, for decisions made for their own step (``strike_index == k``).
+    ``T_world_odom``: the odometry frame's pose, or a function of the prediction's stamp giving
+    it (the local alignment of a drifting odometry)."""
     out = []
     for s, d in zip(steps, decisions):
         if d.prediction < 0 or d.strike_index != s.index:
@@ -228,6 +232,8 @@ def footprint_errors(
         f = np.asarray(predictions[d.prediction].footprint_odom, dtype=float).reshape(-1)
         if f.size != 3 or not np.all(np.isfinite(f)):
             continue
+        T = np.asarray(T_world_odom(float(predictions[d.prediction].stamp_s)) if callable(T_world_odom)
+                       else T_world_odom, dtype=float)
         f_w = T[:3, :3] @ f + T[:3, 3]
         out.append(float(np.linalg.norm(f_w[:2] - np.asarray(s.footprint_w, dtype=float)[:2])))
     return out
@@ -273,7 +279,7 @@ def score_predictions(
     steps: Sequence[StepTruth],
     estimate: LocomotionEstimate,
     *,
-    T_world_odom: np.ndarray | None = None,
+    T_world_odom: np.ndarray | Callable[[float], np.ndarray] | None = None,
     warmup_steps: int = WARMUP_STEPS,
 ) -> dict[str, Any]:
     """Every metric of the module docstring (never raises on bad prediction values)."""
