@@ -157,3 +157,42 @@ def test_bad_config_names_the_field(kw, field):
     with pytest.raises(ConfigError) as err:
         PlaneTrackingConfig(**kw)
     assert err.value.field == field
+
+
+def _tilted(x0, x1, deg, y0=0.0, y1=1.0):
+    """A ramp strip rising along x at ``deg`` from (x0, z=0.05), sampled at 2 cm (voxels of 0.1 m)."""
+    t = np.radians(deg)
+    xs = np.arange(x0 + 0.01, x1, 0.02)
+    ys = np.arange(y0 + 0.05, y1, CELL)
+    pts = np.array([(x, y, 0.05 + (x - x0) * np.tan(t)) for x in xs for y in ys])
+    n = np.array([-np.sin(t), 0.0, np.cos(t)])
+    return DetectedPlane(pts.mean(axis=0), n, (x1 - x0) * (y1 - y0) / np.cos(t), voxel_keys(pts, CELL))
+
+
+def test_a_ramp_sharing_the_crease_voxels_is_not_merged_into_its_landing():
+    """Gate: IoU >= 0.5 on the seen part alone would merge a 12 deg ramp strip into the level plane
+    whose voxels it shares near the crease; with the normal gate it is a plane of its own, and the
+    landing, whose seen voxels the ramp detection claims, is neither matched nor decremented."""
+    landing = patch(0.0, 1.0)
+    ramp = _tilted(0.0, 0.4, 12.0)  # rises 8.5 cm over 0.4 m: its voxels are the landing's, one row up at most
+    seen = ramp.cells
+    ungated = PlaneSet(PlaneTrackingConfig(cell_m=CELL, scope_min_cells=10, match_angle_deg=None, match_offset_m=None,
+                                           scope_min_fraction=0.0))
+    ungated.add(landing, score=5)
+    vis = np.intersect1d(landing.cells, seen)
+    assert iou(ramp.cells, vis) >= 0.5  # eq. 23 alone matches them
+    assert ungated.update([ramp], observed_cells=seen).matched == [0]
+    ps = PlaneSet(CFG)
+    ps.add(landing, score=5)
+    rep = ps.update([ramp], observed_cells=seen)
+    assert rep.added == [1] and rep.matched == [] and rep.decremented == [] and ps.planes[0].score == 5
+    np.testing.assert_allclose(ps.planes[0].normal, [0, 0, 1])
+
+
+def test_a_plane_mostly_out_of_view_is_not_in_scope():
+    """scope_min_fraction: a 100-voxel plane with 20 voxels seen and no detection keeps its score;
+    with 40 seen (>= 30 %) it is decremented."""
+    ps = PlaneSet(CFG)
+    ps.add(patch(0.0, 1.0), score=3)
+    assert ps.update([], observed_cells=patch(0.0, 0.2).cells).decremented == []
+    assert ps.update([], observed_cells=patch(0.0, 0.4).cells).decremented == [0] and ps.planes[0].score == 2
