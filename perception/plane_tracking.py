@@ -215,14 +215,14 @@ class PlaneSet:
             seen = np.union1d(np.asarray(observed_cells, dtype=np.int64), np.concatenate(
                 [d.cells for d in detected] + [np.zeros(0, np.int64)]))
             visible = [np.intersect1d(e.cells, seen, assume_unique=True) for e in existing]
-        if c.match_angle_deg is not None or c.match_offset_m is not None:
-            # voxels a detection of another (incompatible) plane claims are not this plane's seen
-            # part: a ramp detection reaching over the crease onto a landing that is out of view
-            # neither matches nor decrements the landing
-            for j, e in enumerate(existing):
-                other = [d.cells for d in detected if not compatible(e, d, c)]
-                if other and visible[j].size:
-                    visible[j] = np.setdiff1d(visible[j], np.concatenate(other), assume_unique=False)
+        comp = [[compatible(e, d, c) for d in detected] for e in existing]  # the geometric gate, once per pair
+        # voxels a detection of another (incompatible) plane claims are not this plane's seen
+        # part: a ramp detection reaching over the crease onto a landing that is out of view
+        # neither matches nor decrements the landing
+        for j in range(len(existing)):
+            other = [d.cells for i, d in enumerate(detected) if not comp[j][i]]
+            if other and visible[j].size:
+                visible[j] = np.setdiff1d(visible[j], np.concatenate(other), assume_unique=False)
         in_scope = [v.size >= max(c.scope_min_cells, c.scope_min_fraction * e.cells.size) for v, e in zip(visible, existing)]
 
         # components of the graph (existing + detected, edges IoU >= iou_min): union-find
@@ -237,7 +237,7 @@ class PlaneSet:
 
         for i, d in enumerate(detected):
             for j in range(n_e):
-                if visible[j].size and iou(d.cells, visible[j]) >= c.iou_min and compatible(existing[j], d, c):
+                if comp[j][i] and visible[j].size and iou(d.cells, visible[j]) >= c.iou_min:
                     parent[find(n_e + i)] = find(j)
         groups: dict[int, list[int]] = {}
         for k in range(n_e + len(detected)):

@@ -182,8 +182,7 @@ def local_odometry_alignment(episode: Episode) -> Callable[[float], np.ndarray] 
     if not odo or len(t_cam) == 0:
         return T_fixed
     t_odo = np.array([float(f.stamp_s) for f in odo])
-    k_cam = np.clip(np.searchsorted(t_cam, t_odo), 0, len(t_cam) - 1)
-    k_cam = np.where((k_cam > 0) & (np.abs(t_cam[k_cam - 1] - t_odo) <= np.abs(t_cam[k_cam] - t_odo)), k_cam - 1, k_cam)
+    k_cam = _nearest(t_cam, t_odo)
     try:  # the tracked body in the camera frame (identity: the optical frame itself)
         T_cb = np.asarray(info.get("T_camera_body", np.eye(4)), dtype=float).reshape(4, 4)
     except (TypeError, ValueError):
@@ -191,12 +190,15 @@ def local_odometry_alignment(episode: Episode) -> Callable[[float], np.ndarray] 
     aligned = np.array([T_cam[k] @ T_cb @ np.linalg.inv(np.asarray(f.T_odom_body, dtype=float)) for k, f in zip(k_cam, odo)])
 
     def at(t_s: float) -> np.ndarray:
-        i = int(np.clip(np.searchsorted(t_odo, t_s), 0, len(t_odo) - 1))
-        if i > 0 and abs(t_odo[i - 1] - t_s) <= abs(t_odo[i] - t_s):
-            i -= 1
-        return aligned[i]
+        return aligned[int(_nearest(t_odo, np.array([t_s]))[0])]
 
     return at
+
+
+def _nearest(sorted_s: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Index of the nearest of the sorted stamps to each time (the earlier on a tie)."""
+    k = np.clip(np.searchsorted(sorted_s, t_s), 0, len(sorted_s) - 1)
+    return np.where((k > 0) & (np.abs(sorted_s[k - 1] - t_s) <= np.abs(sorted_s[k] - t_s)), k - 1, k)
 
 
 def _param_info(name: str, row: Any) -> ParamInfo:
