@@ -221,7 +221,10 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
     What each side does per sweep: exobench draws noise, follows glass and mirrors, computes
     the return signal, drops weak and out-of-range (< 0.9 m) returns, quantises ranges and labels
     every point with its ground-truth surface; mujoco-lidar casts the rays and returns the hit
-    points (no noise, no range limits but its cutoff, glass is an opaque surface). Walking, the
+    points (no noise, no range limits but its cutoff, glass is an opaque surface). Both cast with
+    ``mj_multiRay``; exobench on its private zoned copy of the ray-visible geoms (built once per
+    sensor, not timed), near geoms first, with the same hits as one pass on the model
+    (``LidarConfig.zoned_cast``, ``cast_near_m``); mujoco-lidar in one pass on the model. Walking, the
     sensor moves at 0.5 m/s along the user's heading and exobench casts each 1 ms window from
     its own pose; mujoco-lidar has no motion model and is timed once per sweep from one pose.
     If ``mujoco_lidar`` cannot be imported, ``result["mujoco_lidar"]`` says so and only the

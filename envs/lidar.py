@@ -22,7 +22,11 @@ differ from casting every firing from its own origin (``cast_period_s = 0``, slo
 sensor is cast in one call. The calls (or, for one call, slices of its rays) are spread over
 ``cast_threads`` threads (``mj_multiRay`` releases the GIL; every ray's result is independent of
 the others, so the split never changes a result); threads other than the caller's cast on a
-scratch ``MjData`` holding a copy of the geom poses. The world geometry is frozen at the state of ``data`` for the sweep
+scratch ``MjData`` holding a copy of the geom poses. Two things make the casts cheaper without
+changing a hit (tested against one plain pass on the simulation's model): they run on a private
+copy of the ray-visible geoms with the static ones grouped in spatial zones
+(:mod:`exobench.envs.ray_scene`, ``zoned_cast``), and each call first traces its rays against the
+geoms within ``cast_near_m`` only, then the rays without a hit that near against all geoms. The world geometry is frozen at the state of ``data`` for the sweep
 (the scene is static; exoskeleton geoms keep the pose they had in ``data``).
 
 Random streams (``sensor_rngs``): range noise from the noise generator, sweep and point dropout
@@ -54,6 +58,7 @@ from .lidar_optics import (
     return_signal,
 )
 from .lidar_pattern import LidarPattern, RayTable
+from .ray_scene import RayScene, build_ray_scene
 from .sensor_config import sensor_rngs
 from .tof import EXO_GROUP, WORLD_GROUP
 
@@ -98,6 +103,13 @@ class LidarConfig:
             0 = one ``mj_multiRay`` call per firing block.
         cast_threads: threads casting the rays (0 = one per available CPU, at most 8; 1 = the
             calling thread only); results do not depend on it.
+        cast_near_m: rays are cast first against the geoms within this distance (``mj_multiRay``
+            drops the farther ones before tracing), and those without a hit that near again
+            against all: the same hits, faster where most returns are near (offices) [A: 8 m];
+            0 = one pass.
+        zoned_cast: cast on a private copy of the ray-visible geoms grouped in spatial zones
+            (:mod:`exobench.envs.ray_scene`; about 1.5x faster in the office, same hits);
+            False = cast on the simulation's model.
         materials: extra or replacement materials by name (on top of ``models.materials``).
     """
 
@@ -117,6 +129,8 @@ class LidarConfig:
     pose_blocks: int = 0
     cast_period_s: float = 1e-3
     cast_threads: int = 0
+    cast_near_m: float = 8.0
+    zoned_cast: bool = True
     materials: tuple[LidarMaterial, ...] = ()
 
     def __post_init__(self) -> None:
@@ -131,9 +145,10 @@ class LidarConfig:
             raise ConfigError("lidar.intensity_mode", self.intensity_mode, " or ".join(INTENSITY_MODES))
         check_range("lidar.latency_s", self.latency_s, 0.0, 1.0)
         check_range("lidar.cast_period_s", self.cast_period_s, 0.0, 1.0)
+        check_range("lidar.cast_near_m", self.cast_near_m, 0.0, 1e4)
         check_range("lidar.dropout_prob", self.dropout_prob, 0.0, 1.0, high_open=True)
         check_range("lidar.point_dropout_prob", self.point_dropout_prob, 0.0, 1.0, high_open=True)
-        for name in ("glass", "mirrors"):
+        for name in ("glass", "mirrors", "zoned_cast"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"lidar.{name}", getattr(self, name), "True or False")
         for name, high in (("max_interactions", 16), ("pose_blocks", 10**7), ("cast_threads", 64)):
@@ -251,6 +266,7 @@ class LidarSensor:
         self._optics_cache: tuple[SceneTruth, GeomOptics] | None = None
         self._surface_cache: tuple[SceneTruth, _SurfaceTable] | None = None
         self._scratch: tuple[object, list[object]] | None = None
+        self._ray_scene: tuple[object, RayScene | None] | None = None
 
     def rays(self, sweep_start_s: float) -> RayTable:
         return self._static_rays if self._static_rays is not None else self.config.pattern.rays(sweep_start_s)
@@ -296,9 +312,7 @@ class LidarSensor:
 
         bounds, t_pose = self._blocks(rays)
         T = _poses(pose_at, sweep_start_s + t_pose)
-        block = np.repeat(np.arange(len(t_pose)), np.diff(bounds))
-        dirs_w = np.ascontiguousarray(np.einsum("nij,nj->ni", T[block, :3, :3], rays.dirs_s))
-        origins_w = T[block, :3, 3]
+        origins_w, dirs_w = _rays_in_world(T, np.diff(bounds), rays.dirs_s)
         gid, dist, nrm = self._cast(model, data, rays, origins_w, dirs_w)
 
         optics = self._optics(truth)
@@ -353,6 +367,12 @@ class LidarSensor:
         """Primary hits of every ray from its own origin: (geom, distance, normal), -1 if none."""
         import mujoco
 
+        scene = self._zoned(model, data)
+        if scene is not None:
+            scene.sync(data)
+            model, data, mask, exclude = scene.model, scene.data, scene.group, -1
+        else:
+            mask, exclude = self.group, self.body_exclude
         n = len(rays)
         period = self.config.cast_period_s
         key = np.floor(rays.firing_time_s[rays.firing] / period + 1e-9) if period > 0 else rays.firing
@@ -374,12 +394,24 @@ class LidarSensor:
             jobs = [(o, a, b) for o, s, e in jobs for a, b in _slices(s, e, k) if b > a]
         groups = _partition(jobs, k)
 
+        near = self.config.cast_near_m if 0.0 < self.config.cast_near_m < max_r else max_r
+
         def run(d: object, group: list[tuple[np.ndarray, int, int]]) -> None:
             for o, s, e in group:
                 mujoco.mj_multiRay(
-                    model, d, o, flat[3 * s : 3 * e], self.group, 1, self.body_exclude,
-                    gid[s:e], dist[s:e], nrm[3 * s : 3 * e], e - s, max_r,
+                    model, d, o, flat[3 * s : 3 * e], mask, 1, exclude,
+                    gid[s:e], dist[s:e], nrm[3 * s : 3 * e], e - s, near,
                 )  # fmt: skip
+                if near >= max_r:
+                    continue
+                # a hit within `near` is the nearest: every geom the cut-off dropped lies farther
+                far = s + np.flatnonzero((gid[s:e] < 0) | (dist[s:e] > near))
+                if len(far):
+                    g2, d2, n2 = np.full(len(far), -1, dtype=np.int32), np.full(len(far), -1.0), np.zeros(3 * len(far))
+                    v = np.ascontiguousarray(dirs_w[far]).reshape(-1)
+                    mujoco.mj_multiRay(model, d, o, v, mask, 1, exclude, g2, d2, n2, len(far), max_r)
+                    gid[far], dist[far] = g2, d2
+                    nrm.reshape(-1, 3)[far] = n2.reshape(-1, 3)
 
         if len(groups) > 1:
             scratch = self._scratch_data(model, data, len(groups) - 1)
@@ -390,6 +422,8 @@ class LidarSensor:
         else:
             run(data, jobs)
         nrm = nrm.reshape(-1, 3)
+        if scene is not None:
+            gid = scene.original_geoms(gid)
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
         o_ray = np.repeat(o_cast, ends - starts, axis=0)
         delta = o_ray - origins_w
@@ -403,6 +437,14 @@ class LidarSensor:
             gid[fix] = np.where(r >= 0.0, gid[fix], -1)
             dist[fix] = np.where(r >= 0.0, r, -1.0)
         return gid, dist, nrm
+
+    def _zoned(self, model: object, data: object) -> RayScene | None:
+        """The private zoned casting model of ``model`` (built on first use), None if not used."""
+        if not self.config.zoned_cast:
+            return None
+        if self._ray_scene is None or self._ray_scene[0] is not model:
+            self._ray_scene = (model, build_ray_scene(model, data, self.group, self.body_exclude))
+        return self._ray_scene[1]
 
     def _n_threads(self, model: object) -> int:
         k = self.config.cast_threads or _available_cpus()
@@ -441,14 +483,14 @@ class LidarSensor:
         row = tab.cand[geom[pt], slot]
         p = np.take(hit_w, pt, axis=0)
         pn = np.take(tab.point_normal, row, axis=0)
-        d = np.abs(np.einsum("ij,ij->i", p - pn[:, 0], pn[:, 1]))
+        d = np.abs(_dot3(p - pn[:, 0], pn[:, 1]))
         near = np.flatnonzero(d <= tol_m)
         pt, slot, row, p, d = pt[near], slot[near], row[near], p[near], d[near]
         # the edge test of PlanarSurface.contains: the edges not within tol_m of the point must
         # all see it on the same side (zero-length padding edges are always within)
-        c = np.einsum("nvi,nvi->nv", p[:, None, :] - np.take(tab.edge_a, row, axis=0), np.take(tab.edge_m, row, axis=0))
-        counted = np.abs(c) > tol_m * np.take(tab.edge_len, row, axis=0)
-        ok = ~(np.any(counted & (c > 0.0), axis=1) & np.any(counted & (c < 0.0), axis=1))
+        c = _dot3(p[:, None, :] - np.take(tab.edge_a, row, axis=0), np.take(tab.edge_m, row, axis=0))
+        within = tol_m * np.take(tab.edge_len, row, axis=0)
+        ok = ~(np.any(c > within, axis=1) & np.any(c < -within, axis=1))
         pt, slot, row, d = pt[ok], slot[ok], row[ok], d[ok]
         single = np.bincount(pt, minlength=n)[pt] == 1
         out[pt[single]] = tab.sid[row[single]]
@@ -517,6 +559,11 @@ class _SurfaceTable:
         )  # fmt: skip
 
 
+def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot products over the last axis (length 3), ``(a0 b0 + a1 b1) + a2 b2`` elementwise."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
 _POSE_FIELDS = ("xpos", "xmat", "xquat", "xipos", "ximat", "geom_xpos", "geom_xmat")
 """The ``MjData`` state ``mj_multiRay`` reads (poses of bodies and geoms), copied to scratch data."""
 
@@ -554,6 +601,20 @@ def _partition(jobs: list[tuple[np.ndarray, int, int]], k: int) -> list[list[tup
     cut = np.searchsorted(rays, rays[-1] * np.arange(1, k) / k, side="right")
     bounds = np.unique(np.concatenate([[0], cut, [len(jobs)]]))
     return [jobs[a:b] for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+
+def _rays_in_world(T: np.ndarray, sizes: np.ndarray, dirs_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Origins and directions (N, 3) of rays in consecutive blocks of ``sizes`` rays posed by ``T`` (B, 4, 4)."""
+    n, nb = len(dirs_s), len(T)
+    if nb == 0 or np.all(T == T[0]):  # one pose (a sensor at rest)
+        R = T[0, :3, :3] if nb else np.eye(3)
+        return np.broadcast_to(T[0, :3, 3] if nb else np.zeros(3), (n, 3)), np.ascontiguousarray(dirs_s @ R.T)
+    if np.all(sizes == sizes[0]):  # blocks of equal size (spinning patterns): one batched product
+        m = int(sizes[0])
+        dirs_w = np.matmul(dirs_s.reshape(nb, m, 3), T[:, :3, :3].transpose(0, 2, 1)).reshape(n, 3)
+        return np.repeat(T[:, :3, 3], m, axis=0), dirs_w
+    block = np.repeat(np.arange(nb), sizes)
+    return T[block, :3, 3], np.ascontiguousarray(np.einsum("nij,nj->ni", T[block, :3, :3], dirs_s))
 
 
 def _poses(pose_at: PoseFn | np.ndarray, times_s: np.ndarray) -> np.ndarray:

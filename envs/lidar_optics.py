@@ -123,18 +123,55 @@ def follow_beams(
     ``u`` (N, max_interactions) are the uniform draws deciding each event.
     """
     n = len(geom)
-    geom = geom.astype(np.int64).copy()
+    geom = geom.astype(np.int64)  # a copy
     hit = (geom >= 0) & (dist >= 0.0)
     geom[~hit] = -1
     path = np.where(hit, dist, np.nan)
     hit_w = origins_w + np.where(hit, dist, 0.0)[:, None] * dirs_w
+    cos_inc = np.abs(np.einsum("ij,ij->i", normals_w, dirs_w))
+    via = np.full(n, -1, dtype=np.int64)
+    gain = np.ones(n)
+    kind = np.full(n, int(ReturnKind.GENUINE), dtype=np.int8)
+    first = optics.kind[np.maximum(geom, 0)]
+    # only beams that meet glass or a mirror first can end anywhere but their primary hit
+    sub = np.flatnonzero(hit & (((first == _GLASS) & glass) | ((first == _MIRROR) & mirrors)))
+    if len(sub):
+        g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s = _follow(
+            model, data, geomgroup, geom[sub], path[sub], hit_w[sub], dirs_w[sub], normals_w[sub], optics, u[sub],
+            glass=glass, mirrors=mirrors,
+        )  # fmt: skip
+        geom[sub], path[sub], hit_w[sub], kind[sub], via[sub], gain[sub], cos_inc[sub] = (
+            g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s,
+        )
+    on_glass = (geom >= 0) & (optics.kind[np.maximum(geom, 0)] == _GLASS) & (kind == ReturnKind.GENUINE)
+    kind[on_glass] = ReturnKind.GLASS
+    return BeamResult(geom, path, hit_w, cos_inc, kind, via, gain)
+
+
+def _follow(
+    model: object,
+    data: object,
+    geomgroup: np.ndarray,
+    geom: np.ndarray,
+    path: np.ndarray,
+    hit_w: np.ndarray,
+    dirs_w: np.ndarray,
+    normals_w: np.ndarray,
+    optics: GeomOptics,
+    u: np.ndarray,
+    *,
+    glass: bool,
+    mirrors: bool,
+) -> tuple[np.ndarray, ...]:
+    """The glass / mirror events of beams whose primary hit is glass or a mirror (``follow_beams``)."""
+    n = len(geom)
     d_cur = dirs_w.copy()
     n_cur = normals_w.copy()
     reflected = np.zeros(n, dtype=bool)
     transmitted = np.zeros(n, dtype=bool)
     via = np.full(n, -1, dtype=np.int64)
     gain = np.ones(n)
-    done = ~hit  # a beam is done once its returning surface is decided
+    done = geom < 0  # a beam is done once its returning surface is decided
     for j in range(u.shape[1]):
         g = np.where(geom >= 0, geom, 0)
         kind = np.where(geom >= 0, optics.kind[g], -1)
@@ -173,14 +210,13 @@ def follow_beams(
         reflected[act] |= m
         transmitted[act] |= ~m
 
-    g = np.where(geom >= 0, geom, 0)
-    on_glass = (geom >= 0) & (optics.kind[g] == _GLASS)
     kind = np.full(n, int(ReturnKind.GENUINE), dtype=np.int8)
     kind[transmitted] = ReturnKind.THROUGH_GLASS
-    kind[on_glass] = ReturnKind.GLASS
+    g = np.where(geom >= 0, geom, 0)
+    kind[(geom >= 0) & (optics.kind[g] == _GLASS)] = ReturnKind.GLASS
     kind[reflected] = ReturnKind.GHOST
     cos_inc = np.abs(np.einsum("ij,ij->i", n_cur, d_cur))
-    return BeamResult(geom, path, hit_w, cos_inc, kind, via, gain)
+    return geom, path, hit_w, kind, via, gain, cos_inc
 
 
 def cast_rays(

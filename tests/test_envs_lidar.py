@@ -559,3 +559,36 @@ def test_threads_and_vectorised_labels_do_not_change_a_sweep():
     expected = [truth.surface_of_hit(names[i], t1.hit_w[i]) for i in idx]
     np.testing.assert_array_equal(t1.surface_id[idx], expected)
     assert np.count_nonzero(t1.surface_id >= 0) > 0.9 * len(names)
+
+
+def test_zoned_two_pass_cast_equals_one_cast_on_the_simulation_model():
+    """The private zoned model and the near/far passes change the speed, not the hits.
+
+    The reference is one plain ``mj_multiRay`` pass on the simulation's own model; the legs
+    are bent and the pelvis moved after the first sweeps, so the zoned model must follow the
+    moving geoms, which a sensor facing the user's legs sees.
+    """
+    model, data, truth, T0 = _office_scene()
+    plain = LidarConfig(zoned_cast=False, cast_near_m=0.0)
+    fast = LidarConfig()
+    facing = T0.copy()  # 1.5 m in front of the user at knee height, level: its rings cross the legs
+    facing[:3, 3] += T0[:3, :3] @ np.array([1.5, 0.0, 0.0])
+    facing[2, 3] = 0.6
+    sensors = {name: LidarSensor("lidar_trunk", cfg, model, 3) for name, cfg in (("plain", plain), ("fast", fast))}
+    legs = {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g))
+            for g in range(model.ngeom) if model.body_weldid[model.geom_bodyid[g]] != 0}  # fmt: skip
+    for step in range(2):
+        if step == 1:  # bend the knees and hips, move the pelvis: the moving geoms must follow
+            for j, q in (("hip_l", 0.5), ("knee_l", -0.9), ("hip_r", -0.3), ("knee_r", -0.4)):
+                data.qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]] = q
+            data.qpos[:3] += [0.3, -0.2, 0.0]
+            mujoco.mj_forward(model, data)
+        for pose in (T0, facing):
+            (sp, tp), (sf, tf) = (sensors[k].scan(model, data, pose, 0.0, truth) for k in ("plain", "fast"))
+            np.testing.assert_array_equal(sp.points_xyz, sf.points_xyz)
+            np.testing.assert_array_equal(tp.geom_id, tf.geom_id)
+            np.testing.assert_array_equal(tp.surface_id, tf.surface_id)
+            np.testing.assert_array_equal(tp.kind, tf.kind)
+        assert np.count_nonzero(np.isin(tp.geom_id, list(legs))) > 50  # the sweep does see the user's legs
+    # returns beyond the near pass's 8 m come from the second pass
+    assert np.count_nonzero(tp.true_range_m > 8.0) > 100
