@@ -31,7 +31,10 @@ of the sweep). Faults never raise; they are counted in ``FilterEstimate.stats``:
   (``no_kinematics``) -- the conservative choice: nothing outside the band is kept;
 - non-finite points are dropped by the filters (``DROPPED_INVALID``; ``invalid_points``);
 - the normal filter counts the scans whose normals came from the range image
-  (``normals_range_image_scans``) and from the knn fallback (``normals_knn_scans``).
+  (``normals_range_image_scans``) and from the knn fallback (``normals_knn_scans``);
+- the naive filter counts the scans whose ground test used the scan's own floor plane
+  (``ground_plane_refined_scans``) and the footprint plane (``ground_plane_footprint_scans``:
+  ``ground_test`` ``"band"`` / ``"below"``, or no floor plane found).
 """
 
 from __future__ import annotations
@@ -218,6 +221,9 @@ class _FilterPipeline:
             if res.normal_method:  # the normal filter: which normal estimate ran on this scan
                 key = f"normals_{res.normal_method.replace('-', '_')}_scans"
                 self._stats[key] = self._stats.get(key, 0) + 1
+            if res.ground_plane:  # the naive filter: the scan's floor plane or the footprint's
+                key = f"ground_plane_{res.ground_plane}_scans"
+                self._stats[key] = self._stats.get(key, 0) + 1
         dt = time.perf_counter() - t0
         st = self._stats
         st["scans"] += 1
@@ -306,14 +312,20 @@ class FilterNaiveGround(_FilterPipeline):
 
     @dataclass(frozen=True)
     class Config(_BandFields):
+        ground_test: str = NaiveGroundConfig.ground_test
         ground_margin_m: float = NaiveGroundConfig.ground_margin_m
+        ground_depth_m: float = NaiveGroundConfig.ground_depth_m
+        plane_margin_m: float = NaiveGroundConfig.plane_margin_m
+        plane_search_m: float = NaiveGroundConfig.plane_search_m
         use_full_transform: bool = NaiveGroundConfig.use_full_transform
 
         def __post_init__(self) -> None:
             self.filter_config()
 
         def filter_config(self) -> NaiveGroundConfig:
-            return NaiveGroundConfig(**self.band(), ground_margin_m=self.ground_margin_m, use_full_transform=self.use_full_transform)
+            return NaiveGroundConfig(**self.band(), ground_test=self.ground_test, ground_margin_m=self.ground_margin_m,
+                                     ground_depth_m=self.ground_depth_m, plane_margin_m=self.plane_margin_m,
+                                     plane_search_m=self.plane_search_m, use_full_transform=self.use_full_transform)  # fmt: skip
 
     def _make_filter(self) -> NoFilter:
         return NaiveGroundFilter(self.config.filter_config())

@@ -26,6 +26,7 @@ from exobench.perception.intensity_filter import (
     NormalGroundFilter,
     estimate_normals,
     estimate_range_image_normals,
+    fit_floor_plane,
     make_filter,
     range_image_index,
     range_image_normal_candidates,
@@ -151,16 +152,20 @@ def test_tilt_changes_the_naive_ground_classification_as_the_equation_says():
     pts = np.column_stack([c * p_f[:, 0] - s * (p_f[:, 2] - H), p_f[:, 1], z_l])
     np.testing.assert_allclose(pts, _to_sensor(p_f, T_fs), atol=1e-12)
     l_z_f = -c * H  # footprint origin in l: R^T (0 - t), z part
-    level = NaiveGroundFilter(NaiveGroundConfig(use_full_transform=False)).apply(pts, psi, T_fs)
-    full = NaiveGroundFilter().apply(pts, psi, T_fs)
+    level_cfg = NaiveGroundConfig(ground_test="below", use_full_transform=False)  # eq. (4.16) as written
+    level = NaiveGroundFilter(level_cfg).apply(pts, psi, T_fs)
+    full = NaiveGroundFilter(NaiveGroundConfig(ground_test="below")).apply(pts, psi, T_fs)
     # eq. (4.16) with the level assumption: ground iff z_l < ^l z_f + margin
     assert level.keep.tolist() == (z_l < l_z_f + 0.05).tolist() == [False, True]
     # full transform: ground iff the footprint height < margin (0.0 and 0.5 m)
     assert full.keep.tolist() == [True, False]
+    # the level form with the band: the point 0.55 m below the level footprint is not ground either
+    band = NaiveGroundFilter(NaiveGroundConfig(ground_test="band", use_full_transform=False)).apply(pts, psi, T_fs)
+    assert band.keep.tolist() == [False, False]
     # level LiDAR: both forms agree
     T_level = _T(np.eye(3), [0.0, 0.0, H])
     pts_level = _to_sensor(p_f, T_level)
-    a = NaiveGroundFilter(NaiveGroundConfig(use_full_transform=False)).apply(pts_level, psi, T_level)
+    a = NaiveGroundFilter(level_cfg).apply(pts_level, psi, T_level)
     b = NaiveGroundFilter().apply(pts_level, psi, T_level)
     assert a.keep.tolist() == b.keep.tolist() == [True, False]
 
@@ -415,3 +420,94 @@ def test_pipeline_config_passes_the_normal_method_through():
     assert (cfg.normal_method, cfg.ri_col_halfwidth, cfg.ri_ring_jump_rel) == ("knn", 6, 0.4)
     with pytest.raises(ConfigError):
         FilterNormalGround.Config(normal_method="bogus")
+
+
+# ------------------------------------------------------------- naive filter: ground tests below the footprint
+
+
+def _floor_and_mirror_ghosts(T_fs: np.ndarray, floor_z: float = 0.0, seed: int = 0):
+    """A weak floor (psi 5) at height ``floor_z`` of the footprint frame, 1.5-12 m around the
+    sensor, and the weak ghosts a polished floor mirrors under it (psi 3): a wall's foot 1-10 cm
+    below the floor and furniture 0.3-1.5 m below. Returns points (sensor frame), psi, labels
+    (0 floor, 1 ghost 1-10 cm under, 2 ghost deeper)."""
+    rng = np.random.default_rng(seed)
+    n = 4000
+    r = rng.uniform(1.5, 12.0, n)
+    a = rng.uniform(-math.pi, math.pi, n)
+    floor = np.column_stack([r * np.cos(a), r * np.sin(a), floor_z + rng.normal(0.0, 0.004, n)])
+    y = rng.uniform(-2.0, 2.0, 300)
+    foot = np.column_stack([np.full(300, 7.0), y, floor_z - rng.uniform(0.01, 0.10, 300)])
+    deep = np.column_stack([rng.uniform(4.0, 9.0, 300), rng.uniform(-3.0, 3.0, 300), floor_z - rng.uniform(0.3, 1.5, 300)])
+    p_f = np.concatenate([floor, foot, deep])
+    labels = np.repeat([0, 1, 2], [n, 300, 300])
+    psi = np.where(labels == 0, 5.0, 3.0)
+    return _to_sensor(p_f, T_fs), psi, labels
+
+
+def test_ghosts_mirrored_below_the_floor_are_kept_by_eq_4_16_and_removed_by_the_band():
+    T_fs = _T(_rot(math.radians(2.0), math.radians(6.0)), [0.0, 0.0, H])
+    pts, psi, labels = _floor_and_mirror_ghosts(T_fs)
+    below = NaiveGroundFilter(NaiveGroundConfig(ground_test="below")).apply(pts, psi, T_fs)
+    band = NaiveGroundFilter(NaiveGroundConfig(ground_test="band")).apply(pts, psi, T_fs)
+    plane = NaiveGroundFilter().apply(pts, psi, T_fs)
+    assert below.keep.all()  # eq. (4.16) as written: everything below the footprint is ground
+    for res in (band, plane):
+        assert res.keep[labels == 0].all()
+        assert not res.keep[labels == 2].any()  # 0.3-1.5 m under the floor: not ground
+    # the foot of the wall 1-10 cm under the floor: inside the kinematic band, outside +-3 cm of the floor plane
+    assert band.keep[labels == 1].all()
+    assert plane.ground_plane == "refined" and band.ground_plane == "footprint"
+    # (the fitted plane is within a few mm of the floor: points within 1 cm of the band edge may go either way)
+    foot_z = pts[labels == 1] @ T_fs[2, :3] + T_fs[2, 3]
+    assert plane.keep[labels == 1][foot_z > -0.02].all() and not plane.keep[labels == 1][foot_z < -0.04].any()
+
+
+def test_plane_band_follows_the_scans_floor_when_the_footprint_is_off():
+    # the kinematic footprint 4 cm too low and 0.5 deg off: the floor lies at z_f = +0.04 tilted
+    true_T = _T(_rot(math.radians(1.0), math.radians(4.0)), [0.0, 0.0, H])
+    pts, psi, labels = _floor_and_mirror_ghosts(true_T)
+    est_T = _T(_rot(math.radians(1.5), math.radians(4.0)), [0.0, 0.0, H + 0.04])
+    below = NaiveGroundFilter(NaiveGroundConfig(ground_test="below")).apply(pts, psi, est_T)
+    plane = NaiveGroundFilter().apply(pts, psi, est_T)
+    assert plane.ground_plane == "refined"
+    assert plane.keep[labels == 0].all()  # the whole floor, out to 12 m
+    assert below.keep[labels == 0].mean() < 0.9  # part of the floor is above +0.05 in the wrong footprint
+    true_z = pts @ true_T[2, :3] + true_T[2, 3]
+    ghost_z = true_z[labels > 0]
+    assert plane.keep[labels > 0][ghost_z > -0.02].all() and not plane.keep[labels > 0][ghost_z < -0.04].any()
+
+
+def test_fit_floor_plane_recovers_a_known_plane_and_refuses_a_bad_one():
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-10.0, 10.0, (3000, 2))
+    a, b, c = 0.01, -0.02, 0.03  # 1.3 deg of tilt, 3 cm of offset
+    z = a * xy[:, 0] + b * xy[:, 1] + c + rng.normal(0.0, 0.005, len(xy))
+    z_ghost = z.copy()
+    z_ghost[:300] -= rng.uniform(0.04, 0.09, 300)  # 10 % just under the floor
+    for zz in (z, z_ghost):
+        plane = fit_floor_plane(xy, zz)
+        assert plane is not None
+        np.testing.assert_allclose(plane, (a, b, c), atol=2e-3)
+    assert fit_floor_plane(xy[:20], z[:20]) is None  # too few points
+    steep = 0.1 * xy[:, 0]  # 5.7 deg
+    assert fit_floor_plane(xy, steep, search_m=0.5) is None
+    assert fit_floor_plane(xy, z + 0.3) is None  # nothing within plane_search_m of the footprint
+    # a scan without a floor near the footprint falls back to the band and says so
+    T = _T(np.eye(3), [0.0, 0.0, H])
+    res = NaiveGroundFilter().apply(_to_sensor(np.column_stack([xy[:20], z[:20]]), T), np.full(20, 5.0), T)
+    assert res.ground_plane == "footprint"
+    np.testing.assert_array_equal(res.keep, (z[:20] < 0.05) & (z[:20] > -0.1))
+
+
+def test_naive_ground_test_config_and_pipeline():
+    from exobench.perception.filter_pipelines import FilterNaiveGround
+
+    assert NaiveGroundConfig().ground_test == "plane-band"
+    for bad in ({"ground_test": "above"}, {"ground_depth_m": 0.0}, {"plane_margin_m": 0.5}, {"plane_search_m": -1.0}):
+        with pytest.raises(ConfigError):
+            NaiveGroundConfig(**bad)
+    pipe = FilterNaiveGround(FilterNaiveGround.Config(ground_test="below", ground_depth_m=0.2, plane_margin_m=0.02))
+    cfg = pipe.filter.config
+    assert (cfg.ground_test, cfg.ground_depth_m, cfg.plane_margin_m) == ("below", 0.2, 0.02)
+    with pytest.raises(ConfigError):
+        FilterNaiveGround.Config(ground_test="bogus")
