@@ -37,6 +37,7 @@ BUILTIN_PIPELINES: dict[str, tuple[str, str]] = {
     "filter-threshold": ("exobench.perception.filter_pipelines:FilterThreshold", "lidar-filter"),
     "filter-naive-ground": ("exobench.perception.filter_pipelines:FilterNaiveGround", "lidar-filter"),
     "filter-normal-ground": ("exobench.perception.filter_pipelines:FilterNormalGround", "lidar-filter"),
+    "filter-floor-ground": ("exobench.perception.filter_pipelines:FilterFloorGround", "lidar-filter"),
     "kiss-icp": ("exobench.mapping.kiss_icp_pipeline:KissIcpPipeline", "odometry"),
     "leo-slam": ("exobench.mapping.leo_slam:LeoSlamPipeline", "odometry"),
     "sc++": ("exobench.perception.place_recognition:ScanContextPPPipeline", "loop-closure"),

@@ -12,8 +12,8 @@ Details:
   is the LiDAR at ``sweep_start_s + max(time_offset_s)`` and that is the stamp stored. With
   ``deskew=False`` the scan is taken as instantaneous and stamped ``sweep_start_s``.
 - ``voxel_size_m = 0`` takes kiss-icp's own default (``max_range_m / 100``).
-- ``filter``: ``"none"`` (default), ``"threshold"``, ``"naive-ground"`` or ``"normal-ground"``
-  runs the intensity filter of seeds/003 Sec. 4.2.2 (:mod:`exobench.perception.filter_pipelines`,
+- ``filter``: ``"none"`` (default), ``"threshold"``, ``"naive-ground"``, ``"normal-ground"`` or
+  ``"floor-ground"`` runs that intensity filter (seeds/003 Sec. 4.2.2; the last is ours) (:mod:`exobench.perception.filter_pipelines`,
   with its default parameters and ``T_footprint_sensor`` from the exoskeleton's kinematics)
   before odometry, as Table 5.4 does. :func:`run_kiss_icp` takes precomputed keep masks instead.
 - Faults never raise: a scan with fewer than ``min_points`` usable points (empty, all NaN, or
@@ -37,7 +37,7 @@ from exobench.core.errors import ConfigError, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
 
-FILTER_KINDS = ("none", "threshold", "naive-ground", "normal-ground")
+FILTER_KINDS = ("none", "threshold", "naive-ground", "normal-ground", "floor-ground")
 
 __all__ = ["FILTER_KINDS", "KissIcpPipeline", "KissOdometry", "run_kiss_icp"]
 

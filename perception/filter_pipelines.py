@@ -1,7 +1,8 @@
-"""The four LiDAR intensity filters of seeds/003 Sec. 4.2.2 as pipelines (track ``lidar-filter``).
+"""The four LiDAR intensity filters of seeds/003 Sec. 4.2.2 and ours as pipelines (track ``lidar-filter``).
 
-``filter-none``, ``filter-threshold`` (eq. 4.15), ``filter-naive-ground`` (eq. 4.16) and
-``filter-normal-ground`` (eq. 4.17-4.19) wrap the filters of
+``filter-none``, ``filter-threshold`` (eq. 4.15), ``filter-naive-ground`` (eq. 4.16),
+``filter-normal-ground`` (eq. 4.17-4.19) and ``filter-floor-ground`` (eq. 4.16 with the ground
+a band about the scan's own floor plane; not in the thesis) wrap the filters of
 :mod:`exobench.perception.intensity_filter` unchanged (each scan's ``ring`` goes to the filter:
 the normal filter's range-image normals use it); each returns a
 :class:`~exobench.core.estimates.FilterEstimate` with one keep mask per LiDAR scan and the
@@ -32,7 +33,7 @@ of the sweep). Faults never raise; they are counted in ``FilterEstimate.stats``:
 - non-finite points are dropped by the filters (``DROPPED_INVALID``; ``invalid_points``);
 - the normal filter counts the scans whose normals came from the range image
   (``normals_range_image_scans``) and from the knn fallback (``normals_knn_scans``);
-- the naive filter counts the scans whose ground test used the scan's own floor plane
+- the naive and floor filters count the scans whose ground test used the scan's own floor plane
   (``ground_plane_refined_scans``) and the footprint plane (``ground_plane_footprint_scans``:
   ``ground_test`` ``"band"`` / ``"below"``, or no floor plane found).
 """
@@ -53,6 +54,8 @@ from exobench.core.frames import ContactSample, Frame, ImuSample, JointState, Li
 
 from .intensity_filter import (
     FilterReason,
+    FloorGroundConfig,
+    FloorGroundFilter,
     IntensityBandConfig,
     IntensityThresholdFilter,
     NaiveGroundConfig,
@@ -63,6 +66,7 @@ from .intensity_filter import (
 )
 
 __all__ = [
+    "FilterFloorGround",
     "FilterNaiveGround",
     "FilterNone",
     "FilterNormalGround",
@@ -331,6 +335,21 @@ class FilterNaiveGround(_FilterPipeline):
         return NaiveGroundFilter(self.config.filter_config())
 
 
+class FilterFloorGround(FilterNaiveGround):
+    """``filter-floor-ground``: eq. (4.16) with the ground a band about the scan's own floor plane
+    (:class:`~exobench.perception.intensity_filter.FloorGroundFilter`), ``T_footprint_sensor``
+    from kinematics."""
+
+    name: ClassVar[str] = "filter-floor-ground"
+
+    @dataclass(frozen=True)
+    class Config(FilterNaiveGround.Config):
+        ground_test: str = FloorGroundConfig.ground_test
+
+    def _make_filter(self) -> NoFilter:
+        return FloorGroundFilter(self.config.filter_config())
+
+
 class FilterNormalGround(_FilterPipeline):
     """``filter-normal-ground``: eq. (4.17)-(4.19) with ``T_footprint_sensor`` from kinematics."""
 
@@ -367,11 +386,12 @@ FILTER_PIPELINES: dict[str, type[_FilterPipeline]] = {
     "threshold": FilterThreshold,
     "naive-ground": FilterNaiveGround,
     "normal-ground": FilterNormalGround,
+    "floor-ground": FilterFloorGround,
 }
 
 
 def filter_pipeline(kind: str) -> type[_FilterPipeline]:
-    """The pipeline class of a filter kind (``"none"``, ``"threshold"``, ``"naive-ground"``, ``"normal-ground"``)."""
+    """The pipeline class of a filter kind (a key of :data:`FILTER_PIPELINES`)."""
     if kind not in FILTER_PIPELINES:
         raise ConfigError("filter", kind, " or ".join(repr(k) for k in FILTER_PIPELINES))
     return FILTER_PIPELINES[kind]

@@ -12,6 +12,9 @@ clouds with only glass, a missing transform are reported in ``FilterResult.statu
   whatever its intensity.
 - ``"normal-ground"``: eq. (4.17)-(4.19): eq. (4.15), but a point whose surface normal is
   parallel to the footprint's z axis is kept whatever its intensity.
+- ``"floor-ground"`` (not in the thesis): eq. (4.15), but a point within ``plane_margin_m`` of
+  the scan's own floor plane, fitted near the footprint, is kept whatever its intensity (the
+  ``"plane-band"`` ground test below): the naive filter's idea without its flaw.
 
 Readings of the text (documented because it does not parse literally):
 
@@ -29,10 +32,11 @@ Readings of the text (documented because it does not parse literally):
   tilted (the exoskeleton's trunk always is, a little); ``use_full_transform=True`` (default)
   does that: ``(T_footprint_sensor p)_z < margin``. ``use_full_transform=False`` is eq. (4.16)
   literally: ``p_z < ^l z_f + margin`` with ``^l z_f`` the z of the footprint origin in ``l``.
-- The ground test of the naive filter, ``ground_test`` (an addition to the text; the literal
-  eq. (4.16) stays selectable as ``"below"``):
+- The ground test of the naive filter, ``ground_test`` (``"below"``, the default, is the text;
+  the others are additions, and ``"plane-band"`` is the default of the ``"floor-ground"``
+  filter, :class:`FloorGroundFilter`, our ground-aware filter beside the thesis's two):
 
-  * ``"below"``: eq. (4.16) as written, ``z_f < ground_margin_m``: *every* point below the
+  * ``"below"`` (naive-ground): eq. (4.16) as written, ``z_f < ground_margin_m``: *every* point below the
     footprint is ground. The thesis names the flaw (section 5.2.2: "it retains all the
     erroneously reflected points below the robot's height"): a polished floor mirrors the walls
     and furniture, and those ghosts appear below the floor, at any depth.
@@ -43,7 +47,7 @@ Readings of the text (documented because it does not parse literally):
     lies within -0.066 / +0.036 m of the footprint plane (0.5 / 99.5 percentiles), the scan's own
     floor varying by +-0.04 m from scan to scan (trunk height and tilt error) but only +-0.01 m
     around its own plane.
-  * ``"plane-band"`` (default): the band about the scan's own floor plane
+  * ``"plane-band"`` (floor-ground): the band about the scan's own floor plane
     (:func:`fit_floor_plane`: least squares on the points within ``plane_search_m`` of the
     footprint plane and 12 m of its origin, refitted on the points within 2 and 1
     ``plane_margin_m`` of the previous fit), ``|z_f - plane| < plane_margin_m`` (0.03 m: three
@@ -141,6 +145,8 @@ __all__ = [
     "GROUND_TESTS",
     "FilterReason",
     "FilterResult",
+    "FloorGroundConfig",
+    "FloorGroundFilter",
     "IntensityBandConfig",
     "IntensityThresholdFilter",
     "NaiveGroundConfig",
@@ -218,7 +224,7 @@ class IntensityBandConfig:
             raise ConfigError("intensity_max", self.intensity_max, f"intensity_min ({lo}) <= intensity_max <= 255")
 
 
-GROUND_TESTS = ("plane-band", "band", "below")
+GROUND_TESTS = ("below", "band", "plane-band")
 
 
 @dataclass(frozen=True)
@@ -226,10 +232,11 @@ class NaiveGroundConfig(IntensityBandConfig):
     """Naive ground-aware filter (eq. 4.16); see the module docstring for the ground tests.
 
     Attributes:
-        ground_test: ``"plane-band"`` (default: within ``plane_margin_m`` of the scan's own floor
-            plane, found near the footprint plane; ``"band"`` when no plane is found),
-            ``"band"`` (footprint height in ``(-ground_depth_m, ground_margin_m)``) or
-            ``"below"`` (eq. 4.16 as written: footprint height below ``ground_margin_m``).
+        ground_test: ``"below"`` (default, eq. 4.16 as written: footprint height below
+            ``ground_margin_m``), ``"band"`` (footprint height in ``(-ground_depth_m,
+            ground_margin_m)``) or ``"plane-band"`` (within ``plane_margin_m`` of the scan's own
+            floor plane, found near the footprint plane; ``"band"`` when no plane is found; the
+            default of :class:`FloorGroundFilter`).
         ground_margin_m: a point is ground when its footprint height is below this, m (0..0.5).
         ground_depth_m: ``"band"``: ... and above minus this, m (0..1].
         plane_margin_m: ``"plane-band"``: half-width of the band around the scan's floor plane, m
@@ -241,7 +248,7 @@ class NaiveGroundConfig(IntensityBandConfig):
             level-LiDAR form of eq. (4.16) (False).
     """
 
-    ground_test: str = "plane-band"
+    ground_test: str = "below"
     ground_margin_m: float = 0.05
     ground_depth_m: float = 0.1
     plane_margin_m: float = 0.03
@@ -258,6 +265,14 @@ class NaiveGroundConfig(IntensityBandConfig):
         check_range("plane_search_m", self.plane_search_m, 0.0, 0.5, low_open=True)
         if not isinstance(self.use_full_transform, bool):
             raise ConfigError("use_full_transform", self.use_full_transform, "True or False")
+
+
+@dataclass(frozen=True)
+class FloorGroundConfig(NaiveGroundConfig):
+    """The floor-plane ground-aware filter (:class:`FloorGroundFilter`): :class:`NaiveGroundConfig`
+    with the ground test ``"plane-band"``."""
+
+    ground_test: str = "plane-band"
 
 
 NORMAL_METHODS = ("range-image", "knn")
@@ -697,9 +712,8 @@ class IntensityThresholdFilter(NoFilter):
 
 
 class NaiveGroundFilter(NoFilter):
-    """Eq. (4.16): keep ``psi in psi*`` or ground by ``config.ground_test`` (default: within
-    ``plane_margin_m`` of the scan's floor plane; ``"below"``: footprint height below
-    ``ground_margin_m``, the text as written)."""
+    """Eq. (4.16): keep ``psi in psi*`` or ground by ``config.ground_test`` (default ``"below"``:
+    footprint height below ``ground_margin_m``, the text as written)."""
 
     name = "naive-ground"
 
@@ -747,6 +761,17 @@ class NaiveGroundFilter(NoFilter):
             ground[finite], plane = self.ground_mask_and_plane(p[finite], T)
         res = _band_result(psi, finite, self.config, ground, "ok")
         return FilterResult(res.keep, res.reason, res.status, ground_plane=plane)
+
+
+class FloorGroundFilter(NaiveGroundFilter):
+    """Eq. (4.16) with the ground test ``"plane-band"``: keep ``psi in psi*`` or within
+    ``plane_margin_m`` of the scan's own floor plane (module docstring). Not in the thesis: a
+    ground-aware filter that keeps the floor but not the ghosts a polished floor mirrors under it."""
+
+    name = "floor-ground"
+
+    def __init__(self, config: NaiveGroundConfig | None = None) -> None:
+        super().__init__(config or FloorGroundConfig())
 
 
 class NormalGroundFilter(NoFilter):
@@ -807,6 +832,7 @@ FILTERS: dict[str, type[NoFilter]] = {
     "intensity": IntensityThresholdFilter,
     "naive-ground": NaiveGroundFilter,
     "normal-ground": NormalGroundFilter,
+    "floor-ground": FloorGroundFilter,
 }
 
 _CONFIGS: dict[str, type | None] = {
@@ -814,6 +840,7 @@ _CONFIGS: dict[str, type | None] = {
     "intensity": IntensityBandConfig,
     "naive-ground": NaiveGroundConfig,
     "normal-ground": NormalGroundConfig,
+    "floor-ground": FloorGroundConfig,
 }
 
 

@@ -133,6 +133,7 @@ def test_masks_equal_the_filter_functions(calibration):
     filters = {
         "none": NoFilter(), "threshold": IntensityThresholdFilter(IntensityBandConfig()),
         "naive-ground": NaiveGroundFilter(NaiveGroundConfig()), "normal-ground": NormalGroundFilter(NormalGroundConfig()),
+        "floor-ground": NaiveGroundFilter(NaiveGroundConfig(ground_test="plane-band")),
     }  # fmt: skip
     for kind, cls in FILTER_PIPELINES.items():
         est = _run(cls, calibration, [*states, *scans])

@@ -17,6 +17,8 @@ from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.perception.intensity_filter import (
     FILTERS,
     FilterReason,
+    FloorGroundConfig,
+    FloorGroundFilter,
     IntensityBandConfig,
     IntensityThresholdFilter,
     NaiveGroundConfig,
@@ -449,7 +451,7 @@ def test_ghosts_mirrored_below_the_floor_are_kept_by_eq_4_16_and_removed_by_the_
     pts, psi, labels = _floor_and_mirror_ghosts(T_fs)
     below = NaiveGroundFilter(NaiveGroundConfig(ground_test="below")).apply(pts, psi, T_fs)
     band = NaiveGroundFilter(NaiveGroundConfig(ground_test="band")).apply(pts, psi, T_fs)
-    plane = NaiveGroundFilter().apply(pts, psi, T_fs)
+    plane = FloorGroundFilter().apply(pts, psi, T_fs)
     assert below.keep.all()  # eq. (4.16) as written: everything below the footprint is ground
     for res in (band, plane):
         assert res.keep[labels == 0].all()
@@ -468,7 +470,7 @@ def test_plane_band_follows_the_scans_floor_when_the_footprint_is_off():
     pts, psi, labels = _floor_and_mirror_ghosts(true_T)
     est_T = _T(_rot(math.radians(1.5), math.radians(4.0)), [0.0, 0.0, H + 0.04])
     below = NaiveGroundFilter(NaiveGroundConfig(ground_test="below")).apply(pts, psi, est_T)
-    plane = NaiveGroundFilter().apply(pts, psi, est_T)
+    plane = FloorGroundFilter().apply(pts, psi, est_T)
     assert plane.ground_plane == "refined"
     assert plane.keep[labels == 0].all()  # the whole floor, out to 12 m
     assert below.keep[labels == 0].mean() < 0.9  # part of the floor is above +0.05 in the wrong footprint
@@ -494,15 +496,18 @@ def test_fit_floor_plane_recovers_a_known_plane_and_refuses_a_bad_one():
     assert fit_floor_plane(xy, z + 0.3) is None  # nothing within plane_search_m of the footprint
     # a scan without a floor near the footprint falls back to the band and says so
     T = _T(np.eye(3), [0.0, 0.0, H])
-    res = NaiveGroundFilter().apply(_to_sensor(np.column_stack([xy[:20], z[:20]]), T), np.full(20, 5.0), T)
+    res = FloorGroundFilter().apply(_to_sensor(np.column_stack([xy[:20], z[:20]]), T), np.full(20, 5.0), T)
     assert res.ground_plane == "footprint"
     np.testing.assert_array_equal(res.keep, (z[:20] < 0.05) & (z[:20] > -0.1))
 
 
 def test_naive_ground_test_config_and_pipeline():
-    from exobench.perception.filter_pipelines import FilterNaiveGround
+    from exobench.perception.filter_pipelines import FilterFloorGround, FilterNaiveGround
 
-    assert NaiveGroundConfig().ground_test == "plane-band"
+    # the thesis's naive filter tests eq. (4.16) as written; the floor filter the band about the floor plane
+    assert NaiveGroundConfig().ground_test == "below" and FilterNaiveGround().filter.config.ground_test == "below"
+    assert FloorGroundConfig().ground_test == "plane-band" and FilterFloorGround().filter.config.ground_test == "plane-band"
+    assert isinstance(FilterFloorGround().filter, FloorGroundFilter)
     for bad in ({"ground_test": "above"}, {"ground_depth_m": 0.0}, {"plane_margin_m": 0.5}, {"plane_search_m": -1.0}):
         with pytest.raises(ConfigError):
             NaiveGroundConfig(**bad)

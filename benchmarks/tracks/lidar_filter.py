@@ -3,7 +3,8 @@
 The office (:mod:`exobench.envs.office_sim`) has glass panes and reflective floors that return
 spurious points (the panes' own weak reflections, ghosts seen in mirrors and panes); its
 real floor returns are weak at grazing incidence. Each pipeline (``filter-none``,
-``filter-threshold``, ``filter-naive-ground``, ``filter-normal-ground``) returns a keep mask per
+``filter-threshold``, ``filter-naive-ground``, ``filter-normal-ground`` of the thesis, and our
+``filter-floor-ground``) returns a keep mask per
 scan, scored point by point against the truth (:mod:`lidar_filter_metrics`: spurious points
 removed, ground points kept, per kind, time per scan) and, where the scenario asks for it
 (``score_odometry``, on in the paper and full suites), through KISS-ICP odometry on the kept
