@@ -120,7 +120,7 @@ def test_footprint_transform_matches_the_true_lidar_pose(walk):
 
 def test_filters_on_the_office_walk(walk):
     m = walk.metrics
-    for name in ("filter-none", "filter-threshold", "filter-naive-ground", "filter-normal-ground"):
+    for name in ("filter-none", "filter-threshold", "filter-naive-ground", "filter-normal-ground", "filter-floor-ground"):
         assert not m[name]["failed"], m[name]
     n_spurious = m["filter-none"]["n_glass"] + m["filter-none"]["n_ghost"]
     assert m["filter-none"]["ground_kept_frac"] == 1.0 and m["filter-none"]["n_ground"] > 0
@@ -133,6 +133,12 @@ def test_filters_on_the_office_walk(walk):
     assert normal["ground_kept_frac"] >= 0.95, f"normal filter keeps {normal['ground_kept_frac']:.3f} of the ground"
     if n_spurious:
         assert normal["spurious_removed_frac"] >= 0.90, f"normal filter removes {normal['spurious_removed_frac']:.3f}"
+    # the target (>= 95 % of the ground kept, >= 90 % of ghost and glass returns removed) by the floor filter
+    floor = m["filter-floor-ground"]
+    assert floor["ground_kept_frac"] >= 0.95, f"floor filter keeps {floor['ground_kept_frac']:.3f} of the ground"
+    assert n_spurious > 0 and floor["spurious_removed_frac"] >= 0.90, f"floor filter removes {floor['spurious_removed_frac']:.3f}"
+    # eq. 4.16 as written keeps the ghosts mirrored under the floor
+    assert m["filter-naive-ground"]["ghost_removed_frac"] < floor["ghost_removed_frac"]
 
 
 def test_scores_agree_with_point_truth(walk):
