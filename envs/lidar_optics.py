@@ -143,7 +143,8 @@ def follow_beams(
         geom[sub], path[sub], hit_w[sub], kind[sub], via[sub], gain[sub], cos_inc[sub] = (
             g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s,
         )
-    on_glass = (geom >= 0) & (optics.kind[np.maximum(geom, 0)] == _GLASS) & (kind == ReturnKind.GENUINE)
+    # a return from a pane is a glass return, even after crossing another pane; a ghost stays a ghost
+    on_glass = (geom >= 0) & (optics.kind[np.maximum(geom, 0)] == _GLASS) & (kind != ReturnKind.GHOST)
     kind[on_glass] = ReturnKind.GLASS
     return BeamResult(geom, path, hit_w, cos_inc, kind, via, gain)
 
@@ -212,8 +213,6 @@ def _follow(
 
     kind = np.full(n, int(ReturnKind.GENUINE), dtype=np.int8)
     kind[transmitted] = ReturnKind.THROUGH_GLASS
-    g = np.where(geom >= 0, geom, 0)
-    kind[(geom >= 0) & (optics.kind[g] == _GLASS)] = ReturnKind.GLASS
     kind[reflected] = ReturnKind.GHOST
     cos_inc = np.abs(np.einsum("ij,ij->i", n_cur, d_cur))
     return geom, path, hit_w, kind, via, gain, cos_inc
