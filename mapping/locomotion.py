@@ -93,7 +93,8 @@ state, with the reason as its status, and counted in ``stats``. Fewer than three
 give ``"few_strikes"`` and mode ``""``; no terrain under either footprint keeps the previous mode
 (``"no_terrain"``); no plane under the predicted footprint gives ``"extrapolated"`` (the current
 terrain continues) unless lower ground lies ahead (SD, ``"drop_ahead"`` of the terrain
-description, reported as ``"ok"`` and counted in ``stats["n_drop_ahead"]``), none under the
+description, or RD, ``"ramp_ahead"``: the unseen start of a ramp down; reported as ``"ok"`` and
+counted in ``stats["n_drop_ahead"]`` / ``stats["n_ramp_ahead"]``), none under the
 reference one and no remembered height ``"current_unknown"``.
 Dropped frames (a gap of more than 1.5 frame periods at the mount's ``rate_hz``) are counted in
 ``stats["n_dropped_frames"]``; frames skipped by ``every_k`` in ``n_skipped_rate``.
@@ -371,7 +372,7 @@ class _LocomotionPipeline(ABC):
             "n_frames", "n_rgbd_frames", "n_processed", "n_skipped_rate", "n_dropped_frames", "n_out_of_order",
             "n_bad_frame", "n_no_depth", "n_no_odometry", "n_no_planes", "n_errors", "n_bad_odometry",
             "n_odometry", "n_contact", "n_heel_strikes", "n_strikes_without_odometry", "n_direction_from_positions",
-            "n_current_remembered", "n_initial_contacts", "n_ignored", "n_height_from_odometry", "n_drop_ahead",
+            "n_current_remembered", "n_initial_contacts", "n_ignored", "n_height_from_odometry", "n_drop_ahead", "n_ramp_ahead",
             "n_standing_starts", "n_steps_after_start")}
         self._stats.update(rgbd_sensor_id=self._rgbd_id, odometry_sensor_id=self._odom_id,
                            odometry_mount=self._odom_mount, errors=[])
@@ -624,8 +625,8 @@ class _LocomotionPipeline(ABC):
             z = plane_height_at(desc.planes[dec.next_plane_id], nxt)
             self._next_z[n] = z
             self._next_cls[n] = desc.plane_classes[dec.next_plane_id]
-        elif dec.reason == "drop_ahead":
-            self._stats["n_drop_ahead"] += 1
+        elif dec.reason in ("drop_ahead", "ramp_ahead"):
+            self._stats[f"n_{dec.reason}"] += 1
         for d in (self._foot_z, self._foot_cls, self._next_z, self._next_cls):
             for j in [j for j in d if j < n - 3]:
                 del d[j]
@@ -635,7 +636,7 @@ class _LocomotionPipeline(ABC):
         if dec.mode == "":
             return self._last_mode, footprint, dec.reason
         self._last_mode = dec.mode
-        return dec.mode, footprint, "ok" if dec.reason in ("current_remembered", "drop_ahead") else dec.reason
+        return dec.mode, footprint, "ok" if dec.reason in ("current_remembered", "drop_ahead", "ramp_ahead") else dec.reason
 
 
 class TerrainReconstructionPipeline(_LocomotionPipeline):

@@ -234,6 +234,27 @@ def test_drop_ahead_of_an_unseen_descending_flight():
     assert (d.mode, d.reason) == ("LG", "extrapolated")
 
 
+def test_ramp_ahead_of_an_unseen_ramp_start():
+    """From a landing (z 0.8, x < 4.3) a 17.8 deg ramp runs down from its edge, but only its
+    lower part (x 5.5-6.8) is mapped (a head camera sees a ramp down only beyond the crest): a
+    footprint on the unmapped upper part is RD ("ramp_ahead"), as the ramp plane's extension
+    passes under it less than a ramp's slope below the landing; with only lower level ground
+    mapped ahead it stays SD ("drop_ahead"), and a ramp plane far below the landing (its
+    extension under the footprint beyond any ramp's slope) does not make it RD."""
+    slope = 17.8
+    t = np.tan(np.radians(slope))
+    landing = patch(0.0, 4.3, 0.8)
+    lower_ramp = patch(5.5, 6.8, 0.8 - (5.5 - 4.3) * t, -slope)
+    d = predict_mode(plane_set(landing, lower_ramp), [4.9, 0.0], [4.2, 0.0], CFG)
+    assert (d.mode, d.reason, d.next_plane_id) == ("RD", "ramp_ahead", None)
+    assert d.dz_m == pytest.approx(-(4.9 - 4.3) * t, abs=0.01)
+    d = predict_mode(plane_set(landing, patch(5.5, 6.8, 0.0)), [4.9, 0.0], [4.2, 0.0], CFG)
+    assert (d.mode, d.reason) == ("SD", "drop_ahead")
+    deep = patch(5.5, 6.8, 0.8 - (5.5 - 4.3) * t - 0.5, -slope)  # the same slope 0.5 m lower
+    d = predict_mode(plane_set(landing, deep), [4.9, 0.0], [4.2, 0.0], CFG)
+    assert (d.mode, d.reason) == ("SD", "drop_ahead")
+
+
 def test_remembered_class_of_a_ramp_footprint():
     """A foot that was on a ramp (its class known from before) lands on level ground: LG, even
     0.2 m lower (RD ended), as the track's truth labels leaving a ramp."""
