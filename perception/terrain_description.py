@@ -225,6 +225,33 @@ class TerrainDescription:
                 best = key
         return None if best is None else best[2]
 
+    def tread_above(self, xy: np.ndarray, fwd_xy: np.ndarray, level_m: float, toe_m: float) -> np.ndarray | None:
+        """Where a foot put down at ``xy`` (on the level ``level_m``, walking along ``fwd_xy``)
+        goes when its toes, ``toe_m`` ahead, would be inside a riser: the point just past the
+        riser on the horizontal plane above (``stair_rise_min_m`` or more higher), else None.
+        A foot is not put down against a step up: the first step of a flight goes onto the
+        tread (the walker lengthens it to centre the foot on the first tread)."""
+        p = np.asarray(xy, dtype=float)[:2]
+        d = np.asarray(fwd_xy, dtype=float)[:2]
+        norm = float(np.hypot(d[0], d[1]))
+        pid0 = self.plane_under(p)
+        if norm < 1e-9 or pid0 is None or self.plane_classes[pid0] != "horizontal":
+            return None
+        d = d / norm
+        if abs(plane_height_at(self.planes[pid0], p) - level_m) > 0.5 * self.config.stair_rise_min_m:
+            return None  # not a level step (on stairs already)
+        z0 = plane_height_at(self.planes[pid0], p)
+        for s in np.arange(0.02, toe_m + 1e-9, 0.02):
+            q = p + s * d
+            pid = self.plane_under(q)
+            if pid is None or pid == pid0:
+                continue
+            up = plane_height_at(self.planes[pid], q) - z0
+            if self.plane_classes[pid] == "horizontal" and up >= self.config.stair_rise_min_m:
+                return q + 0.02 * d
+            return None
+        return None
+
     def mode_of_step(self, current_xy: np.ndarray, next_xy: np.ndarray,
                      current_height_m: float | None = None, current_class: str | None = None) -> ModeDecision:
         """Locomotion mode of the step from the current footprint to the predicted one.

@@ -255,6 +255,22 @@ def test_ramp_ahead_of_an_unseen_ramp_start():
     assert (d.mode, d.reason) == ("SD", "drop_ahead")
 
 
+def test_tread_above_a_foot_against_a_riser():
+    """Level ground (z 0) up to a riser at x 2.0, the first tread (z 0.17) beyond: a level step
+    whose toes (0.15 m ahead) would be inside the riser goes just past it onto the tread; one
+    whose toes stop short stays; a step already on the stairs, or toward a step down, is left."""
+    ps = staircase()
+    desc = describe_terrain(ps, CFG)
+    fwd = np.array([1.0, 0.0])
+    onto = desc.tread_above([1.9, 0.0], fwd, 0.0, 0.15)
+    assert onto is not None and 2.0 < onto[0] < 2.1
+    assert predict_mode(ps, onto, [1.5, 0.0], CFG).mode == "SA"
+    assert desc.tread_above([1.7, 0.0], fwd, 0.0, 0.15) is None  # toes 0.15 m short of the riser
+    assert desc.tread_above([tread_x(1), 0.0], fwd, 0.0, 0.15) is None  # on the first tread already
+    assert desc.tread_above([tread_x(2) + 0.1, 0.0], fwd, 0.0, 0.15) is None  # on the stairs (the swing foot two treads lower)
+    assert desc.tread_above([tread_x(1), 0.0], -fwd, 0.17, 0.15) is None  # toward the step down
+
+
 def test_remembered_class_of_a_ramp_footprint():
     """A foot that was on a ramp (its class known from before) lands on level ground: LG, even
     0.2 m lower (RD ended), as the track's truth labels leaving a ramp."""
