@@ -238,9 +238,9 @@ class TerrainDescription:
         if norm < 1e-9 or pid0 is None or self.plane_classes[pid0] != "horizontal":
             return None
         d = d / norm
-        if abs(plane_height_at(self.planes[pid0], p) - level_m) > 0.5 * self.config.stair_rise_min_m:
-            return None  # not a level step (on stairs already)
         z0 = plane_height_at(self.planes[pid0], p)
+        if abs(z0 - level_m) > 0.5 * self.config.stair_rise_min_m:
+            return None  # not a level step (on stairs already)
         for s in np.arange(0.02, toe_m + 1e-9, 0.02):
             q = p + s * d
             pid = self.plane_under(q)

@@ -142,19 +142,23 @@ def tiny_run(tmp_path_factory, track):
     return plan, outcome, episode
 
 
-def _oracle(episode) -> LocomotionEstimate:
-    """At every camera frame: the true mode of the next step to lift off, with the number of heel
-    strikes so far."""
+def _frames_and_next_steps(episode):
+    """(camera frame, the next step to lift off, heel strikes so far) for every camera frame
+    before the last liftoff."""
     steps = sorted(episode.truth.steps, key=lambda s: s.index)
-    preds = []
     for f in episode.frames:
         if not isinstance(f, RgbdFrame):
             continue
         nxt = next((s for s in steps if s.liftoff_s >= f.stamp_s), None)
-        if nxt is None:
-            continue
-        strikes = sum(s.heel_strike_s <= f.stamp_s for s in steps)
-        preds.append(ModePrediction(f.stamp_s, nxt.mode, np.full(3, np.nan), strikes, 0.001))
+        if nxt is not None:
+            yield f, nxt, sum(s.heel_strike_s <= f.stamp_s for s in steps)
+
+
+def _oracle(episode) -> LocomotionEstimate:
+    """At every camera frame: the true mode of the next step to lift off, with the number of heel
+    strikes so far."""
+    preds = [ModePrediction(f.stamp_s, nxt.mode, np.full(3, np.nan), strikes, 0.001)
+             for f, nxt, strikes in _frames_and_next_steps(episode)]  # fmt: skip
     return LocomotionEstimate(tuple(preds))
 
 
@@ -220,16 +224,10 @@ def test_footprint_error_is_measured_in_the_odometry_frame_at_the_prediction(tin
     odo = {round(f.stamp_s, 6): np.asarray(f.T_odom_body) for f in episode.frames if isinstance(f, OdometrySample)}
     t_cam, T_cam = episode.truth.extra["camera_stamps_s"], episode.truth.extra["camera_T_world"]
     preds = []
-    for f in episode.frames:
-        if not isinstance(f, RgbdFrame):
-            continue
-        nxt = next((s for s in steps if s.liftoff_s >= f.stamp_s), None)
-        if nxt is None:
-            continue
+    for f, nxt, strikes in _frames_and_next_steps(episode):
         k = int(np.argmin(np.abs(t_cam - f.stamp_s)))
         T_odom_world = odo[round(float(t_cam[k]), 6)] @ np.linalg.inv(T_cam[k])
         fp = T_odom_world[:3, :3] @ nxt.footprint_w + T_odom_world[:3, 3]
-        strikes = sum(s.heel_strike_s <= f.stamp_s for s in steps)
         preds.append(ModePrediction(f.stamp_s, nxt.mode, fp, strikes, 0.001))
     est = LocomotionEstimate(tuple(preds))
     m = track.score(episode, est)
