@@ -278,3 +278,49 @@ def test_remembered_class_of_a_ramp_footprint():
     assert predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.2).mode == "SD"
     desc = describe_terrain(ps, CFG)
     assert desc.mode_of_step([0.7, 0.0], [1.5, 0.0], 0.2, "ramp").mode == "LG"
+
+
+def _crest(score=3):
+    """A 11.8 deg ramp from x 0 up to its crest at x 2.5, a landing beyond; each plane's support
+    reaches 0.25 m (ramp) and 0.1 m (landing) past the crest, as cells straddling a shallow crease
+    are merged into either plane."""
+    th = 11.8
+    top = 2.5 * np.tan(np.radians(th))
+    ps = plane_set(patch(0.0, 2.75, 0.0, th), patch(2.4, 4.5, top))
+    for p in ps.planes.values():
+        p.score = score
+    return ps, top
+
+
+def test_crease_side_decides_where_supports_overlap():
+    ps, _ = _crest()
+    desc = describe_terrain(ps, CFG)
+    ramp, landing = 0, 1
+    for x, want in ((2.3, ramp), (2.46, ramp), (2.54, landing), (2.6, landing), (2.7, landing), (3.0, landing)):
+        assert desc.plane_under([x, 0.0]) == want, x
+    # the step onto the landing just past the crest leaves the ramp: LG, not RA
+    assert desc.mode_of_step([2.1, 0.0], [2.56, 0.0]).mode == "LG"
+    # without the crease rule the ramp, reaching farther and higher there, claims the landing
+    off = describe_terrain(ps, TerrainConfig(crease_min_angle_deg=90.0))
+    assert off.plane_under([2.6, 0.0]) == ramp
+    assert off.mode_of_step([2.1, 0.0], [2.56, 0.0]).mode == "RA"
+    # a plane fitted in one update only (score below crease_min_score) is not trusted with a crease
+    ps1, _ = _crest(score=1)
+    assert describe_terrain(ps1, CFG).plane_under([2.6, 0.0]) == ramp
+
+
+def test_crease_ahead_puts_the_foot_past_a_ramp_crease():
+    ps, _ = _crest()
+    desc = describe_terrain(ps, CFG)
+    fwd = np.array([1.0, 0.0])
+    onto = desc.crease_ahead([2.46, 0.0], fwd, 0.06)  # toes across the crest
+    assert onto is not None and 2.5 < onto[0] <= 2.54
+    assert desc.plane_under(onto) == 1
+    assert desc.crease_ahead([2.3, 0.0], fwd, 0.06) is None  # toes still on the ramp
+    assert desc.crease_ahead([2.7, 0.0], fwd, 0.06) is None  # on the landing already
+    # treads are parallel planes: a riser is no crease
+    stairs = staircase()
+    for p in stairs.planes.values():
+        p.score = 3
+    st = describe_terrain(stairs, CFG)
+    assert st.crease_ahead([tread_x(1) + 0.12, 0.0], fwd, 0.06) is None
