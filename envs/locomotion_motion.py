@@ -5,7 +5,8 @@ View motion (seeds/002 section IV-A 2, Fig. 4(b)): a smooth random signal z(t), 
 :data:`N_PARTIALS` sinusoids with seeded frequencies in 0.15-1.2 Hz and phases, normalised over
 the episode to mean 0 and standard deviation 1 (so the realised spread is the configured one).
 The head's camera pitch below the horizon is ``mean + std * z(t)`` clipped to the paper's range
--0.66..1.18 rad; the neck pitch is that minus the mount's pitch and the trunk's pitch of the gait,
+-0.66..1.18 rad (with ``gaze``, :class:`GazeDown`: plus looks down at each terrain transition,
+the mean and spread of the random part reduced so that the episode keeps ``mean`` and ``std``); the neck pitch is that minus the mount's pitch and the trunk's pitch of the gait,
 clipped to the neck's joint range. Neck yaw is 0.15 rad * a second such signal. The chest rig
 sways with a third of the head's spread around 0. ``unconventional`` adds a slow excursion
 (0.05-0.15 Hz) of +-60 deg yaw and +-0.35 rad pitch. Derivatives for the IMU come from central
@@ -34,6 +35,17 @@ DIFF_H_S = 2e-4
 PITCH_RANGE_RAD = (-0.66, 1.18)  # paper Fig. 4(b)
 NECK_YAW_STD_RAD = 0.15  # [A] ordinary looking around while walking
 CHEST_SPREAD = 1.0 / 3.0  # [A] a chest bag sways much less than the head
+# Gaze at terrain transitions (head mount, ``gaze="transitions"``): people walking over uneven
+# terrain fixate the ground about two steps ahead and look at the transitions they approach
+# (Marigold & Patla, Neuroscience 144 (2007) 302-313; stairs: Zietz & Hollands, J. Mot. Behav.
+# 41 (2009) 357-365). The head pitches down by up to GAZE_DOWN_RAD [A: 0.45 rad, so the peak
+# stays inside the paper's range with the 0.14 rad mean] over GAZE_WIDTH_STEPS step periods
+# centred GAZE_STEPS_AHEAD steps before each step that changes the mode; the random part keeps
+# the episode's mean and standard deviation (paper Fig. 4(b)), at least GAZE_MIN_SPREAD of it.
+GAZE_DOWN_RAD = 0.45
+GAZE_STEPS_AHEAD = 2
+GAZE_WIDTH_STEPS = 2.5
+GAZE_MIN_SPREAD = 0.5
 UNCONV_YAW_RAD = np.radians(60.0)
 UNCONV_PITCH_RAD = 0.35
 
@@ -76,10 +88,41 @@ class ViewMotion:
         return out
 
 
+class GazeDown:
+    """g(t) >= 0: the extra downward head pitch of looking at terrain transitions, a raised-cosine
+    bump of height :data:`GAZE_DOWN_RAD` and full width ``width_s`` centred on each time of
+    ``looks_s``; ``mean`` and ``var`` over [0, duration]."""
+
+    def __init__(self, looks_s: object, width_s: float, duration_s: float) -> None:
+        self.looks = np.asarray(looks_s, dtype=float).reshape(-1)
+        self.half = 0.5 * max(float(width_s), 1e-3)
+        grid = self(np.linspace(0.0, max(duration_s, 1e-3), 4001))
+        self.mean, self.var = float(grid.mean()), float(grid.var())
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        if self.looks.size == 0:
+            return np.zeros_like(t)
+        u = np.clip((t[..., None] - self.looks) / self.half, -1.0, 1.0)
+        return GAZE_DOWN_RAD * (0.5 * (1.0 + np.cos(np.pi * u))).max(axis=-1)
+
+
+def gaze_looks(step_modes: list[str], liftoffs_s: list[float], steps_ahead: int = GAZE_STEPS_AHEAD) -> list[float]:
+    """Times the wearer looks down at a transition: the lift-off of the step ``steps_ahead``
+    before each step whose mode differs from the previous step's (the first one if earlier)."""
+    out = []
+    for k in range(1, len(step_modes)):
+        if step_modes[k] != step_modes[k - 1]:
+            out.append(float(liftoffs_s[max(0, k - steps_ahead)]))
+    return out
+
+
 def view_motion(mount: str, view: str, pitch_mean: float, pitch_std: float, mount_pitch: float,
                 trunk_pitch: object, neck_range: dict[str, tuple[float, float]], duration_s: float,
-                rng: np.random.Generator) -> ViewMotion:  # fmt: skip
-    """The mount's extra joint motion (see the module docstring); ``trunk_pitch(t)`` from the gait."""
+                rng: np.random.Generator, gaze: GazeDown | None = None) -> ViewMotion:  # fmt: skip
+    """The mount's extra joint motion (see the module docstring); ``trunk_pitch(t)`` from the gait;
+    ``gaze``: looks down at transitions (head only; the random part's mean and spread are reduced
+    so that the pitch keeps ``pitch_mean`` and ``pitch_std`` over the episode)."""
     zp, zy = SmoothSignal(rng, duration_s), SmoothSignal(rng, duration_s)
     up, uy = SmoothSignal(rng, duration_s, 0.05, 0.15), SmoothSignal(rng, duration_s, 0.05, 0.15)
     unconv = view == "unconventional"
@@ -94,8 +137,12 @@ def view_motion(mount: str, view: str, pitch_mean: float, pitch_std: float, moun
         lo_p, hi_p = neck_range["neck_pitch"]
         lo_y, hi_y = neck_range["neck_yaw"]
 
+        g = gaze if gaze is not None else GazeDown([], 1.0, duration_s)
+        mu = pitch_mean - g.mean
+        sd = float(np.sqrt(max(pitch_std**2 - g.var, (GAZE_MIN_SPREAD * pitch_std) ** 2)))
+
         def neck_pitch(t: np.ndarray) -> np.ndarray:
-            cam = np.clip(pitch_mean + pitch_std * zp(t), *PITCH_RANGE_RAD) + extra_pitch(t)
+            cam = np.clip(mu + sd * zp(t) + g(t), *PITCH_RANGE_RAD) + extra_pitch(t)
             return np.clip(cam - mount_pitch - trunk_pitch(t), lo_p, hi_p)  # type: ignore[operator]
 
         def neck_yaw(t: np.ndarray) -> np.ndarray:

@@ -40,7 +40,11 @@ on stairs, heading); the ``head`` mount moves with the model's own neck joints (
 ``neck_yaw``; so rendering, the IMU and the truth agree): the camera's pitch below the horizon is
 a smooth seeded random process with mean ``head_pitch_mean_rad`` (0.14) and standard deviation
 ``head_pitch_std_rad`` (0.26), clipped to the paper's range -0.66..1.18 rad and to the neck's joint
-range. The ``chest`` camera sits on a two-hinge rig on the pelvis (``chest_yaw``, ``chest_pitch``)
+range. With ``gaze="transitions"`` (default) the wearer also looks down at each terrain transition
+it approaches, as people do (two steps ahead; :mod:`exobench.envs.locomotion_motion`), the
+random part shrunk so the episode's pitch keeps that mean and spread; ``gaze="random"`` is the
+terrain-blind pitch alone (with it, a head camera at 0.14 rad never sees a ramp down from its
+landing: 60 % on a head-mounted jog down the 17.8 deg ramp). The ``chest`` camera sits on a two-hinge rig on the pelvis (``chest_yaw``, ``chest_pitch``)
 that sways with a third of that spread around the mount's 30 deg pitch; the ``thigh`` mount
 (``rgbd_thigh_r``) moves with the right thigh only. ``view="unconventional"`` (III-B 2) adds slow
 +-60 deg yaw and +-0.35 rad pitch excursions (head and chest), turning the camera to the walls.
@@ -116,6 +120,7 @@ PATTERNS_NAMES = ("wander", "walk", "jog")
 VIEWS = ("normal", "unconventional")
 PARALLEL_FIRST = ("stairs", "ramp")
 STOPS = ("none", "transitions")
+GAZES = ("transitions", "random")
 
 PARAMS: dict[str, ParamSpec] = {
     "terrain": ParamSpec("stairs", None, None, "", "course: stairs (LG SA LG SD LG), ramp (LG RA LG RD LG), parallel (a stair lane beside a ramp lane, up one, down the other)", choices=TERRAINS),
@@ -136,6 +141,7 @@ PARAMS: dict[str, ParamSpec] = {
     "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
     "view": ParamSpec("normal", None, None, "", "camera view: normal, or unconventional (large slow pitch/yaw excursions, walls fill the image)", choices=VIEWS),
     "head_pitch_mean_rad": ParamSpec(0.14, -0.3, 0.6, "rad", "mean camera pitch below the horizon of the head mount (paper Fig. 4(b): 0.14)"),
+    "gaze": ParamSpec("transitions", None, None, "", "head mount: transitions, the wearer looks down at each terrain transition about two steps ahead (the pitch keeps head_pitch_mean_rad and head_pitch_std_rad over the episode); random, the pitch ignores the terrain", choices=GAZES),
     "head_pitch_std_rad": ParamSpec(0.26, 0.0, 0.5, "rad", "standard deviation of the head-mount camera pitch (paper: 0.26); the chest sways with a third of it"),
     "pedestrians": ParamSpec(0, 0, 4, "", "people walking across the view (paper: 2 in the disturbance test)"),
     "width_px": ParamSpec(424, 16, 1280, "px", "image width (D455 424x240 / 640x480 / 848x480)"),
@@ -186,6 +192,7 @@ class LocomotionScenario:
     view: str = PARAMS["view"].default
     head_pitch_mean_rad: float = PARAMS["head_pitch_mean_rad"].default
     head_pitch_std_rad: float = PARAMS["head_pitch_std_rad"].default
+    gaze: str = PARAMS["gaze"].default
     pedestrians: int = PARAMS["pedestrians"].default
     width_px: int = PARAMS["width_px"].default
     height_px: int = PARAMS["height_px"].default
@@ -328,7 +335,14 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
     from exobench.models.exo import exo_calibration
     from exobench.models.exo_spec import JOINT_RANGES_RAD
 
-    from .locomotion_motion import drift_odometry, pedestrian_paths, view_motion
+    from .locomotion_motion import (
+        GAZE_WIDTH_STEPS,
+        GazeDown,
+        drift_odometry,
+        gaze_looks,
+        pedestrian_paths,
+        view_motion,
+    )
     from .locomotion_world import step_truths
 
     sc = scenario
@@ -359,8 +373,15 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
     def trunk_pitch(t: np.ndarray) -> np.ndarray:
         return motion.state(np.atleast_1d(t), solve_legs=False).pitch
 
+    gaze = None
+    if sc.gaze == "transitions":
+        all_steps = step_truths(motion, truth_scene, exo)
+        period = float(info["swing_s"] + info["double_support_s"])
+        looks = gaze_looks([s.mode for s in all_steps], [s.liftoff_s for s in all_steps])
+        gaze = GazeDown(looks, GAZE_WIDTH_STEPS * period, dur)
     view = view_motion(sc.mount, sc.view, sc.head_pitch_mean_rad, sc.head_pitch_std_rad, float(mount_pitch),
-                       trunk_pitch, {k: JOINT_RANGES_RAD[k] for k in ("neck_pitch", "neck_yaw")}, dur, view_rng)  # fmt: skip
+                       trunk_pitch, {k: JOINT_RANGES_RAD[k] for k in ("neck_pitch", "neck_yaw")}, dur, view_rng,
+                       gaze)  # fmt: skip
     extra_adr = {name: _joint_addr(model, name) for name in view.joints}
 
     def state_at(t: np.ndarray) -> Any:

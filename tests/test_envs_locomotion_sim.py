@@ -7,7 +7,7 @@ import pytest
 
 from exobench.core import ConfigError, ContactSample, ImuSample, OdometrySample, RgbdFrame, UnknownNameError
 from exobench.core.transforms import invert_T, quat_wxyz_to_matrix
-from exobench.envs.locomotion_motion import drift_odometry, view_motion
+from exobench.envs.locomotion_motion import GAZE_DOWN_RAD, GazeDown, drift_odometry, gaze_looks, view_motion
 from exobench.envs.locomotion_sim import PARAMS, LocomotionScenario, plan_locomotion, simulate_locomotion
 from exobench.envs.locomotion_world import step_truths
 from exobench.envs.session import read_session, write_session
@@ -139,6 +139,29 @@ def test_head_camera_pitch_has_the_configured_spread(stairs_episode):
     p = stairs_episode.truth.extra["camera_pitch_rad"]
     assert abs(p.mean() - 0.14) < 0.05 and abs(p.std() - 0.26) < 0.06
     assert p.min() >= -0.66 - 1e-6 and p.max() <= 1.18 + 1e-6
+
+
+def test_head_looks_down_at_transitions_two_steps_ahead(stairs_episode):
+    """The gaze bumps: at the lift-off two steps before each mode change, zero a half width
+    away; the episode's camera pitch is still about the configured mean and spread, and larger
+    around the looks than elsewhere."""
+    modes = ["LG", "LG", "LG", "SA", "SA", "LG", "LG", "SD", "LG"]
+    lift = [0.5 * k for k in range(len(modes))]
+    assert gaze_looks(modes, lift) == [0.5, 1.5, 2.5, 3.0]
+    g = GazeDown([1.0, 5.0], 1.0, 10.0)
+    assert g(np.array([1.0, 5.0])) == pytest.approx([GAZE_DOWN_RAD, GAZE_DOWN_RAD])
+    assert g(np.array([0.5, 1.5, 3.0, 9.0])) == pytest.approx([0.0, 0.0, 0.0, 0.0], abs=1e-12)
+    assert g(np.array([1.25])) == pytest.approx([0.5 * GAZE_DOWN_RAD])
+    grid = g(np.linspace(0.0, 10.0, 100001))
+    assert g.mean == pytest.approx(grid.mean(), rel=1e-3) and g.var == pytest.approx(grid.var(), rel=1e-3)
+    # in the simulated stairs episode (gaze on by default)
+    steps = sorted(stairs_episode.truth.steps, key=lambda s: s.index)
+    looks = gaze_looks([s.mode for s in steps], [s.liftoff_s for s in steps])
+    assert len(looks) >= 3
+    t = np.asarray(stairs_episode.truth.extra["camera_stamps_s"])
+    p = np.asarray(stairs_episode.truth.extra["camera_pitch_rad"])
+    near = np.min(np.abs(t[:, None] - np.asarray(looks)[None, :]), axis=1) < 0.15
+    assert p[near].mean() > p[~near].mean() + 0.2
 
 
 def test_chest_rig_sways_a_third_of_the_head():
