@@ -177,8 +177,14 @@ def plane_class(normal: np.ndarray, config: TerrainConfig) -> str:
 
 def plane_height_at(plane: TrackedPlane, xy: np.ndarray) -> float:
     """Height z of the (non-vertical) plane at (x, y)."""
+    return float(plane_heights_at(plane, np.asarray(xy, dtype=float)[:2])[0])
+
+
+def plane_heights_at(plane: TrackedPlane, xy: np.ndarray) -> np.ndarray:
+    """Heights z of the (non-vertical) plane at the points (K, 2) (or one (2,))."""
+    q = np.asarray(xy, dtype=float).reshape(-1, 2)
     n, c = plane.normal, plane.center_m
-    return float(c[2] - (n[0] * (xy[0] - c[0]) + n[1] * (xy[1] - c[1])) / n[2])
+    return c[2] - (n[0] * (q[:, 0] - c[0]) + n[1] * (q[:, 1] - c[1])) / n[2]
 
 
 @dataclass
@@ -284,12 +290,7 @@ class TerrainDescription:
 
     def _height_diff(self, a: int, b: int, xy: np.ndarray) -> np.ndarray:
         """z_a - z_b at the points (K, 2)."""
-        q = np.asarray(xy, dtype=float).reshape(-1, 2)
-        out = np.zeros(len(q))
-        for pid, sign in ((a, 1.0), (b, -1.0)):
-            n, c = self.planes[pid].normal, self.planes[pid].center_m
-            out += sign * (c[2] - (n[0] * (q[:, 0] - c[0]) + n[1] * (q[:, 1] - c[1])) / n[2])
-        return out
+        return plane_heights_at(self.planes[a], xy) - plane_heights_at(self.planes[b], xy)
 
     def tread_above(self, xy: np.ndarray, fwd_xy: np.ndarray, level_m: float, toe_m: float) -> np.ndarray | None:
         """Where a foot put down at ``xy`` (on the level ``level_m``, walking along ``fwd_xy``)
