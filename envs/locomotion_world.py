@@ -61,6 +61,7 @@ MIN_STOP_FLAT_M = 0.6
 PARALLEL_YAW_DEG = 90.0
 STOP_TOE_GAP_M = 0.08  # toes this far before the edge at a standing stop [A]
 MAX_PLANS = 40  # planner calls before a course is declared unwalkable
+APPROACH_STEPS = 4  # the walker regulates its last steps before a transition (exobench.envs.walk.Route.approach_steps)
 PARALLEL_EXTRA_APPROACH_M = 1.0  # more level floor in each lane of the parallel course, to straighten up after the U-turn
 
 
@@ -289,7 +290,7 @@ def join_motions(exo: ExoSpec, first: Motion, second: Motion, settle_s: float = 
 
 
 def plan_pieces(exo: ExoSpec, truth: SceneTruth, pieces: tuple, step_m: float, swing_s: float, ds_s: float,
-                tries: tuple) -> tuple[Motion, dict[str, float]]:  # fmt: skip
+                tries: tuple, approach_steps: int = APPROACH_STEPS) -> tuple[Motion, dict[str, float]]:  # fmt: skip
     """Plan a walk along ``pieces`` (polylines of ``(x, y)`` waypoints): piece k > 0 starts
     standing where piece k - 1 stopped, facing the same way, and the motions are joined
     (:func:`join_motions`). Each piece is tried with ``tries`` = (clearance, start shift (first
@@ -325,7 +326,8 @@ def plan_pieces(exo: ExoSpec, truth: SceneTruth, pieces: tuple, step_m: float, s
                 p[-1] = wps[-1] - stop * d1
                 step = float(np.clip(step_m * fac, 0.1, 0.8))
                 route = Route(tuple(map(tuple, p)), step_length_m=step, swing_s=swing_s, double_support_s=ds_s,
-                              clearance_m=clr, max_turn_deg=45.0, max_steps=400, start_yaw_deg=yaw)  # fmt: skip
+                              clearance_m=clr, max_turn_deg=45.0, max_steps=400, start_yaw_deg=yaw,
+                              approach_steps=approach_steps)  # fmt: skip
                 state["calls"] += 1
                 try:
                     motion = plan_walk(exo, truth, route)

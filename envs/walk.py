@@ -84,6 +84,12 @@ TOE_FIRST_RAD = tuple(np.radians([20.0, 30.0, 40.0]))
 BALL_FRACTION = 0.73  # ball of the foot (metatarsal heads) from the heel, fraction of the foot length [A]
 HEEL_DROP_S = 0.1  # shortest heel lowering after a forefoot landing, s [A]
 HEEL_RISE_DEEP_RAD = HEEL_RISE_RAD + (np.radians(40.0),)  # with forefoot landings the trailing heel may rise 40 deg [A]
+# Approach regulation (Route.approach_steps, see _approach_step) [A]
+APPROACH_RANGE = (0.75, 1.25)  # regulated step lengths, fractions of the nominal step
+APPROACH_DOWN_MAX = 1.1  # ... at most this onto a ramp going down
+ONTO_MARGIN_M = 0.10  # the first foot on a ramp, landing or floor lands this far beyond its first foothold if it can
+EDGE_BAND_M = 0.05  # before a flight (up or down) the last foot on the level lands with its toes this close to the edge
+TREAD_RUN_M = 0.25  # a run of footholds shorter than this is a tread: the foot is centred on it
 
 
 @dataclass(frozen=True)
@@ -101,6 +107,9 @@ class Route:
         end_yaw_deg: heading turned to on the spot at the end, deg (default: none).
         turn_in_place_deg: waypoints where the route turns by more than this are walked to and
             turned at on the spot, deg. max_steps: steps allowed (GaitError beyond).
+        approach_steps: over how many steps before a transition (stairs, a ramp's start or end)
+            the walker regulates its step length so that the transition step lands where it
+            should (see :func:`_approach_step`); 0 keeps the nominal step up to the transition.
     """
 
     waypoints_xy: tuple[tuple[float, float], ...]
@@ -115,6 +124,7 @@ class Route:
     max_steps: int = 200
     end_yaw_deg: float | None = None
     turn_in_place_deg: float = 45.0
+    approach_steps: int = 0
 
     def __post_init__(self) -> None:
         pts = np.asarray(self.waypoints_xy, dtype=float)
@@ -136,6 +146,9 @@ class Route:
         if self.end_yaw_deg is not None:
             check_range("route.end_yaw_deg", self.end_yaw_deg, -360.0, 360.0)
         check_range("route.turn_in_place_deg", self.turn_in_place_deg, 1.0, 180.0)
+        if isinstance(self.approach_steps, bool) or not isinstance(self.approach_steps, (int, np.integer)) \
+                or not 0 <= self.approach_steps <= 6:
+            raise ConfigError("route.approach_steps", self.approach_steps, "an integer in [0, 6]")
 
 
 class _Polyline:
@@ -202,6 +215,25 @@ class _Planner:
         self.to_ball = self.front & (self.grid[:, 0] <= BALL_FRACTION * exo.foot_m - exo.heel_to_ankle_m + 1e-9)
         self.w = exo.hip_width_m
         self.normals = {s.surface_id: s.normal_w for s in truth.surfaces}
+        self._points = {s.surface_id: s.point_w for s in truth.surfaces}
+        self._coplanar: dict[tuple[int, int], bool] = {}
+
+    def plane_z(self, surface: int, xy: np.ndarray) -> float:
+        """Height of a surface's plane (extended beyond its edges) at (x, y)."""
+        n, p = self.normals[surface], self._points[surface]
+        return float(p[2] - (n[0] * (xy[0] - p[0]) + n[1] * (xy[1] - p[1])) / n[2])
+
+    def coplanar(self, a: int, b: int) -> bool:
+        """Whether surfaces ``a`` and ``b`` lie in one plane (one walkable surface split into
+        several geoms, e.g. a floor): normals within 1 deg, offsets within 1 cm."""
+        if a == b:
+            return True
+        key = (min(a, b), max(a, b))
+        if key not in self._coplanar:
+            na, nb = self.normals[a], self.normals[b]
+            self._coplanar[key] = bool(float(na @ nb) >= np.cos(np.radians(1.0))
+                                       and abs(float(na @ (self._points[b] - self._points[a]))) <= 0.01)
+        return self._coplanar[key]
 
     def foothold(self, sole_xy: np.ndarray, yaw: float, overhang: bool = False) -> tuple[_Foot, float] | None:
         """The foot placed with its sole point at ``sole_xy`` and heading ``yaw``, or None.
@@ -269,6 +301,8 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
     look_m = max(route.step_length_m, 0.5)
     max_turn = float(np.radians(route.max_turn_deg))
     end_yaw = None if route.end_yaw_deg is None else float(np.radians(route.end_yaw_deg))
+    reg: tuple[int, int] | None = None  # regulated approach under way: (next surface, steps left to it)
+    a_used = 0.0
     for _ in range(route.max_steps):
         stance = "l" if swing == "r" else "r"
         sg = 1.0 if stance == "l" else -1.0
@@ -295,6 +329,9 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
         in_place = abs(err) > max_turn + 1e-9  # turn on the spot first
         final = arrived and not in_place
         a_nom = 0.0 if (arrived or in_place) else min(route.step_length_m, remaining)
+        a_reg, reg_next = a_nom, None
+        if not (arrived or in_place) and a_nom == route.step_length_m:
+            a_reg, reg_next = _approach_step(pl, route, A, sg, yaw1, a_nom, feet, stance, swing, reg)
         sw = feet[swing]
         x0 = np.array([np.cos(yaw), np.sin(yaw), 0.0])
         x1 = np.array([np.cos(yaw1), np.sin(yaw1), 0.0])
@@ -310,10 +347,11 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
         if straight:
             variants += [(pw, knee) for knee in (DESCENT_KNEE_MAX_RAD, DESCENT_KNEE_DEEP_RAD) for pw in TOE_FIRST_RAD]
         n_options = 0
-        # the toes may overhang a tread's nosing (on the way down, treads shorter than the foot)
+        # the regulated step first; the nominal one if no regulated foothold can be reached. The
+        # toes may overhang a tread's nosing (on the way down, treads shorter than the foot)
         # only when no foothold of the whole foot works
-        for overhang in (False, True):
-            options = _choose(pl, route, A, sg, yaw1, a_nom, feet, stance, swing, final, overhang)
+        for a_try, overhang in [(a, o) for a in dict.fromkeys((a_reg, a_nom)) for o in (False, True)]:
+            options = _choose(pl, route, A, sg, yaw1, a_try, feet, stance, swing, final, overhang)
             n_options += len(options)
             for pw, knee_down in variants:
                 for new, _a in options:  # the first foothold the legs can reach and swing to
@@ -352,6 +390,7 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
                             if found:
                                 f1, h1, fh2 = found
                                 found = (new, A_end, beta0 - rise, f1, h1, pitch1, plan, apex, drop, fh2)
+                                a_used = a_try
                                 break
                         if found:
                             break
@@ -366,6 +405,7 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
         if found is None:
             raise GaitError(f"no reachable foothold for foot_{swing} ahead of ({A[0]:.2f}, {A[1]:.2f}) at t={t:.2f} s")
         new, A_end, beta1, f1, h1, pitch1, plan, apex, drop, fh2 = found
+        reg = reg_next if a_used == a_reg else None  # a regulated approach goes on only if this step kept to it
         if first_plan is None:
             first_plan = plan
             if route.still_s > 0:
@@ -468,7 +508,7 @@ def _choose(
         target = ahead[0][1].surface
         run = [c for c in ahead if c[1].surface == target]
         lo, hi = run[0][0], run[-1][0]
-        if hi - lo < 0.25:  # a tread: centre the foot on it
+        if hi - lo < TREAD_RUN_M:  # a tread: centre the foot on it
             out += nearest(0.5 * (lo + hi), run)
         else:
             out += nearest(float(np.clip(a_nom, lo + 0.05, hi)), run)
@@ -477,3 +517,95 @@ def _choose(
     if short:
         out += [(short[-1][1], short[-1][0])]
     return out
+
+
+def _approach_step(
+    pl: _Planner, route: Route, A: np.ndarray, sg: float, yaw: float, a_nom: float,
+    feet: dict[str, _Foot], stance: str, swing: str, under_way: tuple[int, int] | None = None,
+) -> tuple[float, tuple[int, int] | None]:  # fmt: skip
+    """The step length regulated towards the next transition ahead (module docstring), or ``a_nom``,
+    and the approach it starts or continues: (next surface, number of steps to it incl. this one),
+    None when not regulated.
+
+    Only while both feet stand on one plane (level ground, a ramp, a landing): the footholds of
+    the swing foot are scanned along the heading up to (``approach_steps`` + 0.5) nominal steps
+    ahead. Where they leave the stance foot's plane is the *edge* (the last foothold on it at
+    ``a_edge``); the first foothold beyond it on another surface starts the *next surface*
+    (footholds from ``a_lo`` to ``a_hi``). With n equal steps of length a from here:
+
+    - before a flight (the next surface more than 5 cm above or below this plane extended under
+      it), the n-th step is the last on this level, with the toes within :data:`EDGE_BAND_M` of
+      the edge (people put the last foot close to the first riser, or with the toes at the edge
+      before a step down); the step onto the flight is then the planner's usual one (a tread's
+      centre);
+    - otherwise (a ramp's start or end, a landing, the floor) the n-th step is the first on the
+      next surface, :data:`ONTO_MARGIN_M` beyond its first foothold if that fits, else anywhere
+      on it, with the foot before it still on this plane ((n - 1) a <= ``a_edge``).
+
+    On a slope a pitched foot's ankle lies d = sole height x sin(pitch) behind its sole point, so
+    the n-th foot lands n a - (n - 1) d ahead of the stance ankle. Of the n <= ``approach_steps``
+    and a within :data:`APPROACH_RANGE` of the nominal step (at
+    most :data:`APPROACH_DOWN_MAX` of it onto a ramp going down: the kinematic walker reaches no
+    farther) that do, the a closest to the nominal is taken (the nominal itself when it fits):
+    the steps before a transition change only as much as they must, evenly over the last ones,
+    as people regulate their steps over the last two or three strides before a target [A: Lee,
+    Lishman & Thomson, J. Exp. Psychol. HPP 8 (1982) 448-459; de Rugy et al., Biol. Cybern. 87
+    (2002) 141-150]. An approach ``under_way`` (the previous step's, towards the same surface)
+    goes on with one step fewer if that still fits (the executed steps differ from the plan by
+    millimetres to centimetres: a heel rising on a slope), so the walker keeps to its count
+    instead of re-choosing it every step.
+    """
+    n_max = int(route.approach_steps)
+    S = feet[stance].surface
+    if n_max <= 0 or a_nom <= 0.0 or not pl.coplanar(S, feet[swing].surface):
+        return a_nom, None
+    grid = np.round(np.arange(0.02, (n_max + 0.5) * a_nom + 0.5, 0.01), 6)
+    got = [pl.place(A, sg, yaw, float(a)) for a in grid]
+    on = [g is not None and pl.coplanar(g[0].surface, S) for g in got]
+    if all(on) or not on[0]:
+        return a_nom, None  # no transition within reach, or standing at one already
+    k = on.index(False)
+    a_edge = float(grid[k - 1])
+    j = next((i for i in range(k, len(grid)) if got[i] is not None), None)
+    if j is None or on[j]:
+        return a_nom, None  # nothing walkable beyond the edge (a wall), or a gap in the same plane
+    nxt = got[j][0].surface
+    end = j
+    while end + 1 < len(grid) and got[end + 1] is not None and pl.coplanar(got[end + 1][0].surface, nxt):
+        end += 1
+    a_lo, a_hi = float(grid[j]), float(grid[end])
+    # a flight up or down: the next surface more than 5 cm off this plane extended under it
+    xy_j = A[:2] + a_lo * np.array([np.cos(yaw), np.sin(yaw)]) - sg * pl.w * np.array([-np.sin(yaw), np.cos(yaw)])
+    level_change = abs(float(got[j][1]) - pl.plane_z(S, xy_j)) > 0.05
+    lo_f, hi_f = APPROACH_RANGE
+    x = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    if not level_change and float(pl.normals[nxt] @ x) > 0.02:
+        hi_f = min(hi_f, APPROACH_DOWN_MAX)  # a long step onto a ramp down is out of reach
+    # a foot pitched on this plane has its ankle d behind its sole point, so each step lands a
+    # ahead of the ankle but its sole point only a - d ahead of the last one: the n-th step's
+    # sole point is n a - (n - 1) d ahead of the stance ankle (the footholds were scanned as one step)
+    d = float(pl.exo.sole_height_m * np.sin(feet[stance].pitch))
+
+    def fit(n: int) -> float | None:
+        """The step closest to the nominal with which the n-th step is the last one before a
+        flight (``level_change``) or the first one on the next surface (else)."""
+        windows = [(a_edge - EDGE_BAND_M, a_edge)] if level_change else \
+            [(a_lo + ONTO_MARGIN_M, a_hi), (a_lo, a_hi)]  # clear of the crease, else just past it
+        for lo, hi in windows:
+            lo, hi = (lo + (n - 1) * d) / n, (hi + (n - 1) * d) / n
+            if not level_change and n > 1:
+                hi = min(hi, (a_edge + (n - 2) * d) / (n - 1))  # the foot before it on this plane
+            lo, hi = max(lo, lo_f * a_nom), min(hi, hi_f * a_nom)
+            if lo <= hi + 1e-9:
+                return float(np.clip(a_nom, lo, hi))
+        return None
+
+    if under_way is not None and under_way[0] == nxt and under_way[1] > 1:
+        a = fit(under_way[1] - 1)  # keep counting down, if that still fits
+        if a is not None:
+            return a, (nxt, under_way[1] - 1)
+    fits = [(a, n) for n in range(1, n_max + 1) if (a := fit(n)) is not None]
+    if not fits:
+        return a_nom, None
+    a, n = min(fits, key=lambda c: (abs(c[0] - a_nom), c[1]))
+    return a, (nxt, n)

@@ -279,3 +279,56 @@ def test_scenario_round_trips_through_plain_values():
 def test_unknown_parameter_name_is_refused():
     with pytest.raises(UnknownNameError):
         LocomotionScenario.from_dict({"camera_mount": "head"})
+
+
+def _approach_steps(footprints_x: np.ndarray, edge_x: float, after: bool) -> tuple[int, np.ndarray]:
+    """Index of the last footstep before ``edge_x`` (``after``: the first one beyond it) and the
+    lengths of the three steps that end there."""
+    k = int(np.flatnonzero(footprints_x > edge_x)[0]) if after else int(np.flatnonzero(footprints_x < edge_x)[-1])
+    return k, np.diff(footprints_x[k - 3:k + 1])
+
+
+@pytest.mark.parametrize("terrain", ["stairs", "ramp"])
+def test_walker_regulates_its_last_steps_before_each_transition(terrain):  # ramp: 15.8 deg
+    """Against the course's own geometry: before each flight the last foot on the level has its
+    toes within EDGE_BAND_M of the edge, and the three steps that lead there (at each crease of
+    the ramp course: up to the first foot beyond it) are equal (the adjustment spread over them)
+    and within APPROACH_RANGE of the nominal step. The walker
+    without regulation (approach_steps=0) breaks this: one abrupt step takes the whole
+    adjustment."""
+    from exobench.envs.locomotion_sim import PATTERNS, PLAN_TRIES
+    from exobench.envs.locomotion_world import build_locomotion_world, plan_pieces
+    from exobench.envs.walk import APPROACH_RANGE, EDGE_BAND_M
+
+    sc = LocomotionScenario(terrain=terrain, approach_m=2.2, slope_deg=15.8)  # the track's level approach
+    exo = sc.exo_spec()
+    toe = exo.foot_m - exo.heel_to_ankle_m
+    step, swing, ds = PATTERNS[sc.pattern]
+    world, pieces = build_locomotion_world(sc, toe)
+    prof = world.truth.params["profile"]
+
+    def check(approach_steps: int) -> list[str]:
+        motion, _ = plan_pieces(exo, world.truth, pieces, step, swing, ds, PLAN_TRIES, approach_steps=approach_steps)
+        x = np.array([s.footprint_w[0] for s in step_truths(motion, world.truth, exo)])
+        bad = []
+        if terrain == "stairs":  # before the flight up (first riser) and down (the landing's end)
+            for edge in (prof[1]["x"], prof[8]["x1"]):
+                k, d = _approach_steps(x, edge, after=False)
+                if not edge - EDGE_BAND_M - 0.01 <= x[k] + toe <= edge + 1e-6:
+                    bad.append(f"toes {x[k] + toe:.3f} not at the edge {edge:.3f}")
+                bad += _uneven(d, step, APPROACH_RANGE)
+        else:  # the ramp's creases: onto the ramp, the landing, the ramp down, the floor
+            for crease in (prof[1]["x0"], prof[1]["x1"], prof[3]["x0"], prof[3]["x1"]):
+                _, d = _approach_steps(x, crease, after=True)
+                bad += _uneven(d, step, APPROACH_RANGE, tol=0.035)  # slopes: the heel rise adds 1-3 cm
+        return bad
+
+    assert check(4) == []
+    assert check(0) != []
+
+
+def _uneven(d: np.ndarray, nominal: float, bounds: tuple[float, float], tol: float = 0.012) -> list[str]:
+    out = [] if np.ptp(d) <= tol else [f"uneven approach steps {np.round(d, 3)}"]
+    if not np.all((d >= bounds[0] * nominal - tol) & (d <= bounds[1] * nominal + tol)):
+        out.append(f"approach steps {np.round(d, 3)} outside {bounds} x {nominal}")
+    return out
