@@ -242,8 +242,12 @@ def check_modes(est, strikes, segs, wanted):
     assert all(p.status == "ok" for p, _ in steps)
     # every prediction, not only the last of each step, once the course is in view
     assert np.mean([p.mode == m for p, m in pairs]) >= 0.95
+    look = est.stats["lookup_m"]  # the terrain is looked up under the foot's middle (walking along +x)
+    z = np.array([p.footprint_odom[2] for p, _ in pairs])
+    assert np.mean(np.isfinite(z)) >= 0.9  # a plane under the foot (else the mode was extrapolated)
     for p, _ in pairs:  # the footprint lands on the true terrain
-        assert abs(p.footprint_odom[2] - height(segs, p.footprint_odom[0])) < 0.05
+        if np.isfinite(p.footprint_odom[2]):
+            assert abs(p.footprint_odom[2] - height(segs, p.footprint_odom[0] + look)) < 0.05
 
 
 @pytest.mark.parametrize("cls,cfg", [(TerrainReconstructionPipeline, TR_CFG), (SingleFramePipeline, SF_CFG)])
@@ -431,7 +435,8 @@ def test_stop_and_go_walker_direction_from_positions(stairs_walk):
 
 
 def test_exoskeleton_calibration():
-    """The device's calibration: the head camera by default, its rate, the insole heel pads."""
+    """The device's calibration: the head camera by default, its rate, the insole pads (heel and
+    toe: a forefoot landing's initial contact is on the toe pad; ``strike_pads="heel"`` ignores it)."""
     from exobench.models.exo import exo_calibration
     from exobench.models.exo_spec import ExoSpec
 
@@ -442,9 +447,14 @@ def test_exoskeleton_calibration():
     assert pipe.process(ContactSample(0.0, "contact_l_heel", 300.0, True)) is None
     assert pipe.process(ContactSample(0.0, "contact_l_toe", 300.0, True)) is None
     st = pipe.finalize().stats  # standing at the start is not a heel strike
-    assert (st["n_contact"], st["n_initial_contacts"], st["n_strikes_without_odometry"], st["n_ignored"]) == (1, 1, 0, 1)
-    pipe.process(ContactSample(0.01, "contact_l_heel", 0.0, False))
-    pipe.process(ContactSample(0.02, "contact_l_heel", 300.0, True))  # 10 ms off: chatter, not a strike
+    assert (st["n_contact"], st["n_initial_contacts"], st["n_strikes_without_odometry"], st["n_ignored"]) == (2, 1, 0, 0)
+    heel_only = TerrainReconstructionPipeline(replace(TerrainReconstructionPipeline.Config(), strike_pads="heel"))
+    heel_only.reset(exo_calibration(ExoSpec()))
+    heel_only.process(ContactSample(0.0, "contact_l_toe", 300.0, True))
+    assert heel_only.finalize().stats["n_ignored"] == 1
+    pipe.process(ContactSample(0.005, "contact_l_toe", 0.0, False))
+    pipe.process(ContactSample(0.01, "contact_l_heel", 0.0, False))  # the whole foot off ...
+    pipe.process(ContactSample(0.02, "contact_l_heel", 300.0, True))  # ... for 10 ms: chatter, not a strike
     assert (pipe.finalize().stats["n_strikes_without_odometry"], pipe.finalize().stats["n_contact_chatter"]) == (0, 1)
     pipe.process(ContactSample(0.03, "contact_l_heel", 0.0, False))
     pipe.process(ContactSample(0.50, "contact_l_heel", 300.0, True))
