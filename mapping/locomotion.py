@@ -176,6 +176,7 @@ MODE_REFERENCES = ("swing", "stance")
 DIRECTIONS = ("stride", "velocity")
 STRIKE_PADS = ("any", "heel")
 LOOKUPS = ("midfoot", "ankle")
+TRACK_POINTS = ("joint", "camera")
 
 
 def _latency(params: dict[str, Any]) -> float:
@@ -204,6 +205,10 @@ def _check_config(cfg: Any) -> None:
     if isinstance(cfg.max_work_width_px, bool) or not isinstance(cfg.max_work_width_px, (int, np.integer)) \
             or cfg.max_work_width_px < 16:
         raise ConfigError("max_work_width_px", cfg.max_work_width_px, "an integer >= 16")
+    if cfg.standing_drop_m is not None:
+        check_range("standing_drop_m", cfg.standing_drop_m, -0.5, 0.5)
+    if cfg.track_point not in TRACK_POINTS:
+        raise ConfigError("track_point", cfg.track_point, list(TRACK_POINTS))
     if cfg.lookup not in LOOKUPS:
         raise ConfigError("lookup", cfg.lookup, list(LOOKUPS))
     if cfg.strike_pads not in STRIKE_PADS:
@@ -289,11 +294,12 @@ def decimate(depth_m: np.ndarray, K: np.ndarray, max_width_px: int) -> tuple[np.
     return np.ascontiguousarray(depth_m[off::m, off::m]), out
 
 
-def camera_ahead_of_base_m(calibration: Calibration, sensor_id: str) -> float | None:
-    """How far the mount ``sensor_id`` sits ahead of the calibration's base link (the pelvis),
-    along the base's x axis (forward), m: the robot description (URDF, loaded with pinocchio) at
-    its neutral configuration, then the mount's ``T_parent_sensor``. None when the description
-    or the mount's link cannot be read."""
+def tracked_point_neutral(calibration: Calibration, sensor_id: str, *, link_origin: bool = False) -> tuple[float, float] | None:
+    """Where the mount ``sensor_id`` (``link_origin``: the origin of its parent link) sits in the
+    robot description (URDF, loaded with pinocchio) at its neutral configuration (standing
+    straight): (how far ahead of the base link (the pelvis) along its x axis (forward), how high
+    above the soles (the feet: the parent links of the ``contact`` mounts, their origins
+    ``sole_height_m`` above the sole)), m. None when the description or a link cannot be read."""
     try:
         import pinocchio as pin
 
@@ -305,12 +311,14 @@ def camera_ahead_of_base_m(calibration: Calibration, sensor_id: str) -> float | 
         def placement(link: str) -> np.ndarray:
             return np.asarray(data.oMf[model.getFrameId(link, pin.BODY)].homogeneous, dtype=float)
 
-        T_base_sensor = _inv(placement(calibration.base_link)) @ placement(mount.parent_link) \
-            @ np.asarray(mount.T_parent_sensor, dtype=float)
-        x = float(T_base_sensor[0, 3])
+        T_w_point = placement(mount.parent_link) @ (np.eye(4) if link_origin else np.asarray(mount.T_parent_sensor, dtype=float))
+        x = float((_inv(placement(calibration.base_link)) @ T_w_point)[0, 3])
+        feet = {m.parent_link for m in calibration.mounts_of_kind("contact")}
+        sole = min(float(placement(f)[2, 3]) for f in feet) - float(calibration.sole_height_m)
+        h = float(T_w_point[2, 3]) - sole
     except Exception:  # no usable description: the caller falls back
         return None
-    return x if math.isfinite(x) else None
+    return (x, h) if math.isfinite(x) and math.isfinite(h) else None
 
 
 def scale_intrinsics(K: np.ndarray, s: float) -> np.ndarray:
@@ -357,6 +365,8 @@ class _LocomotionPipeline(ABC):
         lead_fraction: float = 0.5
         foot_lead_m: float = 0.0
         camera_ahead_m: float | None = None
+        track_point: str = "joint"
+        standing_drop_m: float | None = 0.03
         mode_reference: str = "swing"
         pause_s: float = 1.2
         start_step_fraction: float = 0.6
@@ -405,7 +415,17 @@ class _LocomotionPipeline(ABC):
         self._odom_id = c.odometry_sensor_id or (odo_named if isinstance(odo_named, str) else f"odom_{suffix}")
         self._cam_latency_s = _latency(mount.params)
         self._contact_latency_s = {m.sensor_id: _latency(m.params) for m in calibration.mounts_of_kind("contact")}
-        ahead = c.camera_ahead_m if c.camera_ahead_m is not None else camera_ahead_of_base_m(calibration, self._rgbd_id)
+        # the point whose positions measure the steps: the joint the camera turns about (its
+        # parent link's origin: the neck for a head camera, the hip for a thigh one) unless the
+        # camera sits on the base link, else the camera
+        on_joint = c.track_point == "joint" and mount.parent_link != calibration.base_link
+        T_cam_track = _inv(np.asarray(mount.T_parent_sensor, float)) if on_joint else np.eye(4)
+        self._tracked = "joint" if on_joint else "camera"
+        neutral = tracked_point_neutral(calibration, self._rgbd_id, link_origin=on_joint)
+        ahead = c.camera_ahead_m if c.camera_ahead_m is not None else None if neutral is None else neutral[0]
+        # its height above the soles standing straight: the prior of the body's height above the
+        # feet before any was measured
+        self._standing_h = None if neutral is None else neutral[1]
         self._camera_ahead_m = 0.0 if ahead is None else float(ahead)
         mid = 0.5 * float(calibration.foot_length_m) - float(calibration.heel_to_ankle_m)
         self._lookup_m = mid if c.lookup == "midfoot" and math.isfinite(mid) and 0.0 < mid < 0.3 else 0.0
@@ -419,6 +439,7 @@ class _LocomotionPipeline(ABC):
                 self._odom_mount = "calibrated"
             else:
                 self._odom_mount = "unrelated_link_assumed_camera"
+        self._T_body_track = self._T_body_cam @ T_cam_track
         pads_used = ("heel",) if c.strike_pads == "heel" else ("heel", "toe")
         heels = {}
         for m in calibration.mounts_of_kind("contact"):
@@ -446,10 +467,10 @@ class _LocomotionPipeline(ABC):
             "n_frames", "n_rgbd_frames", "n_processed", "n_skipped_rate", "n_dropped_frames", "n_out_of_order",
             "n_bad_frame", "n_no_depth", "n_no_odometry", "n_no_planes", "n_errors", "n_bad_odometry",
             "n_odometry", "n_contact", "n_heel_strikes", "n_strikes_without_odometry", "n_direction_from_positions",
-            "n_current_remembered", "n_initial_contacts", "n_ignored", "n_height_from_odometry", "n_drop_ahead", "n_ramp_ahead", "n_onto_tread", "n_past_crease",
+            "n_current_remembered", "n_initial_contacts", "n_ignored", "n_height_from_odometry", "n_height_from_prior", "n_drop_ahead", "n_ramp_ahead", "n_onto_tread", "n_past_crease",
             "n_standing_starts", "n_steps_after_start")}
         self._stats.update(rgbd_sensor_id=self._rgbd_id, odometry_sensor_id=self._odom_id,
-                           odometry_mount=self._odom_mount, errors=[], camera_ahead_m=self._camera_ahead_m,
+                           odometry_mount=self._odom_mount, errors=[], camera_ahead_m=self._camera_ahead_m, tracked_point=self._tracked,
                            camera_ahead_known=ahead is not None, lookup_m=self._lookup_m)
         self._reset_map()
         self._ready = True
@@ -547,7 +568,7 @@ class _LocomotionPipeline(ABC):
         odo = self._odometry_at(float(frame.stamp_s) - self._contact_latency_s.get(frame.sensor_id, 0.0))
         nan3 = np.full(3, np.nan)
         # the position at the strike instant: the nearest sample moved on at its velocity
-        p, v = (odo[0][:3, 3] + odo[1] * odo[2], odo[1]) if odo is not None else (nan3, nan3)
+        p, v = (self._track(odo[0]) + odo[1] * odo[2], odo[1]) if odo is not None else (nan3, nan3)
         first = frame.sensor_id not in self._pad_contact  # a pad's first sample: standing, not striking
         # the foot is on the ground when any of its pads used presses (initial contact: the heel
         # on level ground, the toes first on a forefoot landing down a stair or a ramp)
@@ -608,7 +629,7 @@ class _LocomotionPipeline(ABC):
         if status != "ok":
             st[f"n_{status}" if status != "error" else "n_errors"] += 1
 
-        mode, footprint, why = self._predict(stamp, None if odo is None else odo[0][:3, 3].copy())
+        mode, footprint, why = self._predict(stamp, None if odo is None else self._track(odo[0]))
         if status == "ok" and why != "ok":
             status = why
         t1 = time.perf_counter()
@@ -617,6 +638,10 @@ class _LocomotionPipeline(ABC):
         return pred
 
     # --- walking information and mode ---
+    def _track(self, T_odom_body: np.ndarray) -> np.ndarray:
+        """Position of the tracked point (``track_point``) at the odometry pose ``T_odom_body``."""
+        return np.asarray(T_odom_body[:3, :3] @ self._T_body_track[:3, 3] + T_odom_body[:3, 3], dtype=float)
+
     def _foot_xy(self, strike: HeelStrike, fwd: np.ndarray, H: np.ndarray) -> np.ndarray:
         """Footprint of the foot that struck at ``strike`` without its ``lead_fraction`` part:
         ``foot_lead_m`` minus the camera's offset ahead of the pelvis, ahead of the tracked body,
@@ -694,6 +719,12 @@ class _LocomotionPipeline(ABC):
         ref_cls = self._foot_cls.get(j_ref, self._next_cls.get(j_ref))
         if remembered is None:
             remembered = self._next_z.get(j_ref)  # predicted under it before it struck
+        if remembered is None and self._standing_h is not None and c.standing_drop_m is not None:
+            # nothing measured yet (the first steps of a head camera that has not seen its feet'
+            # ground): the body's height at the strike minus its height standing, less the drop
+            # of walking
+            remembered = float(self._divider.strikes[j_ref].p_world[2]) - (self._standing_h - c.standing_drop_m)
+            self._stats["n_height_from_prior"] += 1
         if remembered is None and j_ref != n - 1:  # unknown: the stance foot's, as a last resort
             remembered = self._foot_z.get(n - 1, self._next_z.get(n - 1))
             ref_cls = self._foot_cls.get(n - 1, self._next_cls.get(n - 1))

@@ -62,8 +62,9 @@ current footprint:
   below the view than the camera looks down); measured on a head-mounted jog down a 17.8 deg
   ramp (seed 1), the steps on the unseen upper part were SD by "drop_ahead": 75 % -> 90 %;
 - otherwise no plane under the predicted footprint: the current terrain is assumed to continue
-  (C a ramp: RA/RD along it; C horizontal: LG), reason ``"extrapolated"``; neither known: mode
-  ``""``, reason ``"no_terrain"``.
+  (C a ramp: RA/RD along it; C horizontal, or no plane under it but its height given and not
+  measured on a ramp: LG), reason ``"extrapolated"``; neither known: mode ``""``, reason
+  ``"no_terrain"``.
 
 The paper gives no values for its thresholds; the defaults are [A] choices: level ground up to
 6 deg (building codes allow 1:12 = 4.8 deg for ramps' landings), ramps up to 25 deg (the paper's
@@ -374,6 +375,8 @@ class TerrainDescription:
                     return ModeDecision("RD", "ramp_ahead", None, c_id, None, c_kind, z_ext - z_c)
                 return ModeDecision("SD", "drop_ahead", None, c_id, None, c_kind, drop)
             if c_id is None:
+                if z_c is not None and c_cls != "ramp":  # the level the foot stands on, known by height
+                    return ModeDecision("LG", "extrapolated", None, None, None, None, float("nan"))
                 return ModeDecision("", "no_terrain", None, None, None, None, float("nan"))
             mode = self._ramp_mode(c_id, cur, nxt) if c_cls == "ramp" else "LG"
             return ModeDecision(mode, "extrapolated", None, c_id, None, c_kind, float("nan"))
