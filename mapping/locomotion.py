@@ -55,14 +55,22 @@ next step; on the 18 grid episodes of the diagnosis the median (with ``foot_lead
 made 91.5 % of the steps right where eq. 17 bounded by 0 and the longest recent step made
 88.7 %]. The walking direction is the last stride
 p_n - p_{n-2} (``direction="stride"`` [deviation]; ``"velocity"``: v_n / ||v_n|| of eq. 18, which
-a nodding head camera turns by tens of degrees at some heel strikes, once backwards). The striking foot lands
+a nodding head camera turns by tens of degrees at some heel strikes, once backwards). The tracked body
+(``track_point``, [A: ``"joint"``]) is the joint the camera turns about, its parent link's origin
+in the calibration (T_odom_cam @ inv(T_link_cam), the odometry's orientation included), unless
+the camera sits on the base link: the neck for a head camera, the hip for a thigh one, the chest
+camera itself (on the pelvis); ``"camera"``: the camera. A head camera pitching by +-0.45 rad
+about a neck 0.16 m behind and below it moves 0.04-0.05 m along the walk: measured at the camera,
+0.34 m steps of a wander down a landing were 0.27-0.47 m, at the neck 0.33-0.35 m (9 hard head
+episodes: 170 -> 180 of 186 steps right). The striking foot lands
 ``lead_fraction`` x its own step (the last) + ``foot_lead_m`` - c_mount ahead of the tracked body
-at its strike [A: 0.5, 0 m], c_mount the camera's offset ahead of the pelvis
+at its strike [A: 0.5, 0 m], c_mount the tracked point's offset ahead of the pelvis
 (``camera_ahead_m``; None [A]: from the calibration's robot description at its neutral pose,
-:func:`camera_ahead_of_base_m`: 0.10 m head, 0.14 m chest, 0.09 m thigh). A body whose centre
+:func:`tracked_point_neutral`: 0 for the neck and the hips, 0.14 m for the chest camera). A body whose centre
 is halfway between its feet at a strike puts the leading foot half a step ahead of the pelvis;
 fitted on the simulated walker (36 grid episodes, 750 steps, ankle vs camera at each strike,
-final stops excluded): lead = 0.50 x step - c_mount + 0.004 m, residual std 0.045 m, where the
+final stops excluded, tracked at the camera): lead = 0.50 x step - c_mount + 0.004 m, residual std
+0.045 m, where the
 former constant lead (0.15 m) was 0.10 m short on 0.6 m jog steps and 0.10 m long on 0.3 m
 wander steps. Plus the left/right offsets of ``footprint``; the next footprint is delta_nxt
 ahead of the striking foot's. The terrain under a footprint is looked up where the foot rests,
@@ -103,7 +111,12 @@ under it now; else the one measured under it earlier (while it was the current f
 else the body's height at its strike minus the body's median height above the terrain under
 the striking foot over the last strikes where that was measured (a head camera above a
 descending flight hardly sees the treads its feet stand on); else the height predicted under it
-before it struck; else, for the swinging foot, the stance foot's. The plane class measured with
+before it struck; else, before any was measured (a head camera looking ahead at the start has
+not seen the ground under its feet), the body's height at its strike minus its height above the
+soles standing straight (:func:`tracked_point_neutral`) less ``standing_drop_m`` [A: 0.03 m,
+the hips' drop in double support; measured on a head-mounted wander, the neck 1.374 m above the
+feet at strikes, 1.400 m standing; None: no prior]; else, for the swinging foot, the stance
+foot's. The plane class measured with
 it is kept too (a foot leaving a ramp for level ground makes an LG step).
 Output: one :class:`ModePrediction` per processed RGB-D frame (``process`` returns it as the
 online estimate; None for other frames); ``finalize`` returns the :class:`LocomotionEstimate`
@@ -344,8 +357,10 @@ class _LocomotionPipeline(ABC):
         ``odometry_sensor_id``: odometry used ("" = ``odom_<mount>``, "*" = any). ``every_k``:
         process every k-th frame of the camera. ``max_odometry_age_s``: the latest odometry
         sample older than this (from a frame or heel strike) counts as missing. ``lead_fraction``,
-        ``foot_lead_m``, ``camera_ahead_m`` (None: from the calibration, :func:`camera_ahead_of_base_m`),
-        ``min_speed_m_s``, ``pause_s``, ``start_step_fraction``: footprints;
+        ``foot_lead_m``, ``camera_ahead_m`` (None: from the calibration, :func:`tracked_point_neutral`),
+        ``track_point`` (``"joint"``, ``"camera"``), ``standing_drop_m``, ``strike_pads``
+        (``"any"``, ``"heel"``), ``lookup`` (``"midfoot"``, ``"ankle"``), ``min_speed_m_s``,
+        ``pause_s``, ``start_step_fraction``: footprints;
         ``mode_reference``: ``"swing"`` or ``"stance"`` (module docstring). ``observed_stride_px``: pixel stride of
         the points whose voxels make the update's scope. ``max_work_width_px``: wider depth
         images are decimated to every m-th pixel, m = ceil(width / max_work_width_px), before

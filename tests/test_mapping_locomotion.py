@@ -548,3 +548,86 @@ def test_decimated_image_projects_points_where_the_full_one_does(m_width):
         p = np.linalg.solve(Kf, [u, v, 1.0]) * 2.3
         q = Ks @ p
         np.testing.assert_allclose(q[:2] / q[2], [j, i], atol=1e-9)
+
+
+def _nodding_head(frames, rng):
+    """``frames`` of walk() with the camera on a head that pitches about the neck: the walk's
+    camera position becomes the neck's, the camera sits 0.10 m ahead of and 0.12 m above it
+    (looking as walk()'s camera at zero pitch) and the head pitches by 0.35 rad * sin(2 pi t /
+    1.3 s) (not in step with the 0.6 s steps); odometry and depth follow the camera. Returns
+    (frames, calibration)."""
+    T_head_cam = np.eye(4)
+    T_head_cam[:3, :3] = camera_R(1.0)
+    T_head_cam[:3, 3] = (0.10, 0.0, 0.12)
+    rects = patches([Segment(-3.0, 9.0, 0.0)])
+
+    def T_cam(t, neck):
+        a = 0.35 * np.sin(2.0 * np.pi * t / 1.3)
+        T = np.eye(4)
+        T[:3, :3] = [[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]]  # + looks down
+        T[:3, 3] = neck
+        return T @ T_head_cam
+
+    out, neck = [], {}
+    for f in frames:
+        if isinstance(f, OdometrySample):
+            neck[f.stamp_s] = np.asarray(f.T_odom_body)[:3, 3]
+            f = OdometrySample(f.stamp_s, "odom_head", T_cam(f.stamp_s, neck[f.stamp_s]), f.v_odom_m_s)
+        elif isinstance(f, RgbdFrame):
+            f = RgbdFrame(f.stamp_s, "rgbd_head", f.rgb, render(rects, T_cam(f.stamp_s, neck[f.stamp_s]), rng), f.K)
+        out.append(f)
+    cal = calibration()
+    mounts = (SensorMount("rgbd_head", "rgbd", "head", T_head_cam, {"rate_hz": RATE_HZ}), *cal.mounts[1:])
+    return out, Calibration("", "pelvis", (), mounts, 0.1, 0.26, 0.05)
+
+
+def test_steps_are_measured_at_the_joint_the_camera_turns_about():
+    """A nodding head camera (level floor): with ``track_point="joint"`` the steps are measured at
+    the neck, the camera's link origin, and each predicted footprint lands where the next foot
+    does; measured at the camera itself (``"camera"``) the nods move them by centimetres."""
+    segs = [Segment(-3.0, 9.0, 0.0)]
+    frames, strikes = walk(segs, 14)
+    frames, cal = _nodding_head(frames, np.random.default_rng(3))
+
+    def x_errors(track_point):
+        est = run(SingleFramePipeline(SingleFramePipeline.Config(ahc=AHC, track_point=track_point, **GAIT)), frames, cal)
+        assert est.stats["tracked_point"] == track_point
+        errs = [p.footprint_odom[0] - strikes[p.strike_index][1] for p in est.predictions
+                if 6 <= p.strike_index < len(strikes) and np.isfinite(p.footprint_odom[0])]
+        assert len(errs) > 20
+        return np.abs(errs)
+
+    joint, camera = x_errors("joint"), x_errors("camera")
+    assert joint.max() < 0.01
+    assert camera.max() > 0.03
+
+
+def test_tracked_point_and_standing_height_of_the_exoskeleton():
+    """On the device's description: a head camera is tracked at its link's origin (the neck, which
+    the head pitches about) and a chest camera, on the pelvis (the base link), at itself; the
+    tracked point's offset ahead of the pelvis differs between the two choices by the mount's
+    forward offset on its link; the standing height of the neck above the soles is the sum of
+    the leg's and the trunk's segments of the URDF."""
+    import re
+
+    from exobench.models.exo import exo_calibration
+    from exobench.models.exo_spec import ExoSpec
+
+    cal = exo_calibration(ExoSpec())
+
+    def stats(**kw):
+        pipe = TerrainReconstructionPipeline(TerrainReconstructionPipeline.Config(**kw))
+        pipe.reset(cal)
+        return pipe.finalize().stats, pipe
+
+    head, pipe = stats()
+    cam, _ = stats(track_point="camera")
+    chest, _ = stats(rgbd_sensor_id="rgbd_chest")
+    assert (head["tracked_point"], cam["tracked_point"], chest["tracked_point"]) == ("joint", "camera", "camera")
+    T = np.asarray(cal.mount("rgbd_head").T_parent_sensor)
+    assert cam["camera_ahead_m"] - head["camera_ahead_m"] == pytest.approx(T[0, 3], abs=1e-9)
+    # neck above the hip + thigh + shank (the URDF's joint origins) + ankle above the sole
+    z = {name: float(xyz.split()[2]) for name, xyz in
+         re.findall(r'<joint name="([^"]+)"[^>]*>.*?<origin xyz="([^"]+)"', cal.robot_urdf, flags=re.S)}
+    want = z["neck_yaw"] + z["neck_pitch"] - z["hip_l"] - z["knee_l"] - z["ankle_l"] + cal.sole_height_m
+    assert pipe._standing_h == pytest.approx(want, abs=1e-6)

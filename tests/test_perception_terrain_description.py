@@ -211,6 +211,14 @@ def test_remembered_current_height():
     assert d.dz_m == pytest.approx(0.17)
     assert predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.51).mode == "SD"
     assert predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.30).mode == "LG"
+    # neither footprint over a mapped plane, but the current level known by height: it continues
+    # (level walking), unless the foot stood on a ramp (its direction is unknown without the plane)
+    far = plane_set(patch(5.0, 6.0, 0.0))
+    d = predict_mode(far, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.0)
+    assert (d.mode, d.reason, d.current_plane_id, d.next_plane_id) == ("LG", "extrapolated", None, None)
+    assert (predict_mode(far, [1.5, 0.0], [0.7, 0.0], CFG).reason) == "no_terrain"
+    d = describe_terrain(far, CFG).mode_of_step([0.7, 0.0], [1.5, 0.0], 0.0, "ramp")
+    assert (d.mode, d.reason) == ("", "no_terrain")
     # a plane under the current footprint wins over the remembered height
     ps = plane_set(patch(1.0, 2.0, 0.34), patch(0.0, 1.0, 0.17))
     d = predict_mode(ps, [1.5, 0.0], [0.7, 0.0], CFG, current_height_m=0.34)
