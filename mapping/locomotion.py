@@ -659,7 +659,7 @@ class _LocomotionPipeline(ABC):
 
     def _foot_xy(self, strike: HeelStrike, fwd: np.ndarray, H: np.ndarray) -> np.ndarray:
         """Footprint of the foot that struck at ``strike`` without its ``lead_fraction`` part:
-        ``foot_lead_m`` minus the camera's offset ahead of the pelvis, ahead of the tracked body,
+        ``foot_lead_m`` minus the tracked point's offset ahead of the pelvis, ahead of the tracked body,
         plus the foot's sideways offset."""
         c = self.config
         off = np.asarray(c.footprint.offset_l_m if strike.side == "l" else c.footprint.offset_r_m, dtype=float)
@@ -745,12 +745,12 @@ class _LocomotionPipeline(ABC):
             ref_cls = self._foot_cls.get(n - 1, self._next_cls.get(n - 1))
             if remembered is None and cur_id is not None:
                 remembered = plane_height_at(desc.planes[cur_id], cur)
-        if c.toe_m > 0.0 and toe_m > 0.0 and remembered is not None:
+        if toe_m > 0.0 and remembered is not None:  # lookup_m >= 0: also c.toe_m > 0
             onto = desc.tread_above(nxt[:2], fwd[:2], remembered, toe_m)
             if onto is not None:  # the toes would be in a riser: the foot goes onto the tread
                 nxt = np.array([onto[0], onto[1], nxt[2]])
                 self._stats["n_onto_tread"] += 1
-        if c.crease_toe_m > 0.0 and crease_toe_m > 0.0:
+        if crease_toe_m > 0.0:
             onto = desc.crease_ahead(nxt[:2], fwd[:2], crease_toe_m)
             if onto is not None:  # the toes would be across a crease: the foot goes past it
                 nxt = np.array([onto[0], onto[1], nxt[2]])
