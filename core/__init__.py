@@ -11,6 +11,7 @@ from .errors import (
     RenderError,
     SessionError,
     UnknownNameError,
+    check_int,
     check_range,
 )
 from .estimates import (
@@ -77,6 +78,7 @@ __all__ = [
     "ToFTruth",
     "TofStatus",
     "UnknownNameError",
+    "check_int",
     "check_range",
     "coerce_like",
     "config_from_dict",

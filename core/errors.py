@@ -80,3 +80,29 @@ def check_range(
     if high is not None and (x >= high if high_open else x > high):
         raise ConfigError(field, value, allowed)
     return x
+
+
+def check_int(field: str, value: object, low: int | None = None, high: int | None = None) -> int:
+    """Return ``value`` as an int if it is a whole number within ``[low, high]``, else raise
+    :class:`ConfigError`. Booleans, NaN, infinities and fractions are refused; a bound given as
+    None is open. The one integer range check of exobench: configs call it in ``__post_init__``."""
+    if low is not None and high is not None:
+        allowed = f"an integer in [{low}, {high}]"
+    elif low is not None:
+        allowed = f"an integer >= {low}"
+    elif high is not None:
+        allowed = f"an integer <= {high}"
+    else:
+        allowed = "an integer"
+    if isinstance(value, bool):
+        raise ConfigError(field, value, allowed)
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError, OverflowError):
+        raise ConfigError(field, value, allowed) from None
+    if x != x or x in (float("inf"), float("-inf")) or x != int(x):
+        raise ConfigError(field, value, allowed)
+    n = int(x)
+    if (low is not None and n < low) or (high is not None and n > high):
+        raise ConfigError(field, value, allowed)
+    return n
