@@ -34,7 +34,8 @@ import numpy as np
 from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.core.pipeline import coerce_like
 
-from .registry import PipelineRegistry, default_registry, load_entry_point
+from .entry_points import load_entry_point
+from .registry import PipelineRegistry, default_registry
 from .results import (
     RESULTS_FILE,
     RUN_CONFIG_FILE,
@@ -47,14 +48,10 @@ from .results import (
     write_json_atomic,
 )
 from .tracks import get_track
-from .tracks.base import Case, EpisodePlan, Track
+from .tracks.spec import Case, EpisodePlan, Track
 
 FIGURES_DIR = "figures"
 MAX_SEEDS = 10_000
-TIMING_METRICS = frozenset({
-    "time_per_point_us", "time_per_scan_ms", "odom_time_per_scan_ms", "time_per_keyframe_ms",
-    "latency_ms_median", "latency_ms_p95",
-})  # the only metrics allowed to differ between runs (wall-clock timings)
 
 
 @dataclass(frozen=True)
@@ -121,6 +118,35 @@ def parse_assignments(items: Sequence[str]) -> dict[str, str]:
     return out
 
 
+def untimed_metrics(track: Track, metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """The metrics of a record without the track's wall-clock timings (``track.timing_metrics``):
+    what two runs of the same plan must give identically."""
+    return {k: v for k, v in metrics.items() if k not in track.timing_metrics}
+
+
+def split_overrides(
+    overrides: Mapping[str, Any], pipelines: Sequence[str]
+) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+    """``(scenario overrides, {pipeline: {rest: value}})`` of ``--set`` keys.
+
+    A key with a dot is ``<pipeline>.<rest>``: the pipeline is the longest of ``pipelines`` that
+    prefixes the key followed by a dot, and ``rest`` is kept whole, dots included
+    (``kiss-icp.filter.band_m`` -> ``{"kiss-icp": {"filter.band_m": ...}}``); a dotted key that
+    names none of them raises UnknownNameError. Keys without a dot are scenario parameters.
+    """
+    scenario: dict[str, Any] = {}
+    per_pipeline: dict[str, dict[str, Any]] = {}
+    for key, value in overrides.items():
+        if "." not in key:
+            scenario[key] = value
+            continue
+        name = max((n for n in pipelines if key.startswith(n + ".")), key=len, default=None)
+        if name is None:
+            raise UnknownNameError("pipeline (in --set)", key.partition(".")[0], pipelines)
+        per_pipeline.setdefault(name, {})[key[len(name) + 1 :]] = value
+    return scenario, per_pipeline
+
+
 def _scenario_overrides(track: Track, raw: Mapping[str, Any]) -> dict[str, Any]:
     """Check the names of scenario overrides; values stay as given (the track validates them)."""
     if not raw:
@@ -133,7 +159,7 @@ def _scenario_overrides(track: Track, raw: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def plan_run(
-    track: str | Track = "stairs",
+    track: str | Track,
     suite: str | None = None,
     pipelines: Sequence[str] | None = None,
     seeds: Sequence[int] = (0,),
@@ -144,7 +170,8 @@ def plan_run(
     """Validate a run and list its episodes; raises ConfigError / UnknownNameError, writes nothing.
 
     ``overrides`` keys are scenario parameters (``riser_m``) or pipeline parameters prefixed by
-    the pipeline name (``rtls.th_z_m``); string values are converted to the parameter's type.
+    the pipeline name (``rtls.th_z_m``, ``kiss-icp.filter.band_m``: see :func:`split_overrides`);
+    string values are converted to the parameter's type.
     """
     trk = get_track(track) if isinstance(track, str) else track
     suite = suite or trk.default_suite
@@ -164,16 +191,7 @@ def plan_run(
     if not seeds or len(seeds) > MAX_SEEDS or min(seeds) < 0 or len(set(seeds)) != len(seeds):
         raise ConfigError("seeds", seeds, f"1 to {MAX_SEEDS} distinct integers >= 0")
 
-    scen_raw: dict[str, Any] = {}
-    pipe_raw: dict[str, dict[str, Any]] = {}
-    for key, value in (overrides or {}).items():
-        head, dot, rest = key.partition(".")
-        if dot:
-            if head not in names:
-                raise UnknownNameError("pipeline (in --set)", head, names)
-            pipe_raw.setdefault(head, {})[rest] = value
-        else:
-            scen_raw[key] = value
+    scen_raw, pipe_raw = split_overrides(overrides or {}, names)
     scen = _scenario_overrides(trk, scen_raw)
     runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n))) for n in names]
 
