@@ -8,7 +8,8 @@ Modules (nothing is imported here, so `exobench --help` stays fast):
   recording), behind the protocol of ``tracks.spec``, found through ``tracks.registry``
   (built-ins and the ``exobench.tracks`` entry points).
 - ``runner``: validate a run (``plan_run``), then run it (``execute``) with per-episode atomic
-  results, a process pool and resume. ``results``: the run folder's files.
+  results, a process pool and resume. ``overrides``: ``--set`` parsing and routing.
+  ``results``: the run folder's files.
 - ``report``: the summary table and ``report.md`` (each track adds its sections and figures);
   ``plots``: matplotlib on the Agg backend. ``trajectory``: trajectory metrics as evo computes them.
 - ``bench``: `exobench bench rtls|sim|lidar|locomotion`. ``cli``: the command.

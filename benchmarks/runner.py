@@ -35,6 +35,7 @@ from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.core.pipeline import coerce_like
 
 from .entry_points import load_entry_point
+from .overrides import check_scenario_overrides, split_overrides
 from .registry import PipelineRegistry, default_registry
 from .results import (
     RESULTS_FILE,
@@ -107,55 +108,10 @@ def episode_seed(run_seed: int, case_name: str) -> int:
     return int(np.random.SeedSequence([int(run_seed), zlib.crc32(case_name.encode())]).generate_state(1)[0])
 
 
-def parse_assignments(items: Sequence[str]) -> dict[str, str]:
-    """``["KEY=VALUE", ...]`` -> dict; a malformed item raises ConfigError."""
-    out: dict[str, str] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ConfigError("--set", item, "KEY=VALUE")
-        out[key.strip()] = value.strip()
-    return out
-
-
 def untimed_metrics(track: Track, metrics: Mapping[str, Any]) -> dict[str, Any]:
     """The metrics of a record without the track's wall-clock timings (``track.timing_metrics``):
     what two runs of the same plan must give identically."""
     return {k: v for k, v in metrics.items() if k not in track.timing_metrics}
-
-
-def split_overrides(
-    overrides: Mapping[str, Any], pipelines: Sequence[str]
-) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
-    """``(scenario overrides, {pipeline: {rest: value}})`` of ``--set`` keys.
-
-    A key with a dot is ``<pipeline>.<rest>``: the pipeline is the longest of ``pipelines`` that
-    prefixes the key followed by a dot, and ``rest`` is kept whole, dots included
-    (``kiss-icp.filter.band_m`` -> ``{"kiss-icp": {"filter.band_m": ...}}``); a dotted key that
-    names none of them raises UnknownNameError. Keys without a dot are scenario parameters.
-    """
-    scenario: dict[str, Any] = {}
-    per_pipeline: dict[str, dict[str, Any]] = {}
-    for key, value in overrides.items():
-        if "." not in key:
-            scenario[key] = value
-            continue
-        name = max((n for n in pipelines if key.startswith(n + ".")), key=len, default=None)
-        if name is None:
-            raise UnknownNameError("pipeline (in --set)", key.partition(".")[0], pipelines)
-        per_pipeline.setdefault(name, {})[key[len(name) + 1 :]] = value
-    return scenario, per_pipeline
-
-
-def _scenario_overrides(track: Track, raw: Mapping[str, Any]) -> dict[str, Any]:
-    """Check the names of scenario overrides; values stay as given (the track validates them)."""
-    if not raw:
-        return {}
-    names = {p.name for p in track.params()}
-    for key in raw:
-        if key not in names:
-            raise UnknownNameError("scenario parameter", key, names)
-    return dict(raw)
 
 
 def plan_run(
@@ -192,7 +148,7 @@ def plan_run(
         raise ConfigError("seeds", seeds, f"1 to {MAX_SEEDS} distinct integers >= 0")
 
     scen_raw, pipe_raw = split_overrides(overrides or {}, names)
-    scen = _scenario_overrides(trk, scen_raw)
+    scen = check_scenario_overrides(trk, scen_raw)
     runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n))) for n in names]
 
     episodes = []

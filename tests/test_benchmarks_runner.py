@@ -7,9 +7,10 @@ import json
 import pytest
 from test_benchmarks_support import FakeStairs, FakeTrack, RaisingStairs
 
+from exobench.benchmarks.overrides import split_overrides
 from exobench.benchmarks.registry import PipelineRegistry
 from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, repair_results
-from exobench.benchmarks.runner import episode_seed, execute, plan_run, split_overrides, untimed_metrics
+from exobench.benchmarks.runner import episode_seed, execute, plan_run, untimed_metrics
 from exobench.core import ConfigError, UnknownNameError
 
 
