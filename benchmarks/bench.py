@@ -30,7 +30,7 @@ PAPER_MS_PER_POINT = {"rtls": 0.685, "rtls-htvr": 0.427}  # Cortex-M4 at 168 MHz
 
 
 def case_a_episode(seed: int = 0) -> Episode:
-    from .tracks.stairs import CASES, StairsTrack
+    from .tracks.stairs.track import CASES, StairsTrack
 
     return StairsTrack().simulate(dict(CASES["A"]), seed)
 
@@ -151,7 +151,7 @@ def bench_sim(scenario: dict[str, Any] | None = None, seed: int = 0, *, repeats:
     same staircase reuse the compiled model, as a suite does. Both are reported; the warm figure
     is the median over ``repeats`` episodes with different seeds.
     """
-    from .tracks.stairs import CASES, StairsTrack
+    from .tracks.stairs.track import CASES, StairsTrack
 
     track = StairsTrack()
     values = track.validate_scenario(scenario if scenario is not None else dict(CASES["A"]))

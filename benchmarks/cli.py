@@ -94,7 +94,8 @@ def run(
     """Run SUITE (default: each track's quick suite) of one track or of all, and print the tables."""
     from exobench.core.errors import ConfigError
 
-    from .runner import parse_assignments, plan_run
+    from .overrides import parse_assignments
+    from .runner import plan_run
     from .tracks import track_names
 
     if jobs < 1:
@@ -234,9 +235,10 @@ def replay(session_dir: str, track: str, pipelines: tuple[str, ...], assignments
     """Score pipelines on a recorded session (SESSION_DIR written by `exobench record`)."""
     from exobench.envs.session import read_session
 
+    from .overrides import parse_assignments
     from .report import summary_text
     from .results import json_safe
-    from .runner import parse_assignments, plan_run, run_pipelines
+    from .runner import plan_run, run_pipelines
 
     overrides = parse_assignments(assignments)
     plan = plan_run(track, None, pipelines or None, [0], overrides)
@@ -270,12 +272,13 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
     from exobench.core.errors import ConfigError
     from exobench.envs.session import write_session
 
-    from .runner import _scenario_overrides, load_case, parse_assignments
+    from .overrides import check_scenario_overrides, parse_assignments
+    from .runner import load_case
     from .tracks import get_track
 
     trk = get_track(track)
     base = load_case(trk, "paper", case_name).scenario if case_name else {}
-    scenario = trk.validate_scenario({**base, **_scenario_overrides(trk, parse_assignments(assignments))})
+    scenario = trk.validate_scenario({**base, **check_scenario_overrides(trk, parse_assignments(assignments))})
     if seed < 0:
         raise ConfigError("--seed", seed, "--seed >= 0")
     if Path(out_dir).exists():

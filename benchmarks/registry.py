@@ -1,9 +1,9 @@
 """Pipeline registry: names -> pipeline classes, found by string entry points.
 
-Like gymnasium's ``register(entry_point="pkg.mod:Cls")`` and dm_control's ``TaggedTasks``:
-registering imports nothing, a class is imported the first time it is asked for, a name can be
-registered once only, and an unknown name raises :class:`UnknownNameError` listing the valid
-ones. exobench's own pipelines are built in; any installed package adds its own through the
+An :class:`~exobench.benchmarks.entry_points.EntryPointRegistry` tagged by track: registering
+imports nothing, a class is imported the first time it is asked for, a name can be registered
+once only, and an unknown name raises :class:`UnknownNameError` listing the valid ones.
+exobench's own pipelines are built in; any installed package adds its own through the
 ``exobench.pipelines`` entry-point group::
 
     [project.entry-points."exobench.pipelines"]
@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib
-import importlib.metadata
 from dataclasses import dataclass
 from typing import Any
 
-from exobench.core.errors import ConfigError, UnknownNameError
+from exobench.core.errors import ConfigError
 from exobench.core.pipeline import Pipeline, config_from_dict
+
+from .entry_points import EntryPointRegistry
 
 ENTRY_POINT_GROUP = "exobench.pipelines"
 
@@ -66,17 +66,6 @@ class PipelineSpec:
     source: str = "builtin"
 
 
-def load_entry_point(entry_point: str) -> Any:
-    """Import ``"module:attr.sub"`` and return the attribute."""
-    module_name, sep, attr = entry_point.partition(":")
-    if not sep or not module_name or not attr:
-        raise ConfigError("entry_point", entry_point, "'module:attribute'")
-    obj: Any = importlib.import_module(module_name)
-    for part in attr.split("."):
-        obj = getattr(obj, part)
-    return obj
-
-
 def check_pipeline_class(name: str, cls: Any) -> type:
     """Raise ConfigError unless ``cls`` is a pipeline class with a defaulted ``Config``."""
     if not isinstance(cls, type) or not isinstance(cls, Pipeline):
@@ -91,49 +80,29 @@ def check_pipeline_class(name: str, cls: Any) -> type:
     return cls
 
 
-class PipelineRegistry:
-    """Pipelines by name. Entries are strings until first use."""
+class PipelineRegistry(EntryPointRegistry):
+    """Pipelines by name, tagged with the track they serve. Entries are strings until first use."""
 
     def __init__(self) -> None:
-        self._specs: dict[str, PipelineSpec] = {}
-        self._classes: dict[str, type] = {}
+        super().__init__("pipeline", check_pipeline_class)
 
     def register(self, name: str, entry_point: str | type, *, track: str | None = None, source: str = "user") -> None:
-        """Add a pipeline under ``name``; refuse a name already taken."""
-        if name in self._specs:
-            taken = self._specs[name]
-            raise ConfigError(
-                "pipeline name", name, f"a name not yet registered (taken by {taken.entry_point}, {taken.source})"
-            )
+        """Add a pipeline under ``name``; refuse a name already taken. A class registered directly
+        is tagged with its ``track`` attribute unless ``track`` is given."""
         if isinstance(entry_point, type):
-            cls = check_pipeline_class(name, entry_point)
-            self._classes[name] = cls
-            entry_point = f"{cls.__module__}:{cls.__qualname__}"
-            track = track or getattr(cls, "track", None)
-        self._specs[name] = PipelineSpec(name, entry_point, track, source)
+            track = track or getattr(entry_point, "track", None)
+        super().register(name, entry_point, tags=(track,) if track else (), source=source)
 
     def names(self, track: str | None = None) -> list[str]:
         """Registered names in registration order (built-ins first); with ``track``, only those
         serving it (untagged entries are imported to find out)."""
         if track is None:
-            return list(self._specs)
-        return [n for n, s in self._specs.items() if (s.track or getattr(self.load(n), "track", None)) == track]
+            return super().names()
+        return [n for n in super().names() if (self.spec(n).track or getattr(self.load(n), "track", None)) == track]
 
     def spec(self, name: str) -> PipelineSpec:
-        if name not in self._specs:
-            raise UnknownNameError("pipeline", name, self._specs)
-        return self._specs[name]
-
-    def load(self, name: str) -> type:
-        """The pipeline class, imported on first use."""
-        spec = self.spec(name)
-        if name not in self._classes:
-            try:
-                obj = load_entry_point(spec.entry_point)
-            except (ImportError, AttributeError) as e:
-                raise ConfigError(f"pipeline {name!r}", spec.entry_point, f"an importable class ({e})") from None
-            self._classes[name] = check_pipeline_class(name, obj)
-        return self._classes[name]
+        entry = self.entry(name)
+        return PipelineSpec(entry.name, entry.entry_point, entry.tags[0] if entry.tags else None, entry.source)
 
     def make_config(self, name: str, values: dict[str, Any] | None = None) -> Any:
         """The pipeline's ``Config`` from plain values (strings are converted), validated."""
@@ -144,9 +113,6 @@ class PipelineRegistry:
         cls = self.load(name)
         return cls(cls.Config() if config is None else config)
 
-    def __contains__(self, name: object) -> bool:
-        return name in self._specs
-
 
 def build_registry(*, entry_points: bool = True) -> PipelineRegistry:
     """A registry with the built-in pipelines and those of the ``exobench.pipelines`` group."""
@@ -154,8 +120,7 @@ def build_registry(*, entry_points: bool = True) -> PipelineRegistry:
     for name, (ep, track) in BUILTIN_PIPELINES.items():
         reg.register(name, ep, track=track, source="builtin")
     if entry_points:
-        for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
-            reg.register(ep.name, ep.value, source="entry-point")
+        reg.add_group(ENTRY_POINT_GROUP)
     return reg
 
 

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, sort_records
-from .tracks.base import Reference, SummaryRow
+from .tracks.spec import Reference, SummaryRow
 
 REPORT_FILE = "report.md"
 DASH = "–"

@@ -34,7 +34,9 @@ import numpy as np
 from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.core.pipeline import coerce_like
 
-from .registry import PipelineRegistry, default_registry, load_entry_point
+from .entry_points import load_entry_point
+from .overrides import check_scenario_overrides, split_overrides
+from .registry import PipelineRegistry, default_registry
 from .results import (
     RESULTS_FILE,
     RUN_CONFIG_FILE,
@@ -47,14 +49,10 @@ from .results import (
     write_json_atomic,
 )
 from .tracks import get_track
-from .tracks.base import Case, EpisodePlan, Track
+from .tracks.spec import Case, EpisodePlan, Track
 
 FIGURES_DIR = "figures"
 MAX_SEEDS = 10_000
-TIMING_METRICS = frozenset({
-    "time_per_point_us", "time_per_scan_ms", "odom_time_per_scan_ms", "time_per_keyframe_ms",
-    "latency_ms_median", "latency_ms_p95",
-})  # the only metrics allowed to differ between runs (wall-clock timings)
 
 
 @dataclass(frozen=True)
@@ -110,30 +108,14 @@ def episode_seed(run_seed: int, case_name: str) -> int:
     return int(np.random.SeedSequence([int(run_seed), zlib.crc32(case_name.encode())]).generate_state(1)[0])
 
 
-def parse_assignments(items: Sequence[str]) -> dict[str, str]:
-    """``["KEY=VALUE", ...]`` -> dict; a malformed item raises ConfigError."""
-    out: dict[str, str] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ConfigError("--set", item, "KEY=VALUE")
-        out[key.strip()] = value.strip()
-    return out
-
-
-def _scenario_overrides(track: Track, raw: Mapping[str, Any]) -> dict[str, Any]:
-    """Check the names of scenario overrides; values stay as given (the track validates them)."""
-    if not raw:
-        return {}
-    names = {p.name for p in track.params()}
-    for key in raw:
-        if key not in names:
-            raise UnknownNameError("scenario parameter", key, names)
-    return dict(raw)
+def untimed_metrics(track: Track, metrics: Mapping[str, Any]) -> dict[str, Any]:
+    """The metrics of a record without the track's wall-clock timings (``track.timing_metrics``):
+    what two runs of the same plan must give identically."""
+    return {k: v for k, v in metrics.items() if k not in track.timing_metrics}
 
 
 def plan_run(
-    track: str | Track = "stairs",
+    track: str | Track,
     suite: str | None = None,
     pipelines: Sequence[str] | None = None,
     seeds: Sequence[int] = (0,),
@@ -144,7 +126,8 @@ def plan_run(
     """Validate a run and list its episodes; raises ConfigError / UnknownNameError, writes nothing.
 
     ``overrides`` keys are scenario parameters (``riser_m``) or pipeline parameters prefixed by
-    the pipeline name (``rtls.th_z_m``); string values are converted to the parameter's type.
+    the pipeline name (``rtls.th_z_m``, ``kiss-icp.filter.band_m``: see :func:`split_overrides`);
+    string values are converted to the parameter's type.
     """
     trk = get_track(track) if isinstance(track, str) else track
     suite = suite or trk.default_suite
@@ -164,17 +147,8 @@ def plan_run(
     if not seeds or len(seeds) > MAX_SEEDS or min(seeds) < 0 or len(set(seeds)) != len(seeds):
         raise ConfigError("seeds", seeds, f"1 to {MAX_SEEDS} distinct integers >= 0")
 
-    scen_raw: dict[str, Any] = {}
-    pipe_raw: dict[str, dict[str, Any]] = {}
-    for key, value in (overrides or {}).items():
-        head, dot, rest = key.partition(".")
-        if dot:
-            if head not in names:
-                raise UnknownNameError("pipeline (in --set)", head, names)
-            pipe_raw.setdefault(head, {})[rest] = value
-        else:
-            scen_raw[key] = value
-    scen = _scenario_overrides(trk, scen_raw)
+    scen_raw, pipe_raw = split_overrides(overrides or {}, names)
+    scen = check_scenario_overrides(trk, scen_raw)
     runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n))) for n in names]
 
     episodes = []

@@ -11,9 +11,9 @@ from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
 from exobench.benchmarks.runner import plan_run, run_pipelines
-from exobench.benchmarks.tracks.lidar_filter_metrics import mask_fractions
-from exobench.benchmarks.tracks.odometry_metrics import interpolate_poses, score_trajectory, true_track
-from exobench.benchmarks.tracks.office_common import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
+from exobench.benchmarks.tracks.lidar_filter.metrics import mask_fractions
+from exobench.benchmarks.tracks.lidar_trajectory import interpolate_poses, score_trajectory, true_track
+from exobench.benchmarks.tracks.office_walks import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.transforms import matrix_to_quat_wxyz, rot_z
 

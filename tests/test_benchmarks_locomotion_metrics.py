@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from exobench.benchmarks.tracks.locomotion_metrics import (
+from exobench.benchmarks.tracks.locomotion.metrics import (
     score_predictions,
     sorted_predictions,
     sorted_steps,

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
 from exobench.benchmarks.tracks import get_track
-from exobench.benchmarks.tracks.locomotion_paper import (
+from exobench.benchmarks.tracks.locomotion.paper import (
     HEIGHT_GROUPS,
     MOUNTS,
     PATTERNS,
@@ -215,7 +215,7 @@ def test_footprint_error_is_measured_in_the_odometry_frame_at_the_prediction(tin
     frame through its own odometry pose of the moment (world -> camera by the true pose, camera ->
     odometry by the odometry sample) has no footprint error; the fixed start alignment would
     charge it the odometry's drift."""
-    from exobench.benchmarks.tracks.locomotion_metrics import score_predictions
+    from exobench.benchmarks.tracks.locomotion.metrics import score_predictions
     from exobench.core import OdometrySample
 
     _, _, episode = tiny_run

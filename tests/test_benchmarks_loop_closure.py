@@ -20,7 +20,7 @@ import math
 import numpy as np
 import pytest
 
-from exobench.benchmarks.tracks.loop_closure_metrics import (
+from exobench.benchmarks.tracks.loop_closure.metrics import (
     best_f1,
     eligible_pairs,
     keyframe_poses,

@@ -9,7 +9,7 @@ import pytest
 from test_benchmarks_support import make_episode
 
 from exobench.benchmarks.tracks.stairs import StairsTrack
-from exobench.benchmarks.tracks.stairs_metrics import path_length, score_staircase
+from exobench.benchmarks.tracks.stairs.metrics import path_length, score_staircase
 from exobench.core import (
     Episode,
     EpisodeTruth,

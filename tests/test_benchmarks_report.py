@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_benchmarks_support import FakeStairs, FakeTrack, make_episode
+from test_benchmarks_support import FakeStairs, FakeTrack, make_episode, serve_tracks
 
-from exobench.benchmarks import tracks as tracks_mod
 from exobench.benchmarks.registry import PipelineRegistry
 from exobench.benchmarks.report import cell, format_text, reference_text, summary_rows, write_report
 from exobench.benchmarks.runner import execute, plan_run
-from exobench.benchmarks.tracks.base import SummaryRow
-from exobench.benchmarks.tracks.stairs import published_references
+from exobench.benchmarks.tracks.spec import SummaryRow
+from exobench.benchmarks.tracks.stairs.track import published_references
 
 
 def test_cell_is_mean_and_sample_std_in_the_rows_unit():
@@ -37,12 +36,10 @@ def finished_run(tmp_path, monkeypatch):
     reg = PipelineRegistry()
     reg.register("fake", FakeStairs)
     # write_report looks the track up by name: serve the fake under "stairs"
-    monkeypatch.setitem(tracks_mod.TRACKS, "stairs", "test_benchmarks_support:FakeTrack")
-    tracks_mod.get_track.cache_clear()
+    serve_tracks(monkeypatch, stairs=FakeTrack)
     plan = plan_run(FakeTrack(), "quick", ["fake"], [0, 1], registry=reg)
     out = execute(plan, tmp_path / "run")
-    yield plan, out
-    tracks_mod.get_track.cache_clear()
+    return plan, out
 
 
 def test_summary_table_groups_cases_and_shows_the_paper(finished_run):
@@ -67,7 +64,7 @@ def test_report_writes_markdown_and_pngs(finished_run):
 
 
 def test_rerun_recording_is_written_and_readable(tmp_path):
-    from exobench.benchmarks.rerun_bridge import write_recording
+    from exobench.benchmarks.tracks.stairs.recording import write_recording
 
     ep = make_episode()
     pipe = FakeStairs()

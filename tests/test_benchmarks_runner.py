@@ -7,9 +7,10 @@ import json
 import pytest
 from test_benchmarks_support import FakeStairs, FakeTrack, RaisingStairs
 
+from exobench.benchmarks.overrides import split_overrides
 from exobench.benchmarks.registry import PipelineRegistry
 from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, repair_results
-from exobench.benchmarks.runner import TIMING_METRICS, episode_seed, execute, plan_run
+from exobench.benchmarks.runner import episode_seed, execute, plan_run, untimed_metrics
 from exobench.core import ConfigError, UnknownNameError
 
 
@@ -30,7 +31,7 @@ def _plan(reg, **kw):
 def _comparable(records):
     out = []
     for r in records:
-        metrics = {k: v for k, v in r["metrics"].items() if k not in TIMING_METRICS}
+        metrics = untimed_metrics(FakeTrack(), r["metrics"])
         out.append((r["episode"], r["pipeline"], r["seed"], r["scenario"], r["config"], metrics))
     return sorted(out, key=lambda x: (x[0], x[1]))
 
@@ -142,3 +143,27 @@ def test_existing_folder_and_changed_resume_are_refused(reg, tmp_path):
     with pytest.raises(ConfigError, match="resume"):
         execute(_plan(reg, pipelines=["fake"]), tmp_path / "never-ran", resume=True)
     assert not (tmp_path / "never-ran").exists()
+
+
+def test_set_keys_go_to_the_longest_pipeline_name_with_the_rest_kept_whole():
+    overrides = {"riser_m": "0.17", "kiss-icp.filter.band_m": "0.05", "fake.offset_m": "1", "fake.v2.stage.x": "2"}
+    scenario, pipes = split_overrides(overrides, ["fake", "fake.v2", "kiss-icp"])
+    assert scenario == {"riser_m": "0.17"}
+    assert pipes == {"kiss-icp": {"filter.band_m": "0.05"}, "fake": {"offset_m": "1"}, "fake.v2": {"stage.x": "2"}}
+    with pytest.raises(UnknownNameError, match="kiss"):
+        split_overrides({"kiss.x": "1"}, ["fake", "kiss-icp"])
+
+
+def test_plan_hands_each_pipeline_its_dotted_overrides(monkeypatch):
+    seen: dict[str, dict] = {}
+
+    class Spy(PipelineRegistry):
+        def make_config(self, name, values=None):
+            seen[name] = dict(values or {})
+            return super().make_config(name, {k: v for k, v in (values or {}).items() if "." not in k})
+
+    reg = Spy()
+    reg.register("fake", FakeStairs)
+    reg.register("fake.v2", FakeStairs)
+    plan_run(FakeTrack(), "quick", ["fake", "fake.v2"], [0], {"fake.v2.filter.band_m": "0.05", "fake.offset_m": "0.01"}, registry=reg)
+    assert seen == {"fake": {"offset_m": "0.01"}, "fake.v2": {"filter.band_m": "0.05"}}

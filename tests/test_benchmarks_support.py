@@ -14,7 +14,8 @@ from typing import Any, ClassVar
 import numpy as np
 import pytest
 
-from exobench.benchmarks.tracks.base import ParamInfo
+from exobench.benchmarks.tracks import registry as track_registry
+from exobench.benchmarks.tracks.spec import ParamInfo
 from exobench.benchmarks.tracks.stairs import StairsTrack
 from exobench.core import (
     Calibration,
@@ -112,6 +113,15 @@ class FakeTrack(StairsTrack):
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         return make_episode(scenario, seed)
+
+
+def serve_tracks(monkeypatch: pytest.MonkeyPatch, **tracks: type) -> track_registry.TrackRegistry:
+    """Make the process-wide track registry a fresh one holding only ``tracks`` (name -> class)."""
+    reg = track_registry.TrackRegistry()
+    for name, cls in tracks.items():
+        reg.register(name, cls)
+    monkeypatch.setattr(track_registry, "default_track_registry", lambda: reg)
+    return reg
 
 
 class FakeStairs:

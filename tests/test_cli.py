@@ -10,10 +10,9 @@ from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
-from test_benchmarks_support import FakeStairs
+from test_benchmarks_support import FakeStairs, FakeTrack, serve_tracks
 
 from exobench.benchmarks import registry as registry_mod
-from exobench.benchmarks import tracks as tracks_mod
 from exobench.benchmarks.cli import cli
 
 EXOBENCH = Path(sys.executable).with_name("exobench")
@@ -107,14 +106,11 @@ def test_list_shows_suites_pipelines_and_parameter_ranges():
 @pytest.fixture
 def fake_stairs(monkeypatch):
     """Serve the hand-built track under "stairs" and only the fake pipeline (no MuJoCo)."""
-    monkeypatch.setitem(tracks_mod.TRACKS, "stairs", "test_benchmarks_support:FakeTrack")
-    tracks_mod.get_track.cache_clear()
+    serve_tracks(monkeypatch, stairs=FakeTrack)
     reg = registry_mod.PipelineRegistry()
     reg.register("fake", FakeStairs)
     monkeypatch.setattr(registry_mod, "default_registry", lambda: reg)
     monkeypatch.setattr("exobench.benchmarks.runner.default_registry", lambda: reg)
-    yield
-    tracks_mod.get_track.cache_clear()
 
 
 def test_run_prints_the_table_and_writes_the_run_folder(tmp_path, fake_stairs):
@@ -131,3 +127,19 @@ def test_run_prints_the_table_and_writes_the_run_folder(tmp_path, fake_stairs):
     assert len((out / "results.jsonl").read_text().splitlines()) == 12
     report = _run(["report", str(out)])
     assert report.exit_code == 0 and "report.md" in report.output
+
+
+def test_set_hands_a_dotted_pipeline_path_to_the_registry_whole(tmp_path, fake_stairs, monkeypatch):
+    seen: dict[str, dict] = {}
+    real = registry_mod.PipelineRegistry.make_config
+
+    def spy(self, name, values=None):
+        seen[name] = dict(values or {})
+        return real(self, name, {k: v for k, v in (values or {}).items() if "." not in k})
+
+    monkeypatch.setattr(registry_mod.PipelineRegistry, "make_config", spy)
+    args = ["run", "--track", "stairs", "--out", str(tmp_path / "run"), "--no-report",
+            "--set", "fake.filter.band_m=0.05", "--set", "fake.offset_m=0.001"]  # fmt: skip
+    result = _run(args)
+    assert result.exit_code == 0, result.output + result.stderr
+    assert seen == {"fake": {"filter.band_m": "0.05", "offset_m": "0.001"}}

@@ -8,8 +8,9 @@ from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
 from exobench.benchmarks.results import json_safe, read_records
-from exobench.benchmarks.runner import TIMING_METRICS, execute, plan_run, run_pipelines
-from exobench.benchmarks.tracks.stairs import CASES, StairsTrack
+from exobench.benchmarks.runner import execute, plan_run, run_pipelines, untimed_metrics
+from exobench.benchmarks.tracks.stairs import StairsTrack
+from exobench.benchmarks.tracks.stairs.track import CASES
 
 
 def _invoke(args):
@@ -20,7 +21,7 @@ def _invoke(args):
 
 def _metrics(records):
     return sorted(
-        ((r["episode"], r["pipeline"], {k: v for k, v in r["metrics"].items() if k not in TIMING_METRICS}) for r in records),
+        ((r["episode"], r["pipeline"], untimed_metrics(StairsTrack, r["metrics"])) for r in records),
         key=lambda x: (x[0], x[1]),
     )
 
@@ -50,8 +51,8 @@ def test_record_then_replay_scores_like_the_live_run(tmp_path):
     track = StairsTrack()
     episode = track.simulate(track.validate_scenario(CASES["B"]), 3)
     _, live, _, _ = run_pipelines(track, episode, plan.pipelines)
-    expected = {k: v for k, v in json_safe(live["rtls"]).items() if k not in TIMING_METRICS}
-    got = {k: v for k, v in replayed["metrics"].items() if k not in TIMING_METRICS}
+    expected = untimed_metrics(track, json_safe(live["rtls"]))
+    got = untimed_metrics(track, replayed["metrics"])
     assert got == expected
 
     again = CliRunner().invoke(cli, ["record", str(session)])

@@ -156,7 +156,7 @@ def test_deterministic_and_compact_truth_keeps_the_labels(run):
     """Same seed, same frames; ``lidar_truth="labels"`` changes only what truth is kept."""
     from dataclasses import replace
 
-    from exobench.benchmarks.tracks.office_common import points_world, sweep_start_poses
+    from exobench.benchmarks.tracks.office_walks import points_world, sweep_start_poses
 
     sc, _, _, ep = run
     again = simulate_office(replace(sc, lidar_truth="labels"), SEED)

@@ -1,29 +1,15 @@
-"""Tracks of the benchmark, by name (string entry points; a track is imported on first use)."""
+"""The tracks of the benchmark: one folder per perception problem, found through a registry.
+
+- ``spec``: the :class:`~exobench.benchmarks.tracks.spec.Track` protocol and its records.
+- ``registry``: track names -> classes (built-ins and the ``exobench.tracks`` entry points);
+  :func:`get_track` and :func:`track_names` are re-exported here.
+- ``stairs/``, ``locomotion/``, ``lidar_filter/``, ``odometry/``, ``loop_closure/``: the tracks.
+- ``office_walks``, ``lidar_trajectory``, ``office_recording``: what the three office LiDAR
+  tracks share (scenario helpers and per-point truth, scoring of a LiDAR trajectory, rerun views).
+"""
 
 from __future__ import annotations
 
-import functools
-from typing import Any
+from .registry import get_track, track_names
 
-TRACKS: dict[str, str] = {
-    "stairs": "exobench.benchmarks.tracks.stairs:StairsTrack",
-    "lidar-filter": "exobench.benchmarks.tracks.lidar_filter:LidarFilterTrack",
-    "odometry": "exobench.benchmarks.tracks.odometry:OdometryTrack",
-    "locomotion": "exobench.benchmarks.tracks.locomotion:LocomotionTrack",
-    "loop-closure": "exobench.benchmarks.tracks.loop_closure:LoopClosureTrack",
-}
-
-
-@functools.cache
-def get_track(name: str) -> Any:
-    """The track instance called ``name``; UnknownNameError lists the valid ones."""
-    from exobench.benchmarks.registry import load_entry_point
-    from exobench.core.errors import UnknownNameError
-
-    if name not in TRACKS:
-        raise UnknownNameError("track", name, TRACKS)
-    return load_entry_point(TRACKS[name])()
-
-
-def track_names() -> list[str]:
-    return sorted(TRACKS)
+__all__ = ["get_track", "track_names"]

@@ -1,14 +1,18 @@
-"""What a track is: scenario grids, simulation, scoring and the published figures.
+"""What a track is: the :class:`Track` protocol and the records it hands the harness.
 
-A track is one perception problem of the source papers (see TRACKS.md). The runner knows only
-this protocol; everything specific to a problem (which parameters a scenario has, how an
-estimate is scored, what the paper reported) lives in the track's module.
+A track is one perception problem of the source papers (see TRACKS.md) and lives in its own
+folder, ``benchmarks/tracks/<name>/``: ``track.py`` (the class below: scenario type and how to
+simulate it, the streams its pipelines receive, the scorer, the published references, summary
+rows, timing metrics, suites and cases), ``metrics.py`` (pure scoring functions), ``report.py``
+(its report sections and figures) and, where it has one, ``recording.py`` (its rerun recording).
+The runner, the report writer and the command line know only this protocol; tracks are found
+through :mod:`exobench.benchmarks.tracks.registry`.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
@@ -32,6 +36,20 @@ class ParamInfo:
         if self.low is None and self.high is None:
             return ""
         return f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}]"
+
+
+def param_infos(table: Mapping[str, Any]) -> list[ParamInfo]:
+    """Rows of a scenario parameter table (name -> a row with ``default``, ``low``, ``high``,
+    ``unit``, ``doc`` and optionally ``low_open``, such as ``ParamSpec``) as :class:`ParamInfo`,
+    in the table's order; :class:`ParamInfo` rows are kept as they are."""
+    out = []
+    for name, row in table.items():
+        if isinstance(row, ParamInfo):
+            out.append(row)
+        else:
+            low_open = bool(getattr(row, "low_open", False))
+            out.append(ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, low_open))
+    return out
 
 
 @dataclass(frozen=True)
@@ -111,6 +129,11 @@ class Track(Protocol):
     name: ClassVar[str]
     suites: ClassVar[tuple[str, ...]]
     default_suite: ClassVar[str]
+    streams: ClassVar[tuple[str, ...]]
+    """Frame kinds its episodes carry (keys of ``exobench.core.frames.FRAME_TYPES``)."""
+    timing_metrics: ClassVar[frozenset[str]]
+    """Metric keys that are wall-clock timings: the only ones allowed to differ between two runs
+    of the same plan."""
 
     def params(self) -> list[ParamInfo]:
         """The scenario parameters with default, range, unit and doc."""
@@ -151,11 +174,3 @@ class Track(Protocol):
         """Write a rerun recording (``.rrd``) of the episode and the estimates (a final estimate,
         or a time series ``[(stamp_s, estimate), ...]`` per pipeline); returns the path."""
 
-
-@dataclass
-class TrackInfo:
-    """Static listing for `exobench list`."""
-
-    name: str
-    suites: tuple[str, ...]
-    params: list[ParamInfo] = field(default_factory=list)

@@ -1,7 +1,7 @@
 """Report sections of the locomotion track: Table III and Table II beside ours, confusion
 matrices, anticipation, and the mode timelines of the figure cases.
 
-Everything is computed from the run's records (``metrics`` of :mod:`locomotion_metrics`) and the
+Everything is computed from the run's records (``metrics`` of :mod:`.metrics`) and the
 figure arrays the runner saved (:func:`timeline_data`), so a report can be rewritten from any
 finished or partial run folder. Accuracies are pooled as in the paper: mean ± std over episodes.
 """
@@ -18,8 +18,9 @@ import numpy as np
 from exobench.core.episode import Episode
 from exobench.core.estimates import LOCOMOTION_MODES, LocomotionEstimate
 
-from .locomotion_metrics import MODE_INDEX, TRANSITION_TYPES, sorted_predictions
-from .locomotion_paper import (
+from ...plots import pyplot
+from .metrics import MODE_INDEX, TRANSITION_TYPES, sorted_predictions
+from .paper import (
     HEIGHT_GROUPS,
     MOUNTS,
     PATTERNS,
@@ -30,15 +31,6 @@ from .locomotion_paper import (
 )
 
 DASH = "–"
-
-
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _values(records: Sequence[dict[str, Any]], key: str) -> np.ndarray:
@@ -154,7 +146,7 @@ def pooled_confusion(records: Sequence[dict[str, Any]], pipeline: str) -> np.nda
 
 def plot_confusion(records: Sequence[dict[str, Any]], pipelines: Sequence[str], path: Path) -> Path:
     """Row-normalised confusion matrices (%, counts in brackets), one panel per pipeline (as Fig. 4(a))."""
-    plt = _pyplot()
+    plt = pyplot()
     n = max(1, len(pipelines))
     fig, axes = plt.subplots(1, n, figsize=(4.4 * n, 4.0), squeeze=False)
     for ax, p in zip(axes[0], pipelines, strict=False):
@@ -194,7 +186,7 @@ def anticipations(records: Sequence[dict[str, Any]], pipeline: str) -> dict[str,
 
 def plot_anticipation(records: Sequence[dict[str, Any]], pipelines: Sequence[str], path: Path) -> Path:
     """Box plots (with the points) of the anticipation per transition type, one panel per pipeline."""
-    plt = _pyplot()
+    plt = pyplot()
     n = max(1, len(pipelines))
     fig, axes = plt.subplots(1, n, figsize=(4.6 * n, 3.4), squeeze=False, sharey=True)
     for ax, p in zip(axes[0], pipelines, strict=False):
@@ -251,7 +243,7 @@ def timeline_data(episode: Episode, estimates: dict[str, Any]) -> dict[str, np.n
 
 def plot_timeline(data: dict[str, np.ndarray], path: Path, title: str = "") -> Path:
     """True mode of each step (from its liftoff) and the predicted mode over time, per pipeline."""
-    plt = _pyplot()
+    plt = pyplot()
     names = [str(n) for n in np.atleast_1d(data["pipelines"])]
     fig, axes = plt.subplots(max(1, len(names)), 1, figsize=(9, 1.9 * max(1, len(names)) + 0.6), squeeze=False, sharex=True)
     lift, strike, mode = data["step_liftoff_s"], data["step_strike_s"], data["step_mode"]

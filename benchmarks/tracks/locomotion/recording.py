@@ -35,7 +35,7 @@ from exobench.core.episode import Episode
 from exobench.core.estimates import LocomotionEstimate, ModePrediction
 from exobench.core.frames import OdometrySample, RgbdFrame
 
-from .locomotion_metrics import MODE_INDEX
+from .metrics import MODE_INDEX
 
 IMAGE_EVERY_S = 0.2
 TSDF_EVERY_S = 1.0

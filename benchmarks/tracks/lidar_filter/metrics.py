@@ -1,6 +1,6 @@
 """Scoring of a :class:`FilterEstimate` against the true kind of every LiDAR point (lidar-filter track).
 
-Per point the truth (:func:`office_common.point_classes`) says genuine (a real surface on the
+Per point the truth (:func:`..office_walks.point_classes`) says genuine (a real surface on the
 straight ray, also through glass), glass (the pane's own weak reflection) or ghost (a surface
 seen in a mirror or pane, reported along the original ray), and whether a genuine point lies on
 a ground surface (SceneTruth kinds ``ground``, ``tread``, ``landing``, ``ramp``). Pooled over
@@ -15,7 +15,7 @@ all scans of the episode:
 - ``time_per_scan_ms``: median compute time per scan.
 
 Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
-:mod:`odometry_metrics` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
+:func:`..lidar_trajectory.score_trajectory` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
 ``odom_tve_{x,y,z}_m``, ``odom_ate_m``, ``odom_rpe_m``, ...).
 """
 
@@ -30,8 +30,8 @@ import numpy as np
 from exobench.core.episode import Episode
 from exobench.core.estimates import FilterEstimate
 
-from .. import trajectory as tj
-from .office_common import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
+from ... import trajectory as tj
+from ..office_walks import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
 
 COUNT_KEYS = ("n_points", "n_glass", "n_ghost", "n_ground", "bad_masks")
 FRACTION_KEYS = ("spurious_removed_frac", "ground_kept_frac", "glass_removed_frac", "ghost_removed_frac",
@@ -89,7 +89,7 @@ def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tup
     metrics, the :class:`TrajectoryEstimate`)."""
     from exobench.mapping.kiss_icp_pipeline import run_kiss_icp
 
-    from .odometry_metrics import score_trajectory
+    from ..lidar_trajectory import score_trajectory
 
     scans = [s for s, _ in lidar_pairs(episode)]
     est = run_kiss_icp(scans, keep)

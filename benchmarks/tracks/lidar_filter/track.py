@@ -1,11 +1,11 @@
-"""The lidar-filter track: ground-aware intensity filtering of office LiDAR scans (seeds/003 4.2.2, 5.2.2).
+"""The lidar-filter track's spec: ground-aware intensity filtering of office LiDAR scans (seeds/003 4.2.2, 5.2.2).
 
 The office (:mod:`exobench.envs.office_sim`) has glass panes and reflective floors that return
 spurious points (the panes' own weak reflections, ghosts seen in mirrors and panes); its
 real floor returns are weak at grazing incidence. Each pipeline (``filter-none``,
 ``filter-threshold``, ``filter-naive-ground``, ``filter-normal-ground`` of the thesis, and our
 ``filter-floor-ground``) returns a keep mask per
-scan, scored point by point against the truth (:mod:`lidar_filter_metrics`: spurious points
+scan, scored point by point against the truth (:mod:`.metrics`: spurious points
 removed, ground points kept, per kind, time per scan) and, where the scenario asks for it
 (``score_odometry``, on in the paper and full suites), through KISS-ICP odometry on the kept
 points as Table 5.4 does (loop TE/OE/TVE, ATE).
@@ -24,21 +24,20 @@ sweeps) fits in about 3 GB; the full office ``loop`` route (~380 s, two laps) is
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
-
-import numpy as np
 
 from exobench.core.episode import Episode
 from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import FilterEstimate
 
-from .base import Case, ParamInfo, Reference, SummaryRow
-from .lidar_filter_metrics import failure_metrics, score_filter
-from .odometry import replace_scenario, trajectory_figure_data, trajectory_sections, write_lidar_recording
-from .office_common import office_params, simulate_office_episode, validate_office_scenario
+from ..lidar_trajectory import trajectory_figure_data, trajectory_sections
+from ..office_recording import write_lidar_recording
+from ..office_walks import office_params, replace_scenario, simulate_office_episode, validate_office_scenario
+from ..spec import Case, ParamInfo, Reference, SummaryRow
+from .metrics import failure_metrics, score_filter
+from .paper import published_references
 
 
 def _extra() -> dict[str, Any]:
@@ -60,15 +59,6 @@ FULL_VARIANTS = {
     "ouster64": {"lidar": "ouster64"},
     "noise-off": {"lidar_noise_m": 0.0},
 }
-# Table 5.4, KISS-ICP: filtering mode -> (TE m, OE rad, TVE x, y, z m). The thesis ran the naive
-# ground-aware filter only ("the alternative solution proved unusable").
-TABLE_5_4 = {
-    "filter-none": (22.529, 0.270, 18.848, 12.129, 2.298),
-    "filter-threshold": (2.585, 0.100, 0.278, 1.152, 2.297),
-    "filter-naive-ground": (1.112, 0.075, 0.478, 0.986, 0.187),
-}
-TABLE_KEYS = ("odom_te_m", "odom_oe_rad", "odom_tve_x_m", "odom_tve_y_m", "odom_tve_z_m")
-
 SUMMARY_ROWS = [
     SummaryRow("spurious_removed_frac", "spurious removed (%)", scale=100, digits=1),
     SummaryRow("ground_kept_frac", "ground kept (%)", scale=100, digits=1),
@@ -90,21 +80,14 @@ SUMMARY_ROWS = [
 ]
 
 
-def published_references() -> list[Reference]:
-    refs = []
-    src = "Tab. 5.4, KISS-ICP, B1 + VLP-16 indoor"
-    for pipe, values in TABLE_5_4.items():
-        for key, v in zip(TABLE_KEYS, values, strict=True):
-            refs.append(Reference(key, f"{v:g}", src, (), (pipe,), value=v))
-    return refs
-
-
 class LidarFilterTrack:
     """Track protocol implementation for the intensity filters (see module docstring)."""
 
     name: ClassVar[str] = "lidar-filter"
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
+    streams: ClassVar[tuple[str, ...]] = ("lidar", "imu", "joints", "contact")
+    timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_scan_ms", "odom_time_per_scan_ms"})
     report_intro = (
         "Published figures (Tab. 5.4 of seeds/003) come from a Unitree B1 with a VLP-16 in a real glass-walled "
         "office, scored by loop closure error only; ours from the simulated exoskeleton office walk."
@@ -170,38 +153,10 @@ class LidarFilterTrack:
         return trajectory_figure_data(episode, self._kiss_trajectories(estimates))
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
+        from .report import filter_table
+
         return filter_table(records, pipelines) + trajectory_sections(out)
 
     def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
         extra = self._kiss_trajectories(estimates_by_pipeline) if self._episode_id == id(episode) else {}
         return write_lidar_recording(episode, {**estimates_by_pipeline, **extra}, path)
-
-
-def _rmse(values: list[float]) -> float:
-    v = np.array([x for x in values if x is not None and not (isinstance(x, float) and math.isnan(x))], dtype=float)
-    return float(np.sqrt(np.mean(v**2))) if v.size else math.nan
-
-
-def filter_table(records: list[dict[str, Any]], pipelines: list[str]) -> list[str]:
-    """Table 5.4 layout: per filter the RMSE over episodes of KISS-ICP's loop TE, OE, TVE (x y z),
-    with the thesis' KISS-ICP row beside it, then the direct point scores (means)."""
-    lines = ["## Filters through KISS-ICP odometry (Table 5.4 layout)", "",
-             "RMSE over the episodes that returned to their start (the thesis: over its runs). Paper: KISS-ICP on a "
-             "Unitree B1 with a VLP-16 (only the naive ground-aware filter was run there).", "",
-             "| filter | TE (m) | OE (rad) | TVE x y z (m) | spurious removed (%) | ground kept (%) | time/scan (ms) "
-             "| paper TE / OE / TVE |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
-
-    def f(x: float, d: int) -> str:
-        return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{d}f}"
-
-    for p in pipelines:
-        rs = [r["metrics"] for r in records if r["pipeline"] == p and not r["metrics"].get("failed")]
-        te, oe, tx, ty, tz = (_rmse([m.get(k) for m in rs]) for k in TABLE_KEYS)
-        sp = np.nanmean([m.get("spurious_removed_frac", math.nan) for m in rs]) * 100 if rs else math.nan
-        gk = np.nanmean([m.get("ground_kept_frac", math.nan) for m in rs]) * 100 if rs else math.nan
-        tm = np.nanmedian([m.get("time_per_scan_ms", math.nan) for m in rs]) if rs else math.nan
-        ref = TABLE_5_4.get(p)
-        paper = f"{ref[0]:g} / {ref[1]:g} / {ref[2]:g} {ref[3]:g} {ref[4]:g}" if ref else "–"
-        lines.append(f"| {p} | {f(te, 3)} | {f(oe, 4)} | {f(tx, 3)} {f(ty, 3)} {f(tz, 3)} | {f(sp, 1)} | {f(gk, 1)} | "
-                     f"{f(tm, 2)} | {paper} |")  # fmt: skip
-    return lines + [""]

@@ -1,22 +1,24 @@
-"""Shared pieces of the LiDAR tracks that walk the office (lidar-filter, odometry, loop-closure).
+"""Office walks as the LiDAR tracks (lidar-filter, odometry, loop-closure) share them.
 
 - Scenario parameters: :func:`office_params` (the :data:`exobench.envs.office_sim.PARAMS` table
   as :class:`ParamInfo` rows, plus a track's own extra rows), :func:`validate_office_scenario`
-  (typed values; the track's extra keys validated by the same ``ParamSpec`` rules) and
-  :func:`simulate_office_episode` (drops the extra keys, runs ``simulate_office``).
+  (typed values; the track's extra keys validated by the same ``ParamSpec`` rules),
+  :func:`simulate_office_episode` (drops the extra keys, runs ``simulate_office``) and
+  :func:`replace_scenario` (adds a track's own keys back to the episode's scenario record).
 - Ground truth per LiDAR point: :func:`lidar_pairs` (scans with their ``LidarTruth``),
   :func:`point_classes` (genuine / glass / ghost codes and whether the true surface is ground),
   :func:`points_world` (each measured point in the world: the true ray origin and direction of
-  its firing, at the measured range, so motion distortion is shown as the sensor saw it).
-- Rerun helpers (rerun imported by the caller and passed in as ``rr``): :func:`log_office_world`
-  (true surfaces as static meshes coloured by kind), :func:`log_scans` (every ``every``-th scan
-  in the world, coloured by intensity and by true return kind, optional keep masks per
-  pipeline), :func:`log_trajectory` (a line strip of positions), :func:`kind_colors`.
+  its firing, at the measured range, so motion distortion is shown as the sensor saw it),
+  :func:`sweep_start_poses`.
+
+Their rerun views are in :mod:`.office_recording`, the scoring of a LiDAR trajectory in
+:mod:`.lidar_trajectory`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import dataclasses
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -25,27 +27,18 @@ from exobench.core.episode import Episode
 from exobench.core.errors import UnknownNameError
 from exobench.core.frames import LidarScan
 
-from .base import ParamInfo
+from .spec import ParamInfo, param_infos
 
 GROUND_KINDS = ("ground", "tread", "landing", "ramp")  # surfaces a walker stands on (SceneTruth kinds)
 KIND_NAMES = ("genuine", "glass", "ghost")  # class of a point: ReturnKind GENUINE/THROUGH_GLASS, GLASS, GHOST
 GENUINE, GLASS, GHOST = 0, 1, 2
-KIND_RGB = {GENUINE: (170, 170, 170), GLASS: (60, 160, 255), GHOST: (255, 60, 200)}
-SURFACE_RGB = {
-    "ground": (130, 130, 130), "ceiling": (200, 200, 220), "wall": (210, 200, 180), "glass": (90, 170, 255),
-    "door": (160, 110, 70), "frame": (90, 90, 90), "furniture": (120, 170, 110),
-}  # fmt: skip
-
-
-def _info(name: str, spec: Any) -> ParamInfo:
-    return ParamInfo(name, spec.default, spec.low, spec.high, spec.unit, spec.doc, bool(getattr(spec, "low_open", False)))
 
 
 def office_params(extra: Mapping[str, Any] | None = None) -> list[ParamInfo]:
     """Rows of the office scenario table, then ``extra`` (name -> ``ParamSpec``) of a track."""
     from exobench.envs.office_sim import PARAMS
 
-    return [_info(k, v) for k, v in {**PARAMS, **dict(extra or {})}.items()]
+    return param_infos({**PARAMS, **dict(extra or {})})
 
 
 def validate_office_scenario(values: Mapping[str, Any], extra: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -86,6 +79,11 @@ def simulate_office_episode(scenario: Mapping[str, Any], seed: int, extra: Mappi
 
     office = {k: v for k, v in scenario.items() if k not in dict(extra or {})}
     return simulate_office(OfficeScenario.from_dict(office), seed)
+
+
+def replace_scenario(episode: Episode, extra: Mapping[str, Any]) -> Episode:
+    """The episode with ``extra`` keys added to its scenario record."""
+    return dataclasses.replace(episode, scenario={**episode.scenario, **dict(extra)})
 
 
 # ------------------------------------------------------------------------- truth per point
@@ -142,79 +140,3 @@ def sweep_start_poses(episode: Episode) -> dict[float, np.ndarray]:
     return {
         round(float(r[0]), 9): make_T(quat_wxyz_to_matrix(r[4:8]), r[1:4]) for r in np.asarray(episode.truth.trajectory_w)
     }
-
-
-# ------------------------------------------------------------------------- rerun helpers
-
-
-def kind_colors(cls: np.ndarray) -> np.ndarray:
-    """RGB (N, 3) u8 of point classes (genuine grey, glass blue, ghost magenta)."""
-    lut = np.array([KIND_RGB[GENUINE], KIND_RGB[GLASS], KIND_RGB[GHOST]], dtype=np.uint8)
-    return lut[np.clip(np.asarray(cls, dtype=int), 0, 2)]
-
-
-def intensity_colors(intensity: np.ndarray) -> np.ndarray:
-    """RGB (N, 3) u8 of intensity bytes, 0..100 blue to red (above 100: white)."""
-    v = np.clip(np.asarray(intensity, dtype=float) / 100.0, 0.0, 1.0)
-    rgb = np.stack([255 * v, 255 * (1 - np.abs(2 * v - 1)), 255 * (1 - v)], axis=1)
-    rgb[np.asarray(intensity) > 100] = 255
-    return rgb.astype(np.uint8)
-
-
-def _fan(n: int) -> np.ndarray:
-    return np.array([[0, i, i + 1] for i in range(1, n - 1)], dtype=np.uint32)
-
-
-def log_office_world(rr: Any, rec: Any, episode: Episode, root: str = "world/surfaces") -> None:
-    """The true planar surfaces (static meshes, coloured by kind; ceilings left out)."""
-    for s in episode.truth.scene.surfaces:
-        poly = np.asarray(s.polygon_w, dtype=float)
-        if len(poly) < 3 or s.kind == "ceiling":
-            continue
-        alpha = 90 if s.kind == "glass" else 255
-        rec.log(
-            f"{root}/{s.kind}/S{s.surface_id}",
-            rr.Mesh3D(vertex_positions=poly, triangle_indices=_fan(len(poly)), albedo_factor=(*SURFACE_RGB.get(s.kind, (180, 180, 180)), alpha)),
-            static=True,
-        )
-
-
-def log_scans(
-    rr: Any,
-    rec: Any,
-    episode: Episode,
-    *,
-    every: int = 1,
-    masks: Mapping[str, Sequence[np.ndarray]] | None = None,
-    root: str = "world/lidar",
-    radius_m: float = 0.015,
-    stride: int = 1,
-) -> None:
-    """Every ``every``-th scan in the world at its stamp: ``{root}/by_intensity``, ``{root}/by_kind``
-    and, per pipeline of ``masks`` (keep masks per scan, in scan order), ``{root}/kept/{name}``;
-    every ``stride``-th point of a scan (glass and ghost points always)."""
-    pairs = lidar_pairs(episode)
-    starts = sweep_start_poses(episode)
-    masks = dict(masks or {})
-    for i, (scan, truth) in enumerate(pairs):
-        if i % max(1, every):
-            continue
-        rec.set_time("sim_time", duration=float(scan.stamp_s))
-        p_w = points_world(scan, truth, starts.get(round(float(scan.sweep_start_s), 9)))
-        cls, _ = point_classes(episode, truth)
-        sel = (np.arange(len(p_w)) % max(1, stride) == 0) | (cls != GENUINE)
-        psi = np.asarray(scan.intensity)
-        rec.log(f"{root}/by_intensity", rr.Points3D(p_w[sel], colors=intensity_colors(psi[sel]), radii=radius_m))
-        rec.log(f"{root}/by_kind", rr.Points3D(p_w[sel], colors=kind_colors(cls[sel]), radii=radius_m))
-        for name, per_scan in masks.items():
-            if i < len(per_scan) and len(per_scan[i]) == len(p_w):
-                keep = np.asarray(per_scan[i], dtype=bool) & sel
-                rec.log(f"{root}/kept/{name}", rr.Points3D(p_w[keep], colors=kind_colors(cls[keep]), radii=radius_m))
-
-
-def log_trajectory(rr: Any, rec: Any, path: str, positions_xyz: np.ndarray, rgb: tuple[int, int, int]) -> None:
-    """A static line strip through ``positions_xyz`` (N, 3)."""
-    p = np.asarray(positions_xyz, dtype=float).reshape(-1, 3)
-    p = p[np.all(np.isfinite(p), axis=1)]
-    if len(p) > 1:
-        rec.log(path, rr.LineStrips3D([p], colors=[rgb], radii=0.02), static=True)

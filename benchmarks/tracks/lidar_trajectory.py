@@ -1,4 +1,8 @@
-"""Scoring of a :class:`TrajectoryEstimate` against the true LiDAR trajectory (odometry track).
+"""A LiDAR trajectory of an office walk against the truth: its metrics, figure data and report section.
+
+Shared by the odometry track (which scores its pipelines' :class:`TrajectoryEstimate` with
+:func:`score_trajectory`) and the lidar-filter track (which scores KISS-ICP on each filter's kept
+points the same way).
 
 The reference is the true LiDAR pose at each estimate stamp, interpolated (linear position,
 slerp rotation) in the truth's LiDAR track: ``EpisodeTruth.trajectory_w`` (pose at each sweep
@@ -20,11 +24,17 @@ Metrics (:mod:`exobench.benchmarks.trajectory`, as evo computes them):
   and this is the thesis' TE/OE/TVE of the estimate alone;
 - ``time_per_scan_ms`` (median), ``failures`` (poses whose status is not ``"ok"``),
   ``n_poses``, ``path_m`` (true path length), ``loop_edges``.
+
+For the report: :func:`trajectory_figure_data` (the arrays the runner saves per figure case),
+:func:`alignment` (the SE(3) fit the ATE uses) and :func:`trajectory_sections` (top views and
+TUM/KITTI files).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -125,3 +135,82 @@ def score_trajectory(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any
         return out
     except Exception as e:  # a scorer never raises on an estimate
         return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")
+
+
+# ------------------------------------------------------------------ figures and files
+
+
+def trajectory_figure_data(episode: Episode, estimates: Mapping[str, Any]) -> dict[str, Any]:
+    """Arrays of the top-view figure and the trajectory files: truth and each estimate."""
+    track = true_track(episode)
+    data: dict[str, Any] = {"truth": track}
+    for name, est in estimates.items():
+        if isinstance(est, TrajectoryEstimate) and len(est.stamps_s):
+            data[f"est_stamps__{name}"] = np.asarray(est.stamps_s, dtype=float)
+            data[f"est_poses__{name}"] = np.asarray(est.T_world_sensor, dtype=float).reshape(-1, 4, 4)
+    return data
+
+
+def alignment(truth: np.ndarray, stamps: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R, t) of the SE(3) Umeyama fit of the estimated positions onto the true ones (as the ATE);
+    identity when fewer than 3 poses fall inside the truth."""
+    inside, Q = interpolate_poses(truth, stamps)
+    P = poses[inside]
+    ok = np.all(np.isfinite(P.reshape(len(P), -1)), axis=1)
+    if ok.sum() < 3:
+        return np.eye(3), np.zeros(3)
+    R, t, _ = tj.umeyama_alignment(P[ok, :3, 3], Q[ok, :3, 3])
+    return R, t
+
+
+def aligned_positions(truth: np.ndarray, stamps: np.ndarray, poses: np.ndarray) -> np.ndarray:
+    """Estimated positions moved onto the truth by :func:`alignment`, (N, 3)."""
+    R, t = alignment(truth, stamps, poses)
+    return poses[:, :3, 3] @ R.T + t
+
+
+def trajectory_sections(out: Path) -> list[str]:
+    """Top views (estimate aligned as for the ATE, vs truth) and TUM/KITTI files per case."""
+    from ..plots import pyplot
+
+    folder = out / "figures"
+    files = []
+    for f in sorted(folder.glob("*.npz")) if folder.exists() else []:
+        with np.load(f) as z:
+            if "truth" in z.files and any(k.startswith("est_poses__") for k in z.files):
+                files.append(f)
+    if not files:
+        return []
+    traj_dir = out / "trajectories"
+    traj_dir.mkdir(exist_ok=True)
+    lines = ["## Trajectories (top view, estimates SE(3)-aligned to the truth)", "",
+             "TUM (`t x y z qx qy qz qw`) and KITTI (3x4 per line) files of every estimate and of the truth are in "
+             "`trajectories/`.", ""]  # fmt: skip
+    plt = pyplot()
+    for f in files:
+        key = f.stem
+        with np.load(f) as z:
+            data = dict(z)
+        truth = data["truth"]
+        ref = tj.Trajectory(truth[:, 0], truth[:, 1:4], truth[:, 4:8])
+        tj.write_tum(ref, traj_dir / f"{key}__truth.tum")
+        tj.write_kitti(ref, traj_dir / f"{key}__truth.kitti")
+        fig, ax = plt.subplots(figsize=(7, 5))
+        ax.plot(truth[:, 1], truth[:, 2], "k-", lw=2, label="truth")
+        for name in sorted(k.split("__", 1)[1] for k in data if k.startswith("est_poses__")):
+            stamps, poses = data[f"est_stamps__{name}"], data[f"est_poses__{name}"]
+            est = tj.Trajectory.from_poses(stamps, poses)
+            tj.write_tum(est, traj_dir / f"{key}__{name}.tum")
+            tj.write_kitti(est, traj_dir / f"{key}__{name}.kitti")
+            p = aligned_positions(truth, stamps, poses)
+            ax.plot(p[:, 0], p[:, 1], "-", lw=1.2, label=name)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.legend(fontsize=8)
+        ax.set_title(key.replace("__", "/"))
+        png = folder / f"{key}_top.png"
+        fig.savefig(png, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        lines += [f"### {key.replace('__', '/')}", "", f"![{key}](figures/{png.name})", ""]
+    return lines

@@ -1,9 +1,9 @@
-"""The locomotion track: locomotion-mode prediction from terrain reconstruction (seeds/002, Sec. III-IV).
+"""The locomotion track's spec: locomotion-mode prediction from terrain reconstruction (seeds/002, Sec. III-IV).
 
 A walker with an RGB-D camera (head, chest or thigh), its IMU, insoles and odometry walks a
 course (:mod:`exobench.envs.locomotion_sim`): stairs LG -> SA -> LG -> SD -> LG, ramps
 LG -> RA -> LG -> RD -> LG, or a stair lane beside a ramp lane. Pipelines predict the mode of each
-next step; :mod:`locomotion_metrics` scores the mode in effect at each step's liftoff.
+next step; :mod:`.metrics` scores the mode in effect at each step's liftoff.
 
 Suites (cases are deterministic; the run seed drives every random stream of the simulation; the
 paper repeated each experiment three times: ``--seeds 3``):
@@ -43,14 +43,14 @@ from exobench.core.episode import Episode
 from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import LOCOMOTION_MODES, LocomotionEstimate
 
-from .base import Case, ParamInfo, Reference, SummaryRow
-from .locomotion_metrics import TRANSITION_TYPES, failure_metrics, score_predictions
-from .locomotion_paper import HEIGHT_GROUPS, MOUNTS, PATTERNS, TERRAIN_LEVELS, published_references
+from ..spec import Case, ParamInfo, Reference, SummaryRow, param_infos
+from .metrics import TRANSITION_TYPES, failure_metrics, score_predictions
+from .paper import HEIGHT_GROUPS, MOUNTS, PATTERNS, TERRAIN_LEVELS, published_references
 
 HEIGHTS_M = tuple(h for _, h in HEIGHT_GROUPS)
 MIDDLE_HEIGHT_M = 1.75
 # level approach before the first transition (and exit after the last): the scoring's warm-up
-# (locomotion_metrics.WARMUP_STEPS = 3 heel strikes, eq. 17) must end on level ground, so the
+# (metrics.WARMUP_STEPS = 3 heel strikes, eq. 17) must end on level ground, so the
 # walker starts at least three of the longest steps (jog, 1.88 m user: 0.48 m) before the terrain
 APPROACH_M = 2.2
 QUICK_COURSE: dict[str, Any] = {"n_steps": 3, "approach_m": 2.0, "landing_m": 1.2, "ramp_length_m": 1.5, "rate_hz": 10.0}
@@ -201,22 +201,19 @@ def _nearest(sorted_s: np.ndarray, t_s: np.ndarray) -> np.ndarray:
     return np.where((k > 0) & (np.abs(sorted_s[k - 1] - t_s) <= np.abs(sorted_s[k] - t_s)), k - 1, k)
 
 
-def _param_info(name: str, row: Any) -> ParamInfo:
-    low_open = bool(getattr(row, "low_open", False))
-    return ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, low_open)
-
-
 class LocomotionTrack:
     """Track protocol implementation for locomotion-mode prediction (see module docstring)."""
 
     name: ClassVar[str] = "locomotion"
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
+    streams: ClassVar[tuple[str, ...]] = ("rgbd", "imu", "contact", "odometry")
+    timing_metrics: ClassVar[frozenset[str]] = frozenset({"latency_ms_median", "latency_ms_p95"})
 
     def params(self) -> list[ParamInfo]:
         from exobench.envs.locomotion_sim import PARAMS
 
-        return [_param_info(k, v) for k, v in PARAMS.items()]
+        return param_infos(PARAMS)
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
         from exobench.envs.locomotion_sim import LocomotionScenario
@@ -253,12 +250,12 @@ class LocomotionTrack:
         return list(SUMMARY_ROWS)
 
     def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
-        from .locomotion_report import timeline_data
+        from .report import timeline_data
 
         return timeline_data(episode, estimates)
 
     def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
-        from .locomotion_recording import write_recording
+        from .recording import write_recording
 
         return write_recording(episode, estimates_by_pipeline, path)
 
@@ -269,6 +266,6 @@ class LocomotionTrack:
     )
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
-        from .locomotion_report import report_sections
+        from .report import report_sections
 
         return report_sections(records, pipelines, out)

@@ -1,4 +1,4 @@
-"""The stairs track: staircase identification from calf ToF rays (seeds/004, Sec. V).
+"""The stairs track's spec: staircase identification from calf ToF rays (seeds/004, Sec. V).
 
 Suites (cases are deterministic; the run seed only drives the sensor noise):
 
@@ -10,7 +10,8 @@ Suites (cases are deterministic; the run seed only drives the sensor noise):
 - ``full``: the paper grid, the same grid with every sensor noise off, and cases A, B, C for
   users of 1.60 m and 1.90 m.
 
-Scoring is in :mod:`stairs_metrics`; the published figures below are printed beside ours.
+Scoring is in :mod:`.metrics`, the report's figures in :mod:`.report`, the rerun recording in
+:mod:`.recording`; the published figures below are printed beside ours.
 """
 
 from __future__ import annotations
@@ -26,9 +27,9 @@ from exobench.core.episode import Episode
 from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import StaircaseEstimate
 
-from .base import Case, ParamInfo, Reference, SummaryRow
-from .stairs_figure import side_view_data
-from .stairs_metrics import failure_metrics, score_staircase
+from ..spec import Case, ParamInfo, Reference, SummaryRow, param_infos
+from .metrics import failure_metrics, score_staircase
+from .report import side_view_data
 
 POSE_SEED = 4  # the paper is seeds/004
 POSES_PER_STAIRCASE = 20
@@ -151,23 +152,19 @@ SUMMARY_ROWS = [
 ]
 
 
-def _param_info(name: str, row: Any) -> ParamInfo:
-    if isinstance(row, ParamInfo):
-        return row
-    return ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, bool(getattr(row, "low_open", False)))
-
-
 class StairsTrack:
     """Track protocol implementation for staircase identification (see module docstring)."""
 
     name: ClassVar[str] = "stairs"
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
+    streams: ClassVar[tuple[str, ...]] = ("tof", "imu", "joints", "contact")
+    timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_point_us"})
 
     def params(self) -> list[ParamInfo]:
         from exobench.envs.scenarios import PARAMS
 
-        return [_param_info(k, v) for k, v in PARAMS.items()]
+        return param_infos(PARAMS)
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
         from exobench.envs.scenarios import StairScenario
@@ -220,7 +217,7 @@ class StairsTrack:
         return side_view_data(episode, estimates)
 
     def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
-        from exobench.benchmarks.rerun_bridge import write_recording
+        from .recording import write_recording
 
         return write_recording(episode, estimates_by_pipeline, path)
 
@@ -228,16 +225,6 @@ class StairsTrack:
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
         """Error distributions and the side views of the figure cases (as Fig. 4 of the paper)."""
-        from exobench.benchmarks.plots import plot_distributions, plot_side_view
+        from .report import report_sections
 
-        plot_distributions(records, pipelines, out / "errors.png")
-        lines = ["## Error distributions", "", "![error distributions](errors.png)", ""]
-        figures = sorted((out / "figures").glob("*.npz")) if (out / "figures").exists() else []
-        if figures:
-            lines += ["## Side views (as Fig. 4 of the paper)", ""]
-            for f in figures:
-                key = f.stem.replace("__", "/")
-                with np.load(f) as data:
-                    png = plot_side_view(dict(data), f.with_suffix(".png"), title=key)
-                lines += [f"### {key}", "", f"![{key}](figures/{png.name})", ""]
-        return lines
+        return report_sections(records, pipelines, out)

@@ -20,23 +20,36 @@ Pure functions over arrays, so each can be checked against a hand-computed case:
 - :func:`max_recall_at_full_precision`, :func:`pr_auc` (area under the step-wise PR curve from
   recall 0: ``sum (R_n - R_(n-1)) P_n``, average precision as scikit-learn computes it),
   :func:`best_f1`.
+- :func:`score_place_recognition`: every metric of one estimate (the track's scorer) from the
+  above; :func:`failure_metrics` for a failed pipeline or simulation.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from exobench.core.episode import Episode
+from exobench.core.estimates import PlaceRecognitionEstimate
+
+REVISIT_M = 5.0  # a revisit: an earlier keyframe within this distance (the thesis' 5 m)
+EXCLUDE_RECENT_S = 20.0  # keyframes younger than this are no revisit (the thesis' xi, in time)
+
 __all__ = [
+    "EXCLUDE_RECENT_S",
     "PRCurve",
+    "REVISIT_M",
     "best_f1",
     "eligible_pairs",
+    "failure_metrics",
     "keyframe_poses",
     "max_recall_at_full_precision",
     "pr_auc",
     "pr_curve",
+    "score_place_recognition",
     "true_loops",
     "wrap_angle",
     "yaw_errors",
@@ -188,3 +201,53 @@ def yaw_errors(yaw_true: np.ndarray, match_index: np.ndarray, yaw_est: np.ndarra
     c = np.asarray(correct, dtype=bool).reshape(-1) & (m >= 0)
     k = np.flatnonzero(c)
     return np.abs(wrap_angle(np.asarray(yaw_est, dtype=float)[k] - (y[m[k]] - y[k])))
+
+
+def _nan_metrics() -> dict[str, Any]:
+    keys = ("max_recall_at_full_precision", "pr_auc", "best_f1", "tau_best_f1", "time_per_keyframe_ms",
+            "yaw_error_deg", "correct_match_fraction")  # fmt: skip
+    return {k: math.nan for k in keys}
+
+
+def failure_metrics(episode: Episode | None, reason: str) -> dict[str, Any]:
+    """Metrics of a failed pipeline or simulation."""
+    return {"failed": True, "failed_reason": reason, **_nan_metrics()}
+
+
+def score_place_recognition(episode: Episode, estimate: PlaceRecognitionEstimate) -> dict[str, Any]:
+    """Every metric of one estimate (see the module docstring); never raises on a bad estimate."""
+    sc = episode.scenario
+    revisit = float(sc.get("revisit_m", REVISIT_M))
+    exclude = float(sc.get("exclude_recent_s", EXCLUDE_RECENT_S))
+    stamps = np.asarray(estimate.stamps_s, dtype=float).reshape(-1)
+    K = len(stamps)
+    arrays = [np.asarray(a).reshape(-1) for a in (estimate.match_index, estimate.distance, estimate.yaw_rad, estimate.time_per_keyframe_s)]
+    if any(len(a) != K for a in arrays):
+        return failure_metrics(episode, "estimate arrays of different lengths")
+    match, dist, yaw_est, times = arrays
+    pos, yaw, found = keyframe_poses(episode.truth.trajectory_w, stamps)
+    if K and not np.all(found):
+        return failure_metrics(episode, f"{int(np.sum(~found))} keyframe stamps match no scan start")
+    curve = pr_curve(pos, stamps, match, dist, revisit_m=revisit, exclude_recent_s=exclude)
+    f1, tau = best_f1(curve)
+    yerr = yaw_errors(yaw, match, yaw_est, curve.correct)
+    has_loop = curve.n_loops
+    correct_frac = float(np.sum(curve.correct) / has_loop) if has_loop else math.nan
+    stats = estimate.stats or {}
+    return {
+        "failed": False,
+        "max_recall_at_full_precision": max_recall_at_full_precision(curve),
+        "pr_auc": pr_auc(curve),
+        "best_f1": f1,
+        "tau_best_f1": tau,
+        "time_per_keyframe_ms": float(np.mean(times) * 1000.0) if K else math.nan,
+        "n_keyframes": K,
+        "n_revisits": has_loop,
+        "n_detectable": curve.n_detectable,
+        "invalid_keyframes": int(stats.get("invalid_keyframes", int(np.sum(match < 0)))),
+        "correct_match_fraction": correct_frac,
+        "yaw_error_deg": float(np.degrees(np.median(yerr))) if len(yerr) else math.nan,
+        "pr_tau": np.round(curve.tau, 6).tolist(),
+        "pr_precision": np.round(curve.precision, 6).tolist(),
+        "pr_recall": np.round(curve.recall, 6).tolist(),
+    }

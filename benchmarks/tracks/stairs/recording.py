@@ -1,4 +1,4 @@
-"""Write an episode and its staircase estimates as a rerun recording (``.rrd``).
+"""The stairs track's rerun recording: an episode and its staircase estimates (``.rrd``).
 
 Open it with ``rerun FILE.rrd``. Entities (world frame, metres, timeline ``sim_time``):
 

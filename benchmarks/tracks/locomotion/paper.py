@@ -13,7 +13,7 @@ The figures come from real subjects and a real D455; they are printed beside our
 
 from __future__ import annotations
 
-from .base import Reference
+from ..spec import Reference
 
 # terrain levels of the generality test, in Table II's column order: (terrain, value, label)
 TERRAIN_LEVELS: tuple[tuple[str, float, str], ...] = (

@@ -1,0 +1,41 @@
+"""The lidar-filter track's report section: the filters through KISS-ICP in Table 5.4's layout
+(the trajectories' top views and files come from :func:`..lidar_trajectory.trajectory_sections`)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from .paper import TABLE_5_4, TABLE_KEYS
+
+
+def _rmse(values: list[float]) -> float:
+    v = np.array([x for x in values if x is not None and not (isinstance(x, float) and math.isnan(x))], dtype=float)
+    return float(np.sqrt(np.mean(v**2))) if v.size else math.nan
+
+
+def filter_table(records: list[dict[str, Any]], pipelines: list[str]) -> list[str]:
+    """Table 5.4 layout: per filter the RMSE over episodes of KISS-ICP's loop TE, OE, TVE (x y z),
+    with the thesis' KISS-ICP row beside it, then the direct point scores (means)."""
+    lines = ["## Filters through KISS-ICP odometry (Table 5.4 layout)", "",
+             "RMSE over the episodes that returned to their start (the thesis: over its runs). Paper: KISS-ICP on a "
+             "Unitree B1 with a VLP-16 (only the naive ground-aware filter was run there).", "",
+             "| filter | TE (m) | OE (rad) | TVE x y z (m) | spurious removed (%) | ground kept (%) | time/scan (ms) "
+             "| paper TE / OE / TVE |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+
+    def f(x: float, d: int) -> str:
+        return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{d}f}"
+
+    for p in pipelines:
+        rs = [r["metrics"] for r in records if r["pipeline"] == p and not r["metrics"].get("failed")]
+        te, oe, tx, ty, tz = (_rmse([m.get(k) for m in rs]) for k in TABLE_KEYS)
+        sp = np.nanmean([m.get("spurious_removed_frac", math.nan) for m in rs]) * 100 if rs else math.nan
+        gk = np.nanmean([m.get("ground_kept_frac", math.nan) for m in rs]) * 100 if rs else math.nan
+        tm = np.nanmedian([m.get("time_per_scan_ms", math.nan) for m in rs]) if rs else math.nan
+        ref = TABLE_5_4.get(p)
+        paper = f"{ref[0]:g} / {ref[1]:g} / {ref[2]:g} {ref[3]:g} {ref[4]:g}" if ref else "–"
+        lines.append(f"| {p} | {f(te, 3)} | {f(oe, 4)} | {f(tx, 3)} {f(ty, 3)} {f(tz, 3)} | {f(sp, 1)} | {f(gk, 1)} | "
+                     f"{f(tm, 2)} | {paper} |")  # fmt: skip
+    return lines + [""]
