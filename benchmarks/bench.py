@@ -9,7 +9,7 @@
 - :func:`bench_sim`: real-time factor of :func:`exobench.envs.sim.simulate_stairs` (simulated
   seconds per wall-clock second) with every sensor of the scenario on.
 - :func:`bench_lidar`: one full VLP-16 sweep of the default office from the exoskeleton's
-  ``lidar_trunk`` site, by exobench's :class:`exobench.envs.lidar.LidarSensor` (static, and
+  ``lidar_trunk`` site, by exobench's :class:`exobench.envs.sensors.lidar.LidarSensor` (static, and
   walking at 0.5 m/s) and by the ``mujoco-lidar`` package's CPU backend (``MjLidarCPU``) on the
   same model, pose and ray directions; throughput and the exobench / mujoco-lidar ratio come
   from the same run.
@@ -232,7 +232,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
     """
     import mujoco
 
-    from exobench.envs.lidar import LidarConfig, LidarSensor
+    from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
     from exobench.models.exo_spec import ExoSpec
     from exobench.models.office import build_office
     from exobench.models.worlds import compose
@@ -345,7 +345,7 @@ def _render_fps(terrain: str, seed: int, repeats: int, segmentation: bool = Fals
 
     from exobench.envs.locomotion_sim import LocomotionScenario
     from exobench.envs.locomotion_world import build_locomotion_world, compose_locomotion
-    from exobench.envs.rgbd import RgbdCamera, RgbdConfig
+    from exobench.envs.sensors.rgbd import RgbdCamera, RgbdConfig
 
     sc = LocomotionScenario.from_dict({"terrain": terrain, "width_px": 640, "height_px": 480})
     world, wps = build_locomotion_world(sc)

@@ -40,7 +40,17 @@ from .frames import (
     frame_kind,
 )
 from .pipeline import Pipeline, coerce_like, config_from_dict
-from .truth import SURFACE_KINDS, PlanarSurface, SceneTruth, StepTruth, ToFTruth, height_at
+from .truth import (
+    SURFACE_KINDS,
+    LidarTruth,
+    PlanarSurface,
+    ReturnKind,
+    SceneTruth,
+    StepTruth,
+    ToFTruth,
+    compact_truth,
+    height_at,
+)
 
 __all__ = [
     "Calibration",
@@ -62,12 +72,14 @@ __all__ = [
     "ImuSample",
     "JointState",
     "LidarScan",
+    "LidarTruth",
     "RgbdFrame",
     "Pipeline",
     "PlanarSurface",
     "PlaneEstimate",
     "PointAssignment",
     "RenderError",
+    "ReturnKind",
     "SURFACE_KINDS",
     "SceneTruth",
     "SensorMount",
@@ -81,6 +93,7 @@ __all__ = [
     "check_int",
     "check_range",
     "coerce_like",
+    "compact_truth",
     "config_from_dict",
     "frame_kind",
     "height_at",

@@ -9,7 +9,7 @@ import numpy as np
 
 from .calibration import Calibration
 from .frames import Frame
-from .truth import SceneTruth, StepTruth, ToFTruth
+from .truth import LidarTruth, SceneTruth, StepTruth, ToFTruth
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,8 +28,8 @@ class EpisodeTruth:
             ``[t, x, y, z, qw, qx, qy, qz]``.
         max_penetration_m: deepest foot-world penetration seen over the episode (0 if none).
         events: named times, s (e.g. ``"liftoff_s"``, ``"touchdown_s"``).
-        lidar: one truth per emitted LiDAR scan, in the same order as the LiDAR frames (the
-            simulator's ``LidarTruth`` objects; empty when the episode has no LiDAR).
+        lidar: one :class:`LidarTruth` per emitted LiDAR scan, in the same order as the LiDAR
+            frames (empty when the episode has no LiDAR).
         trajectory_w: LiDAR sensor pose at the start of each emitted scan, (N, 8) rows
             ``[t, x, y, z, qw, qx, qy, qz]`` (empty when the episode has no LiDAR).
         steps: every step of the walk with its locomotion mode (empty when not relevant).
@@ -45,7 +45,7 @@ class EpisodeTruth:
     body_tracks: dict[str, np.ndarray] = field(default_factory=dict)
     max_penetration_m: float = 0.0
     events: dict[str, float] = field(default_factory=dict)
-    lidar: tuple[Any, ...] = ()
+    lidar: tuple[LidarTruth, ...] = ()
     trajectory_w: np.ndarray = field(default_factory=lambda: np.zeros((0, 8)))
     steps: tuple[StepTruth, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import IntEnum
 from typing import Any
 
 import numpy as np
@@ -158,3 +159,77 @@ class StepTruth:
     footprint_w: np.ndarray
     terrain: str
     mode: str
+
+
+class ReturnKind(IntEnum):
+    """What produced a LiDAR point (ground truth)."""
+
+    GENUINE = 0  # a real surface on the straight ray
+    GLASS = 1  # the weak reflection of a glass pane itself
+    GHOST = 2  # a surface seen in a mirror / pane, reported along the original ray
+    THROUGH_GLASS = 3  # a real surface behind glass, on the straight ray (counts as genuine)
+
+
+@dataclass(frozen=True, eq=False)
+class LidarTruth:
+    """Ground truth of one :class:`~exobench.core.LidarScan`, point by point (same order, same length N).
+
+    Attributes:
+        stamp_s, sensor_id: as the scan.
+        true_range_m: noise-free distance along the original ray at which the point lies, m
+            (for a ghost the total reflected path length).
+        hit_w: the surface point that returned the light, world frame, (N, 3) (for a ghost the
+            real surface seen in the mirror, not where the point appears).
+        geom_id: MuJoCo geom of that surface, (N,).
+        surface_id: ``SceneTruth`` surface of that point, -1 if none, (N,).
+        material: material name of that surface, (N,) str.
+        kind: :class:`ReturnKind` code, (N,).
+        via_geom_id: the glass / mirror geom the beam crossed or bounced on, -1 if none, (N,).
+        signal: unclipped return strength on the intensity scale, (N,), with the path's energy
+            share (``G`` of :mod:`exobench.envs.sensors.lidar.optics`: ghosts keep the specular
+            fraction squared of their light, returns through glass the transmission squared).
+        origin_w / dir_w: the original ray in the world at its firing pose, (N, 3).
+    """
+
+    stamp_s: float
+    sensor_id: str
+    true_range_m: np.ndarray
+    hit_w: np.ndarray
+    geom_id: np.ndarray
+    surface_id: np.ndarray
+    material: np.ndarray
+    kind: np.ndarray
+    via_geom_id: np.ndarray
+    signal: np.ndarray
+    origin_w: np.ndarray
+    dir_w: np.ndarray
+
+    @property
+    def genuine(self) -> np.ndarray:
+        """Points on a real surface along the straight ray (directly or through glass)."""
+        return (self.kind == ReturnKind.GENUINE) | (self.kind == ReturnKind.THROUGH_GLASS)
+
+
+def compact_truth(t: LidarTruth) -> LidarTruth:
+    """The labels of a scan's truth without its per-point geometry, for long walks.
+
+    Keeps, per point, ``true_range_m`` and ``signal`` (float32), ``geom_id``, ``surface_id`` and
+    ``via_geom_id`` (int32) and ``kind`` (int8): about 21 bytes a point instead of ~170. ``hit_w``,
+    ``origin_w`` and ``dir_w`` become empty (0, 3) arrays and ``material`` an empty array (a
+    surface's material is ``SceneTruth.geom_materials`` of its geoms).
+    """
+    empty3 = np.zeros((0, 3), dtype=np.float32)
+    return LidarTruth(
+        stamp_s=t.stamp_s,
+        sensor_id=t.sensor_id,
+        true_range_m=np.asarray(t.true_range_m, dtype=np.float32),
+        hit_w=empty3,
+        geom_id=np.asarray(t.geom_id, dtype=np.int32),
+        surface_id=np.asarray(t.surface_id, dtype=np.int32),
+        material=np.zeros(0, dtype="<U1"),
+        kind=np.asarray(t.kind, dtype=np.int8),
+        via_geom_id=np.asarray(t.via_geom_id, dtype=np.int32),
+        signal=np.asarray(t.signal, dtype=np.float32),
+        origin_w=empty3,
+        dir_w=empty3.copy(),
+    )

@@ -56,13 +56,13 @@ walker, drifting across the lane, passing 1.2-2.5 m in front of it at a seeded t
 Frames (time-ordered; ties: IMU, contacts, odometry, camera):
 
 - ``rgbd_<m>`` :class:`~exobench.core.RgbdFrame` at ``rate_hz`` (``width_px`` x ``height_px``,
-  D455 intrinsics and noise of :mod:`exobench.envs.rgbd`), stamped at measurement time +
+  D455 intrinsics and noise of :mod:`exobench.envs.sensors.rgbd`), stamped at measurement time +
   ``latency_s``, lost with probability ``frame_dropout``; ``<m>`` is ``head``, ``chest`` or
   ``thigh_r`` (:func:`sensor_ids`);
 - ``imu_<m>`` :class:`~exobench.core.ImuSample` at ``imu_rate_hz`` from a site at the camera's
   optical frame (the D455's BMI055, SENSORS.md noise x ``imu_noise_scale``); its calibration mount
   has the camera's pose and ``calibration.extra["T_camera_imu"]`` is the identity;
-- ``contact_{l,r}_{heel,toe}`` insole pads (:mod:`exobench.envs.proprio`), 100 Hz;
+- ``contact_{l,r}_{heel,toe}`` insole pads (:mod:`exobench.envs.sensors.contact`), 100 Hz;
 - ``odom_<m>`` :class:`~exobench.core.OdometrySample` at each camera measurement time (also for
   lost frames): the true optical-frame pose degraded by
   :func:`~exobench.envs.locomotion_motion.drift_odometry` (translation error ``odom_drift_pct`` %
@@ -108,10 +108,19 @@ from exobench.models.exo_spec import ExoSpec
 from exobench.models.world_params import ParamSpec, check_param, from_dict_checked
 
 from .gait import GaitError, Motion
-from .imu import ImuSensor, imu_dynamics
-from .proprio import ContactSensor, contact_forces
-from .rgbd import RgbdCamera, RgbdConfig
-from .sensor_config import ContactConfig, ImuConfig, SensorsConfig, sample_times, sensor_rngs
+from .sensors import (
+    ContactConfig,
+    ContactSensor,
+    ImuConfig,
+    ImuSensor,
+    RgbdCamera,
+    RgbdConfig,
+    SensorsConfig,
+    contact_forces,
+    imu_dynamics,
+    sample_times,
+    sensor_rngs,
+)
 from .terrain import Terrain
 
 TERRAINS = ("stairs", "ramp", "parallel")

@@ -37,16 +37,27 @@ from typing import Any
 
 import numpy as np
 
-from exobench.core import ConfigError, Episode, EpisodeTruth, Frame
+from exobench.core import ConfigError, Episode, EpisodeTruth, Frame, LidarTruth, compact_truth
 from exobench.core.transforms import invert_T, make_T, matrix_to_quat_wxyz
 from exobench.models.exo_spec import CONTACT_IDS, ExoSpec
 from exobench.models.world_params import ParamSpec, from_dict_checked, validate_fields
 
 from .gait import Motion, rot_yaw_pitch
-from .imu import ImuSensor
-from .lidar import LidarConfig, LidarPattern, LidarSensor, LidarTruth, compact_truth
-from .proprio import ENCODER_ID, ContactSensor, EncoderSensor, contact_forces
-from .sensor_config import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, sample_times
+from .sensors import (
+    ENCODER_ID,
+    ContactConfig,
+    ContactSensor,
+    EncoderConfig,
+    EncoderSensor,
+    ImuConfig,
+    ImuSensor,
+    LidarConfig,
+    LidarPattern,
+    LidarSensor,
+    SensorsConfig,
+    contact_forces,
+    sample_times,
+)
 from .sim import FOOT_TRACK_RATE_HZ, TRACK_RATE_HZ, step_through
 from .terrain import Terrain
 from .walk import Route, plan_walk

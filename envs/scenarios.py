@@ -23,7 +23,7 @@ from exobench.core import ConfigError, UnknownNameError, check_range
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.world_params import ParamSpec, StaircaseParams, from_dict_checked, validate_fields
 
-from .sensor_config import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, ToFConfig
+from .sensors import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, ToFConfig
 
 PARAMS: dict[str, ParamSpec] = {
     "riser_m": ParamSpec(0.162, 0.0, 0.30, "m", "riser height", low_open=True),

@@ -24,12 +24,19 @@ from exobench.core.transforms import make_T
 from exobench.models.exo_spec import CONTACT_IDS, TOF_IDS, ExoSpec
 
 from .gait import Motion, climb_step
-from .imu import ImuSensor, imu_dynamics
-from .proprio import ENCODER_ID, ContactSensor, EncoderSensor, contact_forces
 from .scenarios import StairScenario
-from .sensor_config import SensorsConfig, sample_times
+from .sensors import (
+    ENCODER_ID,
+    ContactSensor,
+    EncoderSensor,
+    ImuSensor,
+    SensorsConfig,
+    ToFSensor,
+    contact_forces,
+    imu_dynamics,
+    sample_times,
+)
 from .terrain import Terrain
-from .tof import ToFSensor
 
 IMU_ID = "imu_trunk"
 SENSOR_ORDER = (ENCODER_ID, IMU_ID, *CONTACT_IDS, *TOF_IDS)

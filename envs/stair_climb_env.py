@@ -45,9 +45,8 @@ from .gait import (
 )
 from .scenarios import PARAMS as SCENARIO_PARAMS
 from .scenarios import staircase_params_for_case
-from .sensor_config import ToFConfig
+from .sensors import ToFConfig, ToFSensor
 from .terrain import Terrain, sole_grid_f
-from .tof import ToFSensor
 from .walk import DESCENT_KNEE_MAX_RAD, HEEL_RISE_RAD
 
 K_READINGS = 16  # readings kept per ToF sensor in the observation
@@ -117,7 +116,7 @@ class StairClimbEnv(gymnasium.Env):
     footholds the ground is no higher than the higher of them (the swing foot's support up to
     its toe, stance and target beyond) and keeps ``clearance_m`` over that. The foot goes where
     it is told; only the judge of the touch-down sees the true staircase. The ToF sensors
-    (:class:`~exobench.envs.tof.ToFSensor` with its noise, quantisation, dropout, latency and
+    (:class:`~exobench.envs.sensors.tof.ToFSensor` with its noise, quantisation, dropout, latency and
     seeded streams; measurement times ``k / rate_hz`` as in :mod:`exobench.envs.sim`) measure
     during the ``standing_s`` of :meth:`reset` (seeing the ground or the first riser ahead) and
     during every swing and settling.
@@ -204,7 +203,7 @@ class StairClimbEnv(gymnasium.Env):
     distance_range_m=(0.25, 0.5), user_height_range_m=(1.6, 1.9), standing_s=0.5, swing_s=0.8,
     settle_s=0.1, clearance_m=0.04, min_nosing_clearance_m=0.01, max_drop_m=0.03,
     penetration_tol_m=1e-3, placement_weight=1.0, tof=None)``; ``tof`` is a
-    :class:`~exobench.envs.sensor_config.ToFConfig` (default: the paper's VL53L1X). Render mode
+    :class:`~exobench.envs.sensors.tof.ToFConfig` (default: the paper's VL53L1X). Render mode
     ``"rgb_array"`` returns a 480x640 image from a camera tracking the pelvis (headless through
     EGL or OSMesa, e.g. ``MUJOCO_GL=egl``); ``"human"`` is refused with a ConfigError
     (``gymnasium.make`` itself may instead wrap the ``rgb_array`` mode in its pygame

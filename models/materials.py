@@ -15,7 +15,7 @@ Attributes of a :class:`LidarMaterial`:
         along the mirrored direction and, if it hits something, is reported along the original
         ray at the reflected path length (a ghost point). The ghost's light is mirrored out and
         back, so it keeps ``specular ** 2`` of the energy (and a return through glass
-        ``transmission ** 2``): see :mod:`exobench.envs.lidar_optics`.
+        ``transmission ** 2``): see :mod:`exobench.envs.sensors.lidar.optics`.
 """
 
 from __future__ import annotations

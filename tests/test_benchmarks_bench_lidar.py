@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from exobench.benchmarks.bench import bench_lidar
-from exobench.envs.lidar_pattern import LidarPattern
+from exobench.envs.sensors.lidar import LidarPattern
 
 
 @pytest.fixture(scope="module")

@@ -143,7 +143,7 @@ def test_filters_on_the_office_walk(walk):
 
 def test_scores_agree_with_point_truth(walk):
     """spurious_removed_frac recomputed directly from LidarTruth kinds and the masks."""
-    from exobench.envs.lidar_optics import ReturnKind
+    from exobench.core import ReturnKind
 
     est = walk.est["filter-threshold"]
     pairs = lidar_pairs(walk.episode)

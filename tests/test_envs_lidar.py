@@ -13,7 +13,7 @@ import pytest
 
 from exobench.core import ConfigError, PlanarSurface, SceneTruth
 from exobench.core.transforms import rot_z
-from exobench.envs.lidar import LidarConfig, LidarPattern, LidarSensor, ReturnKind
+from exobench.envs.sensors.lidar import LidarConfig, LidarPattern, LidarSensor, ReturnKind
 from exobench.models.materials import LidarMaterial
 
 H = 1.0  # sensor height above the floor, m

@@ -113,7 +113,7 @@ def test_glass_ghosts_and_ground_intensities_as_the_thesis_filter_assumes(run):
     (a ghost keeps the specular fraction squared of its light), and so is the floor seen at the
     VLP-16's grazing angles, which is why a plain intensity threshold loses the ground
     (seeds/003 sections 4.2.2 and 5.2.2)."""
-    from exobench.envs.lidar import ReturnKind
+    from exobench.core import ReturnKind
     from exobench.models.materials import material
 
     _, scene, _, ep = run

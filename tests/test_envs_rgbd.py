@@ -12,7 +12,7 @@ import pytest
 
 from exobench.core import ConfigError, UnknownNameError
 from exobench.core.transforms import make_T, matrix_to_quat_wxyz, rot_x, rot_y
-from exobench.envs.rgbd import RgbdCamera, RgbdConfig, edge_mask, intrinsics
+from exobench.envs.sensors.rgbd import RgbdCamera, RgbdConfig, edge_mask, intrinsics
 from exobench.models import worlds
 from exobench.models.exo import R_OPTICAL_MJCAMERA
 from exobench.models.exo_spec import ExoSpec
@@ -265,7 +265,7 @@ def _clean_env():
 def test_backend_is_chosen_when_mujoco_gl_is_unset():
     script = (
         "import os, sys\n"
-        "import exobench.envs.rgbd as rgbd\n"
+        "import exobench.envs.sensors.rgbd as rgbd\n"
         "assert 'mujoco' not in sys.modules\n"
         "backend = rgbd.select_gl_backend()\n"
         "import mujoco\n"
@@ -285,7 +285,7 @@ def test_backend_is_chosen_when_mujoco_gl_is_unset():
 
 def test_render_error_when_no_backend_works():
     script = (
-        "import exobench.envs.rgbd_render as rr\n"
+        "import exobench.envs.sensors.rgbd.render as rr\n"
         "from exobench.core import RenderError\n"
         "rr._probe = lambda backend: False\n"
         "try:\n"
@@ -299,7 +299,7 @@ def test_render_error_when_no_backend_works():
     script = (
         "import mujoco\n"
         "from exobench.core import RenderError\n"
-        "from exobench.envs.rgbd import RgbdConfig, make_renderer\n"
+        "from exobench.envs.sensors.rgbd import RgbdConfig, make_renderer\n"
         "m = mujoco.MjModel.from_xml_string('<mujoco/>')\n"
         "try:\n"
         "    make_renderer(m, RgbdConfig(width_px=32, height_px=24))\n"

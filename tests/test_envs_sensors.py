@@ -9,19 +9,21 @@ import pytest
 
 from exobench.core import ConfigError, ImuSample, JointState, SceneTruth, ToFReading, TofStatus
 from exobench.envs.gait import climb_step
-from exobench.envs.imu import ImuSensor, imu_dynamics
 from exobench.envs.scenarios import StairScenario
-from exobench.envs.sensor_config import (
+from exobench.envs.sensors import (
     ContactConfig,
     EncoderConfig,
     ImuConfig,
+    ImuSensor,
     SensorsConfig,
     ToFConfig,
+    ToFSensor,
+    cone_directions,
+    imu_dynamics,
     sensor_rngs,
     stable_int_key,
 )
 from exobench.envs.sim import compiled_staircase, record
-from exobench.envs.tof import ToFSensor, cone_directions
 from exobench.models.exo import add_exo
 from exobench.models.exo_spec import LEG_JOINTS, TOF_IDS, ExoSpec
 

@@ -4,8 +4,7 @@ import mujoco
 import numpy as np
 
 from exobench.core import TofStatus
-from exobench.envs.sensor_config import ToFConfig
-from exobench.envs.tof import ToFSensor, cone_directions
+from exobench.envs.sensors.tof import ToFConfig, ToFSensor, cone_directions
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.worlds import build_level, compose
 

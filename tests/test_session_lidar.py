@@ -13,6 +13,7 @@ from exobench.core import (
     EpisodeTruth,
     ImuSample,
     LidarScan,
+    LidarTruth,
     PlanarSurface,
     RgbdFrame,
     SceneTruth,
@@ -20,7 +21,6 @@ from exobench.core import (
     ToFReading,
     TofStatus,
 )
-from exobench.envs.lidar import LidarTruth
 from exobench.envs.office_sim import OfficeScenario, simulate_office
 from exobench.envs.session import iter_frames, read_meta, read_session, write_session
 

@@ -107,7 +107,7 @@ def point_classes(episode: Episode, truth: Any) -> tuple[np.ndarray, np.ndarray]
     ``THROUGH_GLASS`` counts as genuine (a real surface on the straight ray). A point is ground
     when it is genuine and its true surface's kind is in :data:`GROUND_KINDS`.
     """
-    from exobench.envs.lidar_optics import ReturnKind
+    from exobench.core import ReturnKind
 
     kind = np.asarray(truth.kind)
     cls = np.full(len(kind), GENUINE, dtype=np.int8)

@@ -42,25 +42,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from enum import IntEnum
 
 import numpy as np
 
-from exobench.core import SceneTruth
+from exobench.core import ReturnKind, SceneTruth
 from exobench.models.materials import DEFAULT_MATERIAL, KINDS, LidarMaterial, material
 
 KIND_CODE = {k: i for i, k in enumerate(KINDS)}  # diffuse 0, glass 1, mirror 2, retro 3
 _GLASS, _MIRROR, _RETRO = KIND_CODE["glass"], KIND_CODE["mirror"], KIND_CODE["retro"]
 EPS_M = 1e-6  # secondary rays start this far along their direction, beyond the surface left
-
-
-class ReturnKind(IntEnum):
-    """What produced a LiDAR point (ground truth)."""
-
-    GENUINE = 0  # a real surface on the straight ray
-    GLASS = 1  # the weak reflection of a glass pane itself
-    GHOST = 2  # a surface seen in a mirror / pane, reported along the original ray
-    THROUGH_GLASS = 3  # a real surface behind glass, on the straight ray (counts as genuine)
 
 
 @dataclass(frozen=True, eq=False)

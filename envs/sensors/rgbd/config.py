@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exobench.core import ConfigError, check_range
+from exobench.core import ConfigError, check_int, check_range
 
 # D455 depth intrinsics per resolution (SENSORS.md): (fx, fy, cx, cy) in pixels; None = centred
 _D455_INTRINSICS: dict[tuple[int, int], tuple[float, float, float | None, float | None]] = {
@@ -22,16 +22,13 @@ _D455_INTRINSICS: dict[tuple[int, int], tuple[float, float, float | None, float 
 _D455_REF_WIDTH_PX, _D455_REF_FX_PX = 848, 424.0
 
 
-def _int_px(field: str, value: object) -> int:
-    x = check_range(field, value, 1, 4096)  # type: ignore[arg-type]
-    if x != int(x):
-        raise ConfigError(field, value, "an integer in [1, 4096]")
-    return int(x)
-
-
 @dataclass(frozen=True)
 class RgbdConfig:
     """One RGB-D camera (depth registered to colour, both with the same intrinsics).
+
+    Output: :class:`~exobench.core.RgbdFrame` in the camera's optical frame (z forward, x right,
+    y down): ``rgb`` (H, W, 3) uint8, ``depth_m`` z-depth (H, W) float32 m (0 = invalid), ``K``.
+    Sources: SENSORS.md (RGB-D: D455 data sheet; librealsense issues #3904, #6697, #7996, #9241).
 
     Attributes:
         width_px / height_px: image size, pixels (640 x 480; the D455 is best at 848 x 480).
@@ -39,7 +36,8 @@ class RgbdConfig:
             the resolution: 640x480 -> fx = fy = 384, cx = 319.5, cy = 236.4; 848x480 -> fx =
             fy = 424, centred; other sizes -> fx = fy = 424 * width / 848 (the 848x480 field of
             view) [A], centred.
-        rate_hz: frame rate, Hz (30). latency_s: delivery delay, s [A: 0].
+        rate_hz: frame rate, Hz (30).
+        latency_s: delivery delay after the measurement, s [A: 0].
         min_depth_m: no depth closer than this, m (``None`` = 0.4, or 0.34 at 848x480).
         max_depth_m: no depth farther than this, m (6).
         subpixel: stereo matching accuracy s in pixels; the depth noise is zero-mean Gaussian
@@ -49,7 +47,7 @@ class RgbdConfig:
             more than this fraction of the nearer depth (stereo matching fails at depth
             discontinuities) [A: 0.05; 0 = off].
         resolution_m: depth quantisation, m (1e-3, the D4xx default depth unit [A]; 0 = off).
-        dropout_prob: probability a whole frame is lost [A: 0].
+        dropout_prob: probability a frame is lost [A: 0].
         pixel_dropout_prob: probability a pixel is invalid at random (dark or specular
             surfaces) [A: 0].
         shadows: render shadows in the colour image (off by default: with software OpenGL
@@ -78,8 +76,8 @@ class RgbdConfig:
     segmentation: bool = True
 
     def __post_init__(self) -> None:
-        w = _int_px("rgbd.width_px", self.width_px)
-        h = _int_px("rgbd.height_px", self.height_px)
+        w = check_int("rgbd.width_px", self.width_px, 1, 4096)
+        h = check_int("rgbd.height_px", self.height_px, 1, 4096)
         object.__setattr__(self, "width_px", w)
         object.__setattr__(self, "height_px", h)
         fx0, fy0, cx0, cy0 = _D455_INTRINSICS.get((w, h), (None, None, None, None))
@@ -115,9 +113,7 @@ class RgbdConfig:
 
 def intrinsics(config: RgbdConfig) -> np.ndarray:
     """The 3x3 pinhole matrix K of a camera config (pixels)."""
-    return np.array(
-        [[config.fx_px, 0.0, config.cx_px], [0.0, config.fy_px, config.cy_px], [0.0, 0.0, 1.0]]
-    )
+    return np.array([[config.fx_px, 0.0, config.cx_px], [0.0, config.fy_px, config.cy_px], [0.0, 0.0, 1.0]])
 
 
 def depth_noise_sigma_m(depth_m: np.ndarray | float, config: RgbdConfig) -> np.ndarray:

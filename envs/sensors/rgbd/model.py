@@ -2,7 +2,7 @@
 
 A camera named like the sensor id (``rgbd_head``, ``rgbd_chest``, ``rgbd_thigh_l``,
 ``rgbd_thigh_r`` on the exoskeleton; any MuJoCo camera works) is rendered with the config's
-intrinsics (:func:`~exobench.envs.rgbd_render.set_intrinsics`) by one :class:`mujoco.Renderer`
+intrinsics (:func:`~exobench.envs.sensors.rgbd.render.set_intrinsics`) by one :class:`mujoco.Renderer`
 kept for the camera's life. Depth is MuJoCo's depth buffer converted to metres: the distance along
 the optical axis (z-depth, not the range along the pixel ray), as a RealSense reports it. The
 camera sees what MuJoCo renders by default: geom groups 0-2, i.e. the world and the exoskeleton.
@@ -18,7 +18,7 @@ Depth model, per pixel, from the noise-free depth z (``SENSORS.md``):
    the device only knows its measurement); random pixel dropout;
 5. invalid pixels are 0. Colour is rendered with lights and textures and is noise-free.
 
-Each camera draws from its own generators (:func:`~exobench.envs.sensor_config.sensor_rngs`): the
+Each camera draws from its own generators (:func:`~exobench.envs.sensors.common.sensor_rngs`): the
 noise stream draws one standard normal per pixel per frame; the dropout stream one uniform per
 frame (frame loss) plus one per pixel when ``pixel_dropout_prob > 0``. Same seed, same frames.
 """
@@ -33,22 +33,14 @@ from exobench.core import RgbdFrame, UnknownNameError
 from exobench.core.transforms import make_T
 from exobench.models.exo import R_OPTICAL_MJCAMERA
 
-from .rgbd_config import RgbdConfig, depth_noise_sigma_m, intrinsics
-from .rgbd_render import make_renderer, select_gl_backend, set_intrinsics
-from .sensor_config import sensor_rngs
+from ..common import sensor_rngs
+from .config import RgbdConfig, depth_noise_sigma_m, intrinsics
+from .render import make_renderer, select_gl_backend, set_intrinsics
 
 if TYPE_CHECKING:
     import mujoco
 
-__all__ = [
-    "RgbdCamera",
-    "RgbdConfig",
-    "depth_noise_sigma_m",
-    "edge_mask",
-    "intrinsics",
-    "make_renderer",
-    "select_gl_backend",
-]
+__all__ = ["RgbdCamera", "edge_mask"]
 
 _FAR_FRACTION = 0.999  # depths beyond this fraction of the far plane are background
 

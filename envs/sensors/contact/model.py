@@ -1,6 +1,5 @@
-"""Proprioceptive sensors: leg joint encoders and heel/toe insole force pads.
+"""Heel and toe insole force pads.
 
-Encoders read the motion's joint angles with a constant offset, white noise and quantisation.
 Insole pads have no physics behind them (the motion is kinematic): a pad is in contact when it
 is within ``contact_tol_m`` of the terrain under it (or below it), and the body weight
 ``M (g + a_z)`` (``a_z`` the pelvis's vertical acceleration) is shared [A] between the feet in
@@ -10,34 +9,18 @@ its pads by where the pelvis projects on the foot's heel-toe line.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from exobench.core import ContactSample, JointState
-from exobench.models.exo_spec import CONTACT_IDS, LEG_JOINTS
+from exobench.core import ContactSample
+from exobench.models.exo_spec import CONTACT_IDS
 
-from .sensor_config import ContactConfig, EncoderConfig, sensor_rngs
-from .terrain import Terrain
+from ..common import sensor_rngs
+from .config import ContactConfig
 
-ENCODER_ID = "encoders"
-
-
-class EncoderSensor:
-    """Leg joint encoders (``JointState`` in :data:`LEG_JOINTS` order)."""
-
-    def __init__(self, config: EncoderConfig, seed: int) -> None:
-        self.config = config
-        self.noise_rng, self.drop_rng = sensor_rngs(seed, ENCODER_ID)
-        self.offset_rad = self.noise_rng.standard_normal(len(LEG_JOINTS)) * config.offset_std_rad
-
-    def frames(self, t: np.ndarray, joints: np.ndarray) -> list[JointState]:
-        """Frames for true joint angles ``joints`` (N, 6) measured at times ``t`` (N,)."""
-        c = self.config
-        q = joints + self.offset_rad + self.noise_rng.standard_normal(joints.shape) * c.noise_rad
-        if c.resolution_bits > 0:
-            lsb = 2.0 * np.pi / (1 << c.resolution_bits)
-            q = np.round(q / lsb) * lsb
-        keep = self.drop_rng.random(len(t)) >= c.dropout_prob
-        return [JointState(float(t[k] + c.latency_s), ENCODER_ID, LEG_JOINTS, q[k].copy()) for k in np.flatnonzero(keep)]
+if TYPE_CHECKING:
+    from exobench.envs.terrain import Terrain
 
 
 def contact_forces(

@@ -14,7 +14,8 @@ import numpy as np
 
 from exobench.core import ImuSample
 
-from .sensor_config import ImuConfig, sensor_rngs
+from ..common import sensor_rngs
+from .config import ImuConfig
 
 
 class ImuSensor:

@@ -18,11 +18,10 @@ import numpy as np
 
 from exobench.core import SceneTruth, ToFReading, TofStatus, ToFTruth
 from exobench.core.transforms import make_T
+from exobench.envs.terrain import label_hits
 
-from .sensor_config import ToFConfig, sensor_rngs
-from .terrain import label_hits
-
-WORLD_GROUP, EXO_GROUP = 0, 2
+from ..common import EXO_GROUP, WORLD_GROUP, sensor_rngs
+from .config import ToFConfig
 
 
 def cone_directions(n: int, fov_deg: float) -> np.ndarray:

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exobench.core import ConfigError, check_range
+from exobench.core import ConfigError, check_int, check_range
 
 SCAN_KINDS = ("spinning", "rosette")
 
@@ -147,10 +147,7 @@ class LidarPattern:
         check_range(f + "rate_hz", self.rate_hz, 0.0, 1000.0, low_open=True)
         check_range(f + "firing_period_s", self.firing_period_s, 0.0, 1.0 / self.rate_hz, low_open=True)
         check_range(f + "slot_period_s", self.slot_period_s, 0.0, 1.0)
-        lps = check_range(f + "lasers_per_slot", self.lasers_per_slot, 1, n)
-        if lps != int(lps):
-            raise ConfigError(f + "lasers_per_slot", self.lasers_per_slot, f"an integer in [1, {n}]")
-        object.__setattr__(self, "lasers_per_slot", int(lps))
+        object.__setattr__(self, "lasers_per_slot", check_int(f + "lasers_per_slot", self.lasers_per_slot, 1, n))
         if self.n_slots * self.slot_period_s > self.firing_period_s * (1.0 + 1e-9):
             raise ConfigError(
                 f + "slot_period_s", self.slot_period_s, f"n_slots ({self.n_slots}) * slot_period_s <= firing_period_s"
@@ -293,8 +290,8 @@ class LidarPattern:
         """Livox-Mid-40-like forward rosette (non-repetitive, deterministic); ``lasers`` beams
         offset in elevation by 0.5 deg each [A], like the multi-line Avia."""
         check_range("lidar.pattern.points_per_s", points_per_s, 1.0, 1e7)
-        check_range("lidar.pattern.lasers", lasers, 1, 16)
-        angles = tuple(0.5 * (np.arange(int(lasers)) - 0.5 * (lasers - 1)))
+        lasers = check_int("lidar.pattern.lasers", lasers, 1, 16)
+        angles = tuple(0.5 * (np.arange(lasers) - 0.5 * (lasers - 1)))
         return cls(
             "livox", tuple(float(a) for a in angles), tuple(range(int(lasers))), azimuth_step_deg=0.0,
             rate_hz=rate_hz, firing_period_s=1.0 / points_per_s, slot_period_s=0.0,

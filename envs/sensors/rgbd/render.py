@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 
 from exobench.core import RenderError
 
-from .rgbd_config import RgbdConfig
+from .config import RgbdConfig
 
 if TYPE_CHECKING:
     import mujoco

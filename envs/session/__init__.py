@@ -1,0 +1,54 @@
+"""Recorded sessions on disk: an episode's frames, calibration and (apart) ground truth.
+
+Layout of a session directory (format ``exobench-session``, version 2)::
+
+    meta.json                      format, version, exobench version, scenario, seed, frame counts
+    calibration.json               sensor mounts, encoder joint names, robot description (URDF text)
+    frames.jsonl                   every frame, time-ordered, one JSON object per line ("kind" first)
+    <kind>/<sensor_id>/<k>.npz     arrays of the k-th frame of that sensor, for kinds with large
+                                   arrays (lidar/, rgbd/; k = 000000, 000001, ...)
+    truth/episode.json             scene surfaces, estimator frame, touch-down, tracks, events,
+                                   LiDAR trajectory_w, number of LiDAR truths
+    truth/tof.jsonl                ground truth of each ToF frame, in ToF frame order
+    truth/lidar/<k>.npz            ground truth of the k-th LiDAR scan of the episode (all sensors)
+    truth/extra.npz                the numpy arrays of ``EpisodeTruth.extra`` (only when it has any)
+
+Modules: :mod:`.codecs` (the one table saying how each frame kind is written and read: a new
+sensor kind is one entry there), :mod:`.store` (lossless JSON values and the .npz files),
+:mod:`.calibration`, :mod:`.truth` (the ``truth/`` folder), :mod:`.io` (writing and reading
+directories).
+
+Floats in JSON are written with Python's shortest round-trip repr, so reading a session gives
+back the same float64 values bit for bit; NaN is written as ``null``. A session is written into
+a temporary sibling directory and renamed into place, so a failed write leaves nothing behind.
+:func:`iter_frames` streams: it loads a frame's binary file when its line is read. A pipeline
+replayed on a session gets exactly the frames it would have had live, so it scores identically;
+the truth/ folder is for the harness and can be left out when sharing real logs.
+
+Versions: 1 had no binary files (LiDAR and RGB-D frames were refused) and no LiDAR truth;
+version-1 sessions are still read (their LiDAR truth is empty). Writing always gives version 2.
+"""
+
+from .calibration import calibration_from_dict, calibration_to_dict
+from .codecs import CODECS, FrameCodec, frame_from_dict, frame_to_dict, register_codec
+from .io import FORMAT, SUPPORTED_VERSIONS, VERSION, iter_frames, read_meta, read_session, write_session
+from .truth import truth_from_dict, truth_to_dict
+
+__all__ = [
+    "CODECS",
+    "FORMAT",
+    "SUPPORTED_VERSIONS",
+    "VERSION",
+    "FrameCodec",
+    "calibration_from_dict",
+    "calibration_to_dict",
+    "frame_from_dict",
+    "frame_to_dict",
+    "iter_frames",
+    "read_meta",
+    "read_session",
+    "register_codec",
+    "truth_from_dict",
+    "truth_to_dict",
+    "write_session",
+]

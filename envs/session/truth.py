@@ -1,0 +1,209 @@
+"""The ground truth of a session (``truth/``), kept apart from the frames for the harness.
+
+``truth/episode.json`` holds the scene surfaces, the estimator frame, touch-down, tracks, events,
+the LiDAR ``trajectory_w``, the number of LiDAR truths, the steps (one object per step) and the
+plain values of ``EpisodeTruth.extra`` (numbers, strings, lists, dicts; tuples come back as lists,
+nested numpy arrays as lists); the top-level numpy arrays of ``extra`` go to ``truth/extra.npz``
+and come back with their dtype and values exactly. ``truth/tof.jsonl`` holds the truth of each
+ToF frame, in ToF frame order. ``truth/lidar/<k>.npz`` holds the truth of the k-th LiDAR scan of
+the episode (all sensors): every :class:`~exobench.core.LidarTruth` field (``stamp_s`` and
+``sensor_id`` as 0-d arrays) except ``material``, which is stored as ``material_index`` (N,)
+(uint8, or uint16 beyond 256 names) into ``material_names`` (the scan's distinct names, a numpy
+unicode array of the field's dtype); files written before that hold ``material`` itself (a numpy
+unicode array) and still read. Sessions written before steps/extra existed read back with empty
+ones.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from exobench.core import (
+    EpisodeTruth,
+    LidarTruth,
+    PlanarSurface,
+    SceneTruth,
+    SessionError,
+    StepTruth,
+    ToFTruth,
+)
+
+from .store import dec_array, dec_float, dumps, enc_array, enc_float, load_npz, npz_names, plain, save_npz
+
+LIDAR_TRUTH_FIELDS = (
+    "stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",
+    "via_geom_id", "signal", "origin_w", "dir_w",
+)  # fmt: skip
+
+
+def _surface_to_dict(s: PlanarSurface) -> dict[str, Any]:
+    return {
+        "surface_id": s.surface_id,
+        "kind": s.kind,
+        "normal_w": enc_array(s.normal_w),
+        "point_w": enc_array(s.point_w),
+        "polygon_w": enc_array(s.polygon_w),
+        "geom_names": list(s.geom_names),
+    }
+
+
+def _surface_from_dict(d: dict[str, Any]) -> PlanarSurface:
+    return PlanarSurface(
+        int(d["surface_id"]),
+        d["kind"],
+        dec_array(d["normal_w"]),
+        dec_array(d["point_w"]),
+        dec_array(d["polygon_w"]),
+        tuple(d["geom_names"]),
+    )
+
+
+def truth_to_dict(t: EpisodeTruth) -> dict[str, Any]:
+    return {
+        "scene": {
+            "kind": t.scene.kind,
+            "params": plain(t.scene.params),
+            "surfaces": [_surface_to_dict(s) for s in t.scene.surfaces],
+            "geom_surfaces": {k: list(v) for k, v in t.scene.geom_surfaces.items()},
+            "geom_materials": dict(t.scene.geom_materials),
+            "objects": plain(list(t.scene.objects)),
+        },
+        "T_world_estimator": enc_array(t.T_world_estimator),
+        "stance_side": t.stance_side,
+        "touchdown_w": enc_array(t.touchdown_w),
+        "foot_track_w": enc_array(t.foot_track_w),
+        "body_tracks": {k: enc_array(v) for k, v in t.body_tracks.items()},
+        "max_penetration_m": enc_float(t.max_penetration_m),
+        "events": {k: enc_float(v) for k, v in t.events.items()},
+        "trajectory_w": enc_array(np.asarray(t.trajectory_w)),
+        "n_lidar": len(t.lidar),
+        "steps": [_step_to_dict(s) for s in t.steps],
+        "extra": {str(k): plain(v) for k, v in t.extra.items() if not isinstance(v, np.ndarray)},
+        "extra_arrays": sorted(str(k) for k, v in t.extra.items() if isinstance(v, np.ndarray)),
+    }
+
+
+def _step_to_dict(s: StepTruth) -> dict[str, Any]:
+    return {
+        "index": int(s.index), "side": s.side, "liftoff_s": enc_float(s.liftoff_s), "heel_strike_s": enc_float(s.heel_strike_s),
+        "footprint_w": enc_array(s.footprint_w), "terrain": s.terrain, "mode": s.mode,
+    }  # fmt: skip
+
+
+def _step_from_dict(d: dict[str, Any]) -> StepTruth:
+    return StepTruth(
+        index=int(d["index"]), side=d["side"], liftoff_s=dec_float(d["liftoff_s"]), heel_strike_s=dec_float(d["heel_strike_s"]),
+        footprint_w=dec_array(d["footprint_w"]), terrain=d["terrain"], mode=d["mode"],
+    )  # fmt: skip
+
+
+def tof_truth_to_dict(t: ToFTruth) -> dict[str, Any]:
+    return {
+        "stamp_s": t.stamp_s,
+        "sensor_id": t.sensor_id,
+        "true_range_m": enc_float(t.true_range_m),
+        "hit_w": enc_array(t.hit_w),
+        "surface_id": int(t.surface_id),
+        "T_world_sensor": enc_array(t.T_world_sensor),
+    }
+
+
+def tof_truth_from_dict(d: dict[str, Any]) -> ToFTruth:
+    return ToFTruth(
+        float(d["stamp_s"]),
+        d["sensor_id"],
+        dec_float(d["true_range_m"]),
+        dec_array(d["hit_w"]),
+        int(d["surface_id"]),
+        dec_array(d["T_world_sensor"]),
+    )
+
+
+def lidar_truth_arrays(t: LidarTruth) -> dict[str, np.ndarray]:
+    """The arrays of a LiDAR truth file: every field, ``material`` as indices into a name table."""
+    arrays = {n: np.asarray(getattr(t, n)) for n in LIDAR_TRUTH_FIELDS if n != "material"}
+    arrays["stamp_s"] = np.asarray(float(t.stamp_s))
+    arrays["sensor_id"] = np.asarray(str(t.sensor_id))
+    names, index = np.unique(np.asarray(t.material).reshape(-1), return_inverse=True)
+    arrays["material_names"] = names  # sorted distinct names, same dtype as the field
+    arrays["material_index"] = index.astype(np.uint8 if len(names) <= 256 else np.uint16)
+    return arrays
+
+
+def read_lidar_truth(root: Path, rel: str) -> LidarTruth:
+    """A LiDAR truth file, ``material`` rebuilt from its name table (or read as written by
+    sessions before the table)."""
+    if "material_index" not in npz_names(root, rel):
+        a = load_npz(root, rel, LIDAR_TRUTH_FIELDS)
+    else:
+        fields = tuple(n for n in LIDAR_TRUTH_FIELDS if n != "material")
+        a = load_npz(root, rel, fields + ("material_index", "material_names"))
+        index, names = a.pop("material_index"), a.pop("material_names")
+        if index.ndim != 1 or names.ndim != 1 or (len(index) and int(index.max()) >= len(names)):
+            raise SessionError(f"{root / rel}: material_index does not fit its {len(names)} material_names")
+        a["material"] = names[index]
+    fields = {n: a[n] for n in LIDAR_TRUTH_FIELDS[2:]}
+    return LidarTruth(stamp_s=float(a["stamp_s"]), sensor_id=str(a["sensor_id"]), **fields)
+
+
+def truth_from_dict(
+    d: dict[str, Any],
+    tof: tuple[ToFTruth, ...],
+    lidar: tuple[LidarTruth, ...] = (),
+    extra_arrays: dict[str, np.ndarray] | None = None,
+) -> EpisodeTruth:
+    sc = d["scene"]
+    scene = SceneTruth(
+        surfaces=tuple(_surface_from_dict(s) for s in sc["surfaces"]),
+        geom_surfaces={k: tuple(v) for k, v in sc["geom_surfaces"].items()},
+        params=dict(sc["params"]),
+        kind=sc["kind"],
+        geom_materials=dict(sc.get("geom_materials", {})),
+        objects=tuple(sc.get("objects", ())),
+    )
+    return EpisodeTruth(
+        scene=scene,
+        tof=tof,
+        T_world_estimator=dec_array(d["T_world_estimator"]),
+        stance_side=d["stance_side"],
+        touchdown_w=dec_array(d["touchdown_w"]),
+        foot_track_w=dec_array(d["foot_track_w"]).reshape(-1, 4),
+        body_tracks={k: dec_array(v).reshape(-1, 8) for k, v in d["body_tracks"].items()},
+        max_penetration_m=dec_float(d["max_penetration_m"]),
+        events={k: dec_float(v) for k, v in d["events"].items()},
+        lidar=lidar,
+        trajectory_w=dec_array(d.get("trajectory_w", [])).reshape(-1, 8),
+        steps=tuple(_step_from_dict(s) for s in d.get("steps", ())),
+        extra={**dict(d.get("extra", {})), **dict(extra_arrays or {})},
+    )
+
+
+def write_truth(root: Path, t: EpisodeTruth) -> None:
+    """Write ``truth/`` of a session under ``root``."""
+    (root / "truth").mkdir()
+    (root / "truth" / "episode.json").write_text(dumps(truth_to_dict(t)))
+    with open(root / "truth" / "tof.jsonl", "w") as fh:
+        for tt in t.tof:
+            fh.write(dumps(tof_truth_to_dict(tt)) + "\n")
+    for k, lt in enumerate(t.lidar):
+        save_npz(root / "truth" / "lidar" / f"{k:06d}.npz", lidar_truth_arrays(lt))
+    extra_arrays = {str(k): v for k, v in t.extra.items() if isinstance(v, np.ndarray)}
+    if extra_arrays:
+        save_npz(root / "truth" / "extra.npz", extra_arrays)
+
+
+def read_truth(root: Path) -> EpisodeTruth:
+    """Read ``truth/`` of the session at ``root``."""
+    with open(root / "truth" / "tof.jsonl") as fh:
+        tof = tuple(tof_truth_from_dict(json.loads(line)) for line in fh if line.strip())
+    td = json.loads((root / "truth" / "episode.json").read_text())
+    lidar = tuple(
+        read_lidar_truth(root, f"truth/lidar/{k:06d}.npz") for k in range(int(td.get("n_lidar", 0)))
+    )
+    names = tuple(td.get("extra_arrays", ()))
+    extra_arrays = load_npz(root, "truth/extra.npz", names) if names else {}
+    return truth_from_dict(td, tof, lidar, extra_arrays)
