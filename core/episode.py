@@ -9,42 +9,40 @@ import numpy as np
 
 from .calibration import Calibration
 from .frames import Frame
-from .truth import LidarTruth, SceneTruth, StepTruth, ToFTruth
+from .truth import LidarTruth, SceneTruth, StairTruth, StepTruth
 
 
 @dataclass(frozen=True, eq=False)
 class EpisodeTruth:
-    """Ground truth of one simulated episode.
+    """Ground truth of one simulated episode: what every walk has, and typed parts that an
+    episode carries only when its world and sensors produce them.
 
     Attributes:
         scene: static truth of the world (surfaces, geom map, builder parameters).
-        tof: one entry per emitted ToF frame, in the same order as the ToF frames.
-        T_world_estimator: pose in the world of the staircase estimator's frame
-            (``"stance_ground"``: origin on the ground below the stance ankle, world-parallel axes).
-        stance_side: ``"l"`` or ``"r"``, the supporting foot during the climbing step.
-        touchdown_w: the climbing foot's sole point below the ankle at touch-down, world, (3,).
-        foot_track_w: climbing foot's sole point over time, (N, 4) rows ``[t, x, y, z]``.
-        body_tracks: link poses over time for visualisation, name -> (N, 8) rows
+        T_world_estimator: pose in the world of the frame the track's estimates are expressed in
+            (stairs: ``"stance_ground"``, origin on the ground below the stance ankle with
+            world-parallel axes; office walks: the LiDAR at t = 0; courses: the odometry frame).
+        body_tracks: link and sensor poses over time, name -> (N, 8) rows
             ``[t, x, y, z, qw, qx, qy, qz]``.
         max_penetration_m: deepest foot-world penetration seen over the episode (0 if none).
         events: named times, s (e.g. ``"liftoff_s"``, ``"touchdown_s"``).
+        stairs: the climbing step's truth (:class:`StairTruth`); None when the episode is not
+            the staircase paper's climbing step.
         lidar: one :class:`LidarTruth` per emitted LiDAR scan, in the same order as the LiDAR
             frames (empty when the episode has no LiDAR).
-        trajectory_w: LiDAR sensor pose at the start of each emitted scan, (N, 8) rows
-            ``[t, x, y, z, qw, qx, qy, qz]`` (empty when the episode has no LiDAR).
-        steps: every step of the walk with its locomotion mode (empty when not relevant).
+        trajectory_w: pose of the track's reference sensor at each of its frames (the LiDAR at
+            the start of each scan, the camera at each image), (N, 8) rows as ``body_tracks``
+            (empty when the episode has none).
+        steps: every step of the walk with its locomotion mode (empty when not labelled).
         extra: track-specific truth (e.g. pedestrian tracks, camera poses), plain values/arrays.
     """
 
     scene: SceneTruth
-    tof: tuple[ToFTruth, ...]
     T_world_estimator: np.ndarray
-    stance_side: str
-    touchdown_w: np.ndarray
-    foot_track_w: np.ndarray
     body_tracks: dict[str, np.ndarray] = field(default_factory=dict)
     max_penetration_m: float = 0.0
     events: dict[str, float] = field(default_factory=dict)
+    stairs: StairTruth | None = None
     lidar: tuple[LidarTruth, ...] = ()
     trajectory_w: np.ndarray = field(default_factory=lambda: np.zeros((0, 8)))
     steps: tuple[StepTruth, ...] = ()

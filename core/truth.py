@@ -121,6 +121,23 @@ class ToFTruth:
     T_world_sensor: np.ndarray
 
 
+@dataclass(frozen=True, eq=False)
+class StairTruth:
+    """Truth of the staircase paper's climbing step: what the stairs track scores against.
+
+    Attributes:
+        tof: one entry per emitted ToF frame, in the same order as the ToF frames.
+        stance_side: ``"l"`` or ``"r"``, the supporting foot during the climbing step.
+        touchdown_w: the climbing foot's sole point below the ankle at touch-down, world, (3,).
+        foot_track_w: the climbing foot's sole point over time, (N, 4) rows ``[t, x, y, z]``.
+    """
+
+    tof: tuple[ToFTruth, ...]
+    stance_side: str
+    touchdown_w: np.ndarray
+    foot_track_w: np.ndarray
+
+
 def height_at(truth: SceneTruth, x: float, y: float, kinds: tuple[str, ...] = ("ground", "tread", "ramp", "landing")) -> float:
     """Terrain height under (x, y): the highest walkable surface whose polygon covers the point.
 

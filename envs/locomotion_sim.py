@@ -478,8 +478,6 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
     z_opt = T_cam[:, :3, 2]
     pitch = np.arcsin(np.clip(-z_opt[:, 2], -1.0, 1.0))
     tracks = {cam_id: _rows(t_cam, T_cam)}
-    t_ft = sample_times(100.0, dur)
-    last = motion.footsteps[-1]
     extra: dict[str, Any] = {
         "camera_T_world": T_cam,
         "camera_pitch_rad": pitch,
@@ -498,11 +496,7 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
     }
     ep_truth = EpisodeTruth(
         scene=truth_scene,
-        tof=(),
         T_world_estimator=T_world_odom,
-        stance_side=motion.stance_side,
-        touchdown_w=np.asarray(last.sole_w, dtype=float).copy(),
-        foot_track_w=np.column_stack([t_ft, motion.sole_point_w("r", t_ft)]),
         body_tracks=tracks,
         max_penetration_m=motion.max_penetration_m(truth_scene, sample_times(PENETRATION_RATE_HZ, dur)),
         events=events,

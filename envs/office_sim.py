@@ -58,7 +58,7 @@ from .sensors import (
     contact_forces,
     sample_times,
 )
-from .sim import FOOT_TRACK_RATE_HZ, TRACK_RATE_HZ, step_through
+from .sim import TRACK_RATE_HZ, step_through
 from .terrain import Terrain
 from .walk import Route, plan_walk
 
@@ -299,15 +299,9 @@ def simulate_office(scenario: OfficeScenario, seed: int) -> Episode:
     merged.sort(key=lambda x: (x[0], x[1]))
     frames = tuple(f for _, _, f in merged)
 
-    t_ft = sample_times(FOOT_TRACK_RATE_HZ, dur)
-    last = motion.footsteps[-1]
     ep_truth = EpisodeTruth(
         scene=truth,
-        tof=(),
         T_world_estimator=pose_at(np.array([0.0]))[0],
-        stance_side=motion.stance_side,
-        touchdown_w=last.sole_w.copy(),
-        foot_track_w=np.column_stack([t_ft, motion.sole_point_w("r", t_ft)]),
         body_tracks=body_tracks,
         max_penetration_m=motion.max_penetration_m(truth, sample_times(PENETRATION_RATE_HZ, dur)),
         events=dict(motion.events),

@@ -19,7 +19,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from exobench.core import Episode, EpisodeTruth, Frame, SceneTruth, ToFTruth
+from exobench.core import Episode, EpisodeTruth, Frame, SceneTruth, StairTruth, ToFTruth
 from exobench.core.transforms import make_T
 from exobench.models.exo_spec import CONTACT_IDS, TOF_IDS, ExoSpec
 
@@ -194,11 +194,10 @@ def simulate_stairs(scenario: StairScenario, seed: int) -> Episode:
     t_pen = sample_times(PENETRATION_RATE_HZ, motion.duration_s)
     ep_truth = EpisodeTruth(
         scene=truth,
-        tof=rec.tof_truth,
         T_world_estimator=T_world_est,
-        stance_side=stance,
-        touchdown_w=motion.footsteps[0].sole_w.copy(),
-        foot_track_w=foot_track,
+        stairs=StairTruth(
+            tof=rec.tof_truth, stance_side=stance, touchdown_w=motion.footsteps[0].sole_w.copy(), foot_track_w=foot_track
+        ),
         body_tracks=rec.body_tracks,
         max_penetration_m=motion.max_penetration_m(truth, t_pen),
         events=dict(motion.events),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -12,7 +13,6 @@ from exobench.benchmarks.tracks.stairs import StairsTrack
 from exobench.benchmarks.tracks.stairs.metrics import path_length, score_staircase
 from exobench.core import (
     Episode,
-    EpisodeTruth,
     PlaneEstimate,
     PointAssignment,
     StaircaseEstimate,
@@ -25,10 +25,12 @@ DEG = math.pi / 180
 
 
 def _with(ep: Episode, **truth_changes) -> Episode:
-    t = ep.truth
-    fields = {k: getattr(t, k) for k in EpisodeTruth.__dataclass_fields__}
-    fields.update(truth_changes)
-    return Episode(ep.scenario, ep.seed, ep.calibration, ep.frames, EpisodeTruth(**fields))
+    """The episode with some truth replaced; ``tof``/``foot_track_w`` go to its stairs part."""
+    stairs_changes = {k: truth_changes.pop(k) for k in ("tof", "foot_track_w") if k in truth_changes}
+    truth = dataclasses.replace(ep.truth, **truth_changes)
+    if stairs_changes:
+        truth = dataclasses.replace(truth, stairs=dataclasses.replace(truth.stairs, **stairs_changes))
+    return Episode(ep.scenario, ep.seed, ep.calibration, ep.frames, truth)
 
 
 def _plane_in_estimator(T_world_est, index, n_w, c_w, reliable=True, stamp=1.0) -> PlaneEstimate:
@@ -130,3 +132,10 @@ def test_suites_are_deterministic_and_follow_the_paper():
     assert {(p["riser_m"], p["tread_m"]) for p in poses} == {(0.153, 0.294), (0.162, 0.28), (0.175, 0.27)}
     quick = track.cases("quick")
     assert len(quick) == 6 and {c.name for c in quick} <= {c.name for c in paper}
+
+
+def test_an_episode_without_climbing_truth_is_scored_failed_not_perfect():
+    ep = _with(make_episode(), stairs=None)
+    m = score_staircase(ep, StaircaseEstimate((), 0.162, 0.28))
+    assert m["failed"] is True and "truth.stairs" in m["failed_reason"] and m["n_tof"] == 0
+    assert math.isnan(m["riser_error_pct"]) and math.isnan(m["touchdown_error_m"])

@@ -81,4 +81,4 @@ def test_rerun_recording_is_written_and_readable(tmp_path):
     assert any("world/surfaces/S2" in p for p in paths)
     assert any("world/estimates/fake/S2" in p for p in paths)
     assert any("world/tof/tof_r_lat/hits" in p for p in paths)
-    assert np.isfinite(ep.truth.touchdown_w).all()
+    assert np.isfinite(ep.truth.stairs.touchdown_w).all()

@@ -26,6 +26,7 @@ from exobench.core import (
     PointAssignment,
     SceneTruth,
     StaircaseEstimate,
+    StairTruth,
     ToFReading,
     ToFTruth,
     UnknownNameError,
@@ -74,11 +75,8 @@ def make_episode(scenario: dict[str, Any] | None = None, seed: int = 0, n_tof: i
     foot = np.column_stack([ts, np.linspace(-0.3, 0.14, 21), np.zeros(21), 0.2 * np.sin(np.pi * (ts - 0.5))])
     truth = EpisodeTruth(
         scene=truth_scene,
-        tof=tuple(tof_truth),
         T_world_estimator=make_T(np.eye(3), np.array([-0.35, 0.05, 0.0])),
-        stance_side="l",
-        touchdown_w=np.array([0.14, 0.0, scenario["riser_m"]]),
-        foot_track_w=foot,
+        stairs=StairTruth(tuple(tof_truth), "l", np.array([0.14, 0.0, scenario["riser_m"]]), foot),
         body_tracks={"pelvis": np.array([[0.5, -0.3, 0, 0.9, 1, 0, 0, 0], [1.5, 0.0, 0, 1.0, 1, 0, 0, 0]])},
         events={"liftoff_s": 0.5, "touchdown_s": 1.5},
     )
@@ -178,4 +176,4 @@ def test_fake_episode_matches_its_staircase():
     ep = make_episode({"riser_m": 0.17}, seed=3)
     s2 = ep.truth.scene.surface(2)
     assert s2.kind == "tread" and s2.point_w[2] == pytest.approx(0.17)
-    assert len(ep.truth.tof) == sum(isinstance(f, ToFReading) for f in ep.frames)
+    assert len(ep.truth.stairs.tof) == sum(isinstance(f, ToFReading) for f in ep.frames)

@@ -72,22 +72,23 @@ def test_episode_frames_truth_and_calibration(episode_a):
         if a.stamp_s == b.stamp_s:
             assert rank[a.sensor_id] < rank[b.sensor_id]
     tofs = [f for f in ep.frames if isinstance(f, ToFReading)]
-    assert len(tofs) == len(ep.truth.tof)
-    assert all((f.stamp_s, f.sensor_id) == (t.stamp_s, t.sensor_id) for f, t in zip(tofs, ep.truth.tof))
+    assert len(tofs) == len(ep.truth.stairs.tof)
+    assert all((f.stamp_s, f.sensor_id) == (t.stamp_s, t.sensor_id) for f, t in zip(tofs, ep.truth.stairs.tof))
     dur = float(ep.scenario["duration_s"])
     assert sum(isinstance(f, ImuSample) for f in ep.frames) == round(dur * 200) + 1  # 200 Hz, both ends
     assert sum(isinstance(f, JointState) for f in ep.frames) == round(dur * 200) + 1
     tr = ep.truth
-    assert tr.stance_side == "l" and tr.max_penetration_m == 0.0
+    assert tr.stairs.stance_side == "l" and tr.max_penetration_m == 0.0
     assert tr.events["liftoff_s"] == pytest.approx(0.3) and tr.events["touchdown_s"] == pytest.approx(dur - 0.3)
     # estimator frame: world axes, origin on the ground below the left ankle
     exo = ExoSpec()
     np.testing.assert_allclose(tr.T_world_estimator[:3, :3], np.eye(3))
     np.testing.assert_allclose(tr.T_world_estimator[:3, 3], [0.0, 0.5 * exo.hip_width_m, 0.0], atol=1e-12)
     # the foot track starts at the right sole and ends at the touch-down point on the tread
-    np.testing.assert_allclose(tr.foot_track_w[0, 1:], [0.0, -0.5 * exo.hip_width_m, 0.0], atol=1e-12)
-    np.testing.assert_allclose(tr.foot_track_w[-1, 1:], tr.touchdown_w, atol=1e-12)
-    assert tr.scene.surface(2).contains(tr.touchdown_w)
+    climb = tr.stairs
+    np.testing.assert_allclose(climb.foot_track_w[0, 1:], [0.0, -0.5 * exo.hip_width_m, 0.0], atol=1e-12)
+    np.testing.assert_allclose(climb.foot_track_w[-1, 1:], climb.touchdown_w, atol=1e-12)
+    assert tr.scene.surface(2).contains(climb.touchdown_w)
     assert set(tr.body_tracks) >= {"pelvis", "foot_r", "shank_r"} and tr.body_tracks["pelvis"].shape == (round(dur * 50) + 1, 8)
     cal = ep.calibration
     assert cal.base_link == "pelvis" and cal.mount("tof_r_lat").params["rate_hz"] == 50.0

@@ -17,6 +17,7 @@ from exobench.core import (
     SceneTruth,
     SensorMount,
     SessionError,
+    StairTruth,
     ToFReading,
     TofStatus,
     ToFTruth,
@@ -39,11 +40,8 @@ def _episode(rng) -> Episode:
     surf = PlanarSurface(0, "ground", np.array([0, 0, 1.0]), np.zeros(3), rng.normal(size=(4, 3)), ("floor",))
     truth = EpisodeTruth(
         scene=SceneTruth((surf,), {"floor": (0,)}, {"riser_m": 0.162}, "staircase"),
-        tof=tuple(tof),
         T_world_estimator=np.eye(4),
-        stance_side="l",
-        touchdown_w=rng.normal(size=3),
-        foot_track_w=rng.normal(size=(20, 4)),
+        stairs=StairTruth(tuple(tof), "l", rng.normal(size=3), rng.normal(size=(20, 4))),
         body_tracks={"pelvis": rng.normal(size=(5, 8))},
         max_penetration_m=0.0,
         events={"liftoff_s": 0.3},
@@ -77,11 +75,13 @@ def test_roundtrip_is_bit_exact(tmp_path):
         assert type(a) is type(b)
         for k, v in vars(a).items():
             assert _same(v, getattr(b, k)), (type(a).__name__, k)
-    for a, b in zip(ep.truth.tof, back.truth.tof):
+    for a, b in zip(ep.truth.stairs.tof, back.truth.stairs.tof, strict=True):
         for k, v in vars(a).items():
             assert _same(v, getattr(b, k)), k
     assert np.array_equal(back.calibration.mounts[0].T_parent_sensor, ep.calibration.mounts[0].T_parent_sensor)
-    assert np.array_equal(back.truth.foot_track_w, ep.truth.foot_track_w)
+    assert np.array_equal(back.truth.stairs.foot_track_w, ep.truth.stairs.foot_track_w)
+    assert np.array_equal(back.truth.stairs.touchdown_w, ep.truth.stairs.touchdown_w)
+    assert back.truth.stairs.stance_side == "l"
     assert np.array_equal(back.truth.body_tracks["pelvis"], ep.truth.body_tracks["pelvis"])
     assert back.scenario == ep.scenario and back.seed == 7
     # streaming gives the same frames as the whole read

@@ -38,8 +38,7 @@ def _episode(frames) -> Episode:
         sole_height_m=0.068, foot_length_m=0.26, heel_to_ankle_m=0.065,
     )  # fmt: skip
     truth = EpisodeTruth(
-        scene=SceneTruth((), {}), tof=(), T_world_estimator=np.eye(4), stance_side="l",
-        touchdown_w=np.zeros(3), foot_track_w=np.zeros((0, 4)),
+        scene=SceneTruth((), {}), T_world_estimator=np.eye(4),
     )  # fmt: skip
     return Episode({}, 0, calib, tuple(frames), truth)
 

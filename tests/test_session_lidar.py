@@ -88,8 +88,7 @@ def _synthetic(rng) -> Episode:
     surf = PlanarSurface(0, "ground", np.array([0, 0, 1.0]), np.zeros(3), rng.normal(size=(4, 3)), ("floor",))
     truth = EpisodeTruth(
         scene=SceneTruth((surf,), {"floor": (0,)}, {}, "office"),
-        tof=(), T_world_estimator=np.eye(4), stance_side="r", touchdown_w=np.zeros(3),
-        foot_track_w=rng.normal(size=(3, 4)), lidar=tuple(truths), trajectory_w=rng.normal(size=(len(truths), 8)),
+        T_world_estimator=np.eye(4), lidar=tuple(truths), trajectory_w=rng.normal(size=(len(truths), 8)),
     )  # fmt: skip
     return Episode({"case": "synthetic"}, 11, _calibration(), tuple(frames), truth)
 
@@ -111,9 +110,9 @@ def test_office_episode_roundtrip_is_bit_exact(office):
     assert ep.truth.body_tracks.keys() == back.truth.body_tracks.keys()
     for k, v in ep.truth.body_tracks.items():
         assert _same(v, back.truth.body_tracks[k]), k
-    assert _same(ep.truth.foot_track_w, back.truth.foot_track_w)
+    assert ep.truth.stairs is None and back.truth.stairs is None  # an office walk has no climbing step
     assert back.scenario == ep.scenario and back.seed == ep.seed
-    assert read_meta(path)["version"] == 2
+    assert read_meta(path)["version"] == 3
 
 
 def test_lidar_lines_reference_per_scan_files(office):
@@ -253,13 +252,32 @@ def test_version_1_session_still_reads(tmp_path):
     assert np.isnan(ep.frames[2].range_m) and ep.frames[2].status == TofStatus.NO_TARGET
     assert np.array_equal(ep.frames[1].accel_m_s2, [0.0, 0.0, 9.81])
     assert ep.truth.lidar == () and ep.truth.trajectory_w.shape == (0, 8)
-    assert np.array_equal(ep.truth.foot_track_w, [[0.0, 0.1, 0.0, 0.0], [0.1, 0.2, 0.0, 0.05]])
-    assert ep.truth.tof[0].true_range_m == 0.41 and ep.truth.events == {"touchdown_s": 0.9}
+    assert np.array_equal(ep.truth.stairs.foot_track_w, [[0.0, 0.1, 0.0, 0.0], [0.1, 0.2, 0.0, 0.05]])
+    assert ep.truth.stairs.tof[0].true_range_m == 0.41 and ep.truth.events == {"touchdown_s": 0.9}
     assert ep.scenario == {"riser_m": 0.17} and ep.seed == 3
-    # and re-writing it gives a version-2 session with the same content
-    back = read_session(write_session(ep, tmp_path / "v2"))
-    assert read_meta(tmp_path / "v2")["version"] == 2
+    # and re-writing it gives a version-3 session with the same content
+    back = read_session(write_session(ep, tmp_path / "v3"))
+    assert read_meta(tmp_path / "v3")["version"] == 3
+    assert np.array_equal(back.truth.stairs.foot_track_w, ep.truth.stairs.foot_track_w)
     _assert_same_objects(ep.frames, back.frames, "frames")
+
+
+def test_version_2_truth_gives_a_stairs_part_only_to_staircase_episodes(tmp_path):
+    """Version 2 wrote the climbing step's fields flat for every episode; read back, an office
+    walk has no stairs part, and the same fields under a staircase scene make one."""
+    ep = _synthetic(np.random.default_rng(5))
+    path = write_session(ep, tmp_path / "s")
+    td = json.loads((path / "truth" / "episode.json").read_text())
+    assert td.pop("stairs") is None
+    td.update(stance_side="r", touchdown_w=[0.1, 0.2, 0.3], foot_track_w=[[0.0, 0.1, 0.2, 0.3]])
+    (path / "truth" / "episode.json").write_text(json.dumps(td))
+    meta = json.loads((path / "meta.json").read_text())
+    (path / "meta.json").write_text(json.dumps({**meta, "version": 2}))
+    assert read_session(path).truth.stairs is None
+    td["scene"]["kind"] = "staircase"
+    (path / "truth" / "episode.json").write_text(json.dumps(td))
+    stairs = read_session(path).truth.stairs
+    assert stairs.stance_side == "r" and np.array_equal(stairs.touchdown_w, [0.1, 0.2, 0.3]) and stairs.tof == ()
 
 
 def test_lidar_truth_materials_are_stored_as_indices_into_a_name_table(tmp_path):

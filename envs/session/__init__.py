@@ -1,14 +1,14 @@
 """Recorded sessions on disk: an episode's frames, calibration and (apart) ground truth.
 
-Layout of a session directory (format ``exobench-session``, version 2)::
+Layout of a session directory (format ``exobench-session``, version 3)::
 
     meta.json                      format, version, exobench version, scenario, seed, frame counts
     calibration.json               sensor mounts, encoder joint names, robot description (URDF text)
     frames.jsonl                   every frame, time-ordered, one JSON object per line ("kind" first)
     <kind>/<sensor_id>/<k>.npz     arrays of the k-th frame of that sensor, for kinds with large
                                    arrays (lidar/, rgbd/; k = 000000, 000001, ...)
-    truth/episode.json             scene surfaces, estimator frame, touch-down, tracks, events,
-                                   LiDAR trajectory_w, number of LiDAR truths
+    truth/episode.json             scene surfaces, estimator frame, tracks, events, the climbing
+                                   step's truth (or null), trajectory_w, number of LiDAR truths
     truth/tof.jsonl                ground truth of each ToF frame, in ToF frame order
     truth/lidar/<k>.npz            ground truth of the k-th LiDAR scan of the episode (all sensors)
     truth/extra.npz                the numpy arrays of ``EpisodeTruth.extra`` (only when it has any)
@@ -26,7 +26,10 @@ replayed on a session gets exactly the frames it would have had live, so it scor
 the truth/ folder is for the harness and can be left out when sharing real logs.
 
 Versions: 1 had no binary files (LiDAR and RGB-D frames were refused) and no LiDAR truth;
-version-1 sessions are still read (their LiDAR truth is empty). Writing always gives version 2.
+version-1 sessions are still read (their LiDAR truth is empty). Version 2 wrote the climbing
+step's fields flat for every episode; version 3 writes them as a ``stairs`` object, null when the
+episode has no climbing step (versions 1 and 2 read them as the stairs part of staircase episodes
+only). Writing always gives version 3.
 """
 
 from .calibration import calibration_from_dict, calibration_to_dict

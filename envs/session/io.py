@@ -18,8 +18,8 @@ from .store import BinaryStore, dumps, plain
 from .truth import read_truth, write_truth
 
 FORMAT = "exobench-session"
-VERSION = 2
-SUPPORTED_VERSIONS = (1, 2)
+VERSION = 3
+SUPPORTED_VERSIONS = (1, 2, 3)
 
 
 def write_session(episode: Episode, path: str | os.PathLike, *, include_truth: bool = True) -> Path:

@@ -1,11 +1,12 @@
 """The ground truth of a session (``truth/``), kept apart from the frames for the harness.
 
-``truth/episode.json`` holds the scene surfaces, the estimator frame, touch-down, tracks, events,
-the LiDAR ``trajectory_w``, the number of LiDAR truths, the steps (one object per step) and the
+``truth/episode.json`` holds the scene surfaces, the estimator frame, tracks, events, the
+climbing step's part (``stairs``: stance side, touch-down, foot track; null without one),
+``trajectory_w``, the number of LiDAR truths, the steps (one object per step) and the
 plain values of ``EpisodeTruth.extra`` (numbers, strings, lists, dicts; tuples come back as lists,
 nested numpy arrays as lists); the top-level numpy arrays of ``extra`` go to ``truth/extra.npz``
 and come back with their dtype and values exactly. ``truth/tof.jsonl`` holds the truth of each
-ToF frame, in ToF frame order. ``truth/lidar/<k>.npz`` holds the truth of the k-th LiDAR scan of
+ToF frame, in ToF frame order (the ``tof`` of the stairs part). ``truth/lidar/<k>.npz`` holds the truth of the k-th LiDAR scan of
 the episode (all sensors): every :class:`~exobench.core.LidarTruth` field (``stamp_s`` and
 ``sensor_id`` as 0-d arrays) except ``material``, which is stored as ``material_index`` (N,)
 (uint8, or uint16 beyond 256 names) into ``material_names`` (the scan's distinct names, a numpy
@@ -28,6 +29,7 @@ from exobench.core import (
     PlanarSurface,
     SceneTruth,
     SessionError,
+    StairTruth,
     StepTruth,
     ToFTruth,
 )
@@ -73,9 +75,11 @@ def truth_to_dict(t: EpisodeTruth) -> dict[str, Any]:
             "objects": plain(list(t.scene.objects)),
         },
         "T_world_estimator": enc_array(t.T_world_estimator),
-        "stance_side": t.stance_side,
-        "touchdown_w": enc_array(t.touchdown_w),
-        "foot_track_w": enc_array(t.foot_track_w),
+        "stairs": None if t.stairs is None else {
+            "stance_side": t.stairs.stance_side,
+            "touchdown_w": enc_array(t.stairs.touchdown_w),
+            "foot_track_w": enc_array(t.stairs.foot_track_w),
+        },
         "body_tracks": {k: enc_array(v) for k, v in t.body_tracks.items()},
         "max_penetration_m": enc_float(t.max_penetration_m),
         "events": {k: enc_float(v) for k, v in t.events.items()},
@@ -167,11 +171,8 @@ def truth_from_dict(
     )
     return EpisodeTruth(
         scene=scene,
-        tof=tof,
         T_world_estimator=dec_array(d["T_world_estimator"]),
-        stance_side=d["stance_side"],
-        touchdown_w=dec_array(d["touchdown_w"]),
-        foot_track_w=dec_array(d["foot_track_w"]).reshape(-1, 4),
+        stairs=_stairs_from_dict(d, tof, scene.kind),
         body_tracks={k: dec_array(v).reshape(-1, 8) for k, v in d["body_tracks"].items()},
         max_penetration_m=dec_float(d["max_penetration_m"]),
         events={k: dec_float(v) for k, v in d["events"].items()},
@@ -182,12 +183,31 @@ def truth_from_dict(
     )
 
 
+def _stairs_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...], scene_kind: str) -> StairTruth | None:
+    """The climbing step's truth: the ``stairs`` object of format 3, or (formats 1 and 2, which
+    wrote its fields flat for every episode) the flat fields of a staircase episode."""
+    if "stairs" in d:
+        part = d["stairs"]
+    elif scene_kind == "staircase":
+        part = d
+    else:
+        return None
+    if part is None:
+        return None
+    return StairTruth(
+        tof=tof,
+        stance_side=part["stance_side"],
+        touchdown_w=dec_array(part["touchdown_w"]),
+        foot_track_w=dec_array(part["foot_track_w"]).reshape(-1, 4),
+    )
+
+
 def write_truth(root: Path, t: EpisodeTruth) -> None:
     """Write ``truth/`` of a session under ``root``."""
     (root / "truth").mkdir()
     (root / "truth" / "episode.json").write_text(dumps(truth_to_dict(t)))
     with open(root / "truth" / "tof.jsonl", "w") as fh:
-        for tt in t.tof:
+        for tt in t.stairs.tof if t.stairs is not None else ():
             fh.write(dumps(tof_truth_to_dict(tt)) + "\n")
     for k, lt in enumerate(t.lidar):
         save_npz(root / "truth" / "lidar" / f"{k:06d}.npz", lidar_truth_arrays(lt))

@@ -84,7 +84,7 @@ def _finite(*arrays: Any) -> bool:
 
 
 def _true_surface_ids(episode: Episode) -> dict[tuple[float, str], int]:
-    return {(round(float(t.stamp_s), 9), t.sensor_id): int(t.surface_id) for t in episode.truth.tof}
+    return {(round(float(t.stamp_s), 9), t.sensor_id): int(t.surface_id) for t in episode.truth.stairs.tof}
 
 
 def _stats(stats: dict[str, Any]) -> dict[str, float]:
@@ -115,14 +115,17 @@ def empty_metrics(episode: Episode | None) -> dict[str, Any]:
         "discarded_fraction", "time_per_point_us",
     ):
         m[k] = NAN
-    m.update(n_points=0, n_assigned=0, n_tof=len(episode.truth.tof) if episode is not None else 0, failed=True, failed_reason="")
+    m.update(n_points=0, n_assigned=0, n_tof=0 if episode is None or episode.truth.stairs is None else len(episode.truth.stairs.tof), failed=True, failed_reason="")
     return m
 
 
 def score_staircase(episode: Episode, est: StaircaseEstimate) -> dict[str, Any]:
     """Every metric of the module docstring for one estimate (never raises on bad values)."""
     m = empty_metrics(episode)
-    truth = episode.truth
+    truth, climb = episode.truth, episode.truth.stairs
+    if climb is None:
+        m["failed_reason"] = "the episode has no climbing-step truth (truth.stairs)"
+        return m
     for i in range(N_SURFACES):
         s, p = _surface(episode, i), est.plane(i)
         if s is None or p is None or not _finite(p.normal, p.centroid) or not np.linalg.norm(p.normal) > 0:
@@ -140,11 +143,11 @@ def score_staircase(episode: Episode, est: StaircaseEstimate) -> dict[str, Any]:
 
     s2_true, s2 = _surface(episode, 2), est.plane(2)
     if s2_true is not None and s2 is not None and _finite(s2.normal, s2.centroid):
-        x, y = float(truth.touchdown_w[0]), float(truth.touchdown_w[1])
+        x, y = float(climb.touchdown_w[0]), float(climb.touchdown_w[1])
         n_w, c_w = _plane_world(episode, s2.normal, s2.centroid)
         m["touchdown_error_m"] = plane_elevation(n_w, c_w, x, y) - plane_elevation(s2_true.normal_w, s2_true.point_w, x, y)
 
-    track = np.asarray(truth.foot_track_w, dtype=float).reshape(-1, 4)
+    track = np.asarray(climb.foot_track_w, dtype=float).reshape(-1, 4)
     liftoff = float(truth.events.get("liftoff_s", track[0, 0] if len(track) else 0.0))
     touchdown = float(truth.events.get("touchdown_s", track[-1, 0] if len(track) else NAN))
     if s2 is None:

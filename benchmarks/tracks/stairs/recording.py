@@ -98,7 +98,7 @@ def _log_world(rr: Any, rec: Any, episode: Episode) -> None:
             rr.Mesh3D(vertex_positions=poly, triangle_indices=_fan(len(poly)), albedo_factor=color),
             static=True,
         )
-    rec.log("world/touchdown", rr.Points3D([episode.truth.touchdown_w], radii=0.012, colors=[(230, 40, 40)]), static=True)
+    rec.log("world/touchdown", rr.Points3D([episode.truth.stairs.touchdown_w], radii=0.012, colors=[(230, 40, 40)]), static=True)
 
 
 def _log_body(rr: Any, rec: Any, episode: Episode) -> None:
@@ -129,7 +129,7 @@ def _log_tof(rr: Any, rec: Any, episode: Episode) -> None:
     tof_frames = [f for f in episode.frames if isinstance(f, ToFReading)]
     hits: dict[str, list] = {}
     colors: dict[str, list] = {}
-    for frame, truth in zip(tof_frames, episode.truth.tof, strict=False):
+    for frame, truth in zip(tof_frames, episode.truth.stairs.tof, strict=False):
         rec.set_time("sim_time", duration=float(frame.stamp_s))
         rec.log(f"metrics/tof/{frame.sensor_id}/range_m", rr.Scalars(float(frame.range_m) if frame.valid else np.nan))
         T = np.asarray(truth.T_world_sensor, dtype=float)

@@ -105,7 +105,7 @@ def estimated_profile(
 def side_view_data(episode: Episode, estimates: dict[str, Any]) -> dict[str, np.ndarray]:
     """Arrays for the report's side view (see module docstring); one block per pipeline."""
     o, u = _view_axes(episode)
-    track = np.asarray(episode.truth.foot_track_w, dtype=float).reshape(-1, 4)
+    track = np.asarray(episode.truth.stairs.foot_track_w, dtype=float).reshape(-1, 4)
     T = np.asarray(episode.truth.T_world_estimator, dtype=float)
     out: dict[str, np.ndarray] = {
         "true_segments": true_profile(episode, o, u),
