@@ -7,8 +7,7 @@ import pytest
 
 from exobench.core.frames import ContactSample, ImuSample, JointState, LidarScan
 from exobench.core.transforms import matrix_to_quat_wxyz, rot_x, rot_y, rot_z
-from exobench.perception.filter_pipelines import FILTER_PIPELINES, FilterNaiveGround, FilterNormalGround
-from exobench.perception.intensity_filter import (
+from exobench.perception.lidar_filter.filters import (
     IntensityBandConfig,
     IntensityThresholdFilter,
     NaiveGroundConfig,
@@ -17,6 +16,7 @@ from exobench.perception.intensity_filter import (
     NormalGroundConfig,
     NormalGroundFilter,
 )
+from exobench.perception.lidar_filter.pipelines import FILTER_PIPELINES, FilterNaiveGround, FilterNormalGround
 
 LIDAR = "lidar_trunk"
 
@@ -183,7 +183,7 @@ def test_bad_config_raises_config_error():
 
 
 def test_kiss_icp_keeps_last_pose_on_empty_scans(calibration):
-    from exobench.mapping.kiss_icp_pipeline import KissConfig, KissIcpPipeline
+    from exobench.mapping.odometry.kiss_icp import KissConfig, KissIcpPipeline
 
     rng = np.random.default_rng(4)
     # a static box room seen from the origin: the pose must stay at the identity

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from exobench.core.errors import ConfigError, UnknownNameError
-from exobench.perception.intensity_filter import (
+from exobench.perception.lidar_filter.filters import (
     FILTERS,
     FilterReason,
     FloorGroundConfig,
@@ -414,7 +414,7 @@ def test_far_grazing_floor_reads_as_a_depth_jump_unless_allowed():
 
 
 def test_pipeline_config_passes_the_normal_method_through():
-    from exobench.perception.filter_pipelines import FilterNormalGround
+    from exobench.perception.lidar_filter.pipelines import FilterNormalGround
 
     assert FilterNormalGround().filter.config.normal_method == "range-image"
     pipe = FilterNormalGround(FilterNormalGround.Config(normal_method="knn", ri_col_halfwidth=6, ri_ring_jump_rel=0.4))
@@ -502,7 +502,7 @@ def test_fit_floor_plane_recovers_a_known_plane_and_refuses_a_bad_one():
 
 
 def test_naive_ground_test_config_and_pipeline():
-    from exobench.perception.filter_pipelines import FilterFloorGround, FilterNaiveGround
+    from exobench.perception.lidar_filter.pipelines import FilterFloorGround, FilterNaiveGround
 
     # the thesis's naive filter tests eq. (4.16) as written; the floor filter the band about the floor plane
     assert NaiveGroundConfig().ground_test == "below" and FilterNaiveGround().filter.config.ground_test == "below"

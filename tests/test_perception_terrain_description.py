@@ -4,8 +4,13 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError
-from exobench.perception.plane_tracking import DetectedPlane, PlaneSet, PlaneTrackingConfig, voxel_keys
-from exobench.perception.terrain_description import (
+from exobench.perception.terrain.plane_tracking import (
+    DetectedPlane,
+    PlaneSet,
+    PlaneTrackingConfig,
+    voxel_keys,
+)
+from exobench.perception.terrain.terrain_description import (
     TerrainConfig,
     describe_terrain,
     plane_class,

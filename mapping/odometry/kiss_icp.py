@@ -13,7 +13,7 @@ Details:
   ``deskew=False`` the scan is taken as instantaneous and stamped ``sweep_start_s``.
 - ``voxel_size_m = 0`` takes kiss-icp's own default (``max_range_m / 100``).
 - ``filter``: ``"none"`` (default), ``"threshold"``, ``"naive-ground"``, ``"normal-ground"`` or
-  ``"floor-ground"`` runs that intensity filter (seeds/003 Sec. 4.2.2; the last is ours) (:mod:`exobench.perception.filter_pipelines`,
+  ``"floor-ground"`` runs that intensity filter (seeds/003 Sec. 4.2.2; the last is ours) (:mod:`exobench.perception.lidar_filter.pipelines`,
   with its default parameters and ``T_footprint_sensor`` from the exoskeleton's kinematics)
   before odometry, as Table 5.4 does. :func:`run_kiss_icp` takes precomputed keep masks instead.
 - Faults never raise: a scan with fewer than ``min_points`` usable points (empty, all NaN, or
@@ -195,7 +195,7 @@ class KissIcpPipeline:
         self._lidar = self.config.lidar_id
         self._filter = None
         if self.config.filter != "none":
-            from exobench.perception.filter_pipelines import filter_pipeline
+            from exobench.perception.lidar_filter.pipelines import filter_pipeline
 
             cls = filter_pipeline(self.config.filter)
             self._filter = cls(cls.Config(lidar_id=self.config.lidar_id))

@@ -4,11 +4,11 @@ Four pipelines (track ``loop-closure``) share one driver, :class:`PlaceRecogniti
 differ in the descriptor (seeds/003 section 4.2.3):
 
 - ``sc++``: Scan Context++, the maximum height per bin (eq. 4.20-4.25,
-  :class:`~exobench.perception.scan_context.ScanContextPP`);
+  :class:`~exobench.perception.place_recognition.scan_context.ScanContextPP`);
 - ``gsc-height``: GSC, ``mu^z + alpha Sigma^zz`` per bin (eq. 4.26-4.28);
 - ``gsc-huber``: GSC with Huber-weighted statistics (eq. 4.29-4.33, then 4.28);
 - ``gsc-intensity``: GSC on the intensity (eq. 4.28 on ``psi``)
-  (:class:`~exobench.perception.gaussian_scan_context.GaussianScanContext`).
+  (:class:`~exobench.perception.place_recognition.gaussian_scan_context.GaussianScanContext`).
 
 What a pipeline does with the frames (it sees the calibration and the frames, never the truth):
 
@@ -21,9 +21,9 @@ What a pipeline does with the frames (it sees the calibration and the frames, ne
   scan" stands in for the thesis' distance-based keyframes: at the exoskeleton's 0.3-0.6 m/s and
   10 Hz, k = 5 is one keyframe every 0.15-0.3 m.
 - ``on = "scan"``: the keyframe scan alone, in its level frame
-  (:func:`~exobench.perception.scan_context.level_frame`: gravity-aligned, x along the sensor's
+  (:func:`~exobench.perception.place_recognition.scan_context.level_frame`: gravity-aligned, x along the sensor's
   heading, origin at the sensor). ``on = "submap"``: the last ``submap_scans`` scans accumulated in
-  the keyframe's level frame (:func:`~exobench.perception.scan_context.accumulate_submap`) with
+  the keyframe's level frame (:func:`~exobench.perception.place_recognition.scan_context.accumulate_submap`) with
   each scan's IMU orientation and *no translation* (there is no odometry: at walking speed the
   sensor moves 0.15-0.3 m over 5 scans, which smears the submap by that much). The submap gives
   the 16-ring LiDAR the denser vertical coverage the thesis' submap-based SC is after (the trunk
@@ -124,7 +124,7 @@ class PlaceRecognitionConfig:
         lidar_id: LiDAR sensor id; empty = the calibration's first LiDAR mount.
         n_rings, n_sectors, max_radius_m, height_offset_m, ring_key_mode, num_candidates,
         shift_search, search_ratio, beyond_max_radius, min_points: as
-        :class:`~exobench.perception.scan_context.ScanContextConfig` (indoor grid: 20 m, 1 m rings,
+        :class:`~exobench.perception.place_recognition.scan_context.ScanContextConfig` (indoor grid: 20 m, 1 m rings,
         6 deg sectors; the height offset puts the ground, 1.7-1.8 m below a trunk LiDAR, above 0).
     """
 
@@ -188,7 +188,7 @@ class GaussianPlaceRecognitionConfig(PlaceRecognitionConfig):
         intensity_scale: intensity byte to binned value (``gsc-intensity``).
         component_cells: compute only the statistics eq. (4.28) reads (the mean and variance of
             z or psi; :class:`ComponentGaussianScanContext`), the same numbers as the full
-            4 x 4 covariance of :func:`~exobench.perception.gaussian_scan_context.bin_gaussians`
+            4 x 4 covariance of :func:`~exobench.perception.place_recognition.gaussian_scan_context.bin_gaussians`
             at a quarter of the work; False: the full reference computation.
     """
 
@@ -209,7 +209,7 @@ class ComponentGaussianScanContext(GaussianScanContext):
     variance of the one component (z, or psi for ``"intensity"``).
 
     The same statistics as the ``[c]`` / ``[c, c]`` entries of
-    :func:`~exobench.perception.gaussian_scan_context.bin_gaussians` (eq. 4.26-4.27, or the
+    :func:`~exobench.perception.place_recognition.gaussian_scan_context.bin_gaussians` (eq. 4.26-4.27, or the
     residual over x, y, z to the plain mean, eq. 4.29, the weight of eq. 4.31 and eq. 4.32-4.33),
     equal to rounding (the residual's norm is summed axis by axis); the other 15 covariance
     entries are not formed (the thesis' own remedy for GSC's overhead, section 5.2.3).

@@ -3,7 +3,7 @@
 A cloud, given in a gravity-aligned frame centred on the sensor (x forward, z up; a single scan
 or an accumulated submap, see :func:`level_frame` and :func:`accumulate_submap`), is binned on a
 polar grid of ``N_r`` rings x ``N_s`` sectors; each cell holds one number (here the maximum
-height, eq. 4.22; :mod:`exobench.perception.gaussian_scan_context` fills it with Gaussian
+height, eq. 4.22; :mod:`exobench.perception.place_recognition.gaussian_scan_context` fills it with Gaussian
 statistics instead). A :class:`ContextDatabase` keeps the descriptors, indexes their ring keys
 (eq. 4.23) in a ``scipy.spatial.cKDTree`` and answers a query with the candidate whose
 column-shifted matrix is the most similar (eq. 4.24), accepted when the similarity exceeds the

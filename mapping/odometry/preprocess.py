@@ -17,7 +17,7 @@ the map:
    map cloud loses its points within one registration voxel of a rejected one.
 
 The ground-aware intensity filter of section 4.2.2 lives in
-:mod:`exobench.perception.intensity_filter`; it is not applied here.
+:mod:`exobench.perception.lidar_filter.filters`; it is not applied here.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 
 API (other modules code against exactly this)::
 
-    from exobench.perception.plane_extraction import AhcConfig, extract_planes, segment_depth
+    from exobench.perception.terrain.plane_extraction import AhcConfig, extract_planes, segment_depth
     planes = extract_planes(depth_m, K, T_world_cam, AhcConfig(), cell_m=0.05)  # list[DetectedPlane]
     seg = segment_depth(depth_m, K, AhcConfig())   # AhcSegmentation, camera frame
     seg.labels_px     # (H, W) int32: plane index (same order as extract_planes) or -1
@@ -11,7 +11,7 @@ API (other modules code against exactly this)::
 
 ``depth_m`` (H, W) float metres (0 / NaN / inf = invalid), ``K`` its 3x3 pinhole matrix,
 ``T_world_cam`` the 4x4 camera-to-world pose of the optical frame (x right, y down, z forward).
-``extract_planes`` returns :class:`exobench.perception.plane_tracking.DetectedPlane` objects in
+``extract_planes`` returns :class:`exobench.perception.terrain.plane_tracking.DetectedPlane` objects in
 the world frame: centre = mean and unit normal = PCA of the points of the plane's interior
 cells (below), the normal oriented towards the camera; ``area_m2`` (occupied ``cell_m`` squares
 in the plane's 2-D grid times cell_m^2) and ``cells`` (support voxels, ``voxel_keys``) as in
@@ -78,7 +78,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from exobench.core import ConfigError, check_range
-from exobench.perception.plane_tracking import DetectedPlane, voxel_keys
+from exobench.perception.terrain.plane_tracking import DetectedPlane, voxel_keys
 
 
 @dataclass(frozen=True)

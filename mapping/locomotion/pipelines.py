@@ -4,7 +4,7 @@
 the camera pose from odometry, TSDF integration (eq. 19-22, :mod:`exobench.mapping.tsdf`), a
 ray-cast smoothed depth image I_D^s (cast at 1/``raycast_downsample`` of the input resolution
 [A: 2] and interpolated back to it, :func:`upsample_depth`), AHC plane extraction on it
-(:mod:`exobench.perception.plane_extraction`; its pixel thresholds apply at the input resolution), the plane set update by IoU (eq. 23) with the voxels seen in
+(:mod:`exobench.perception.terrain.plane_extraction`; its pixel thresholds apply at the input resolution), the plane set update by IoU (eq. 23) with the voxels seen in
 I_D^s as the scope, the terrain description (II-F) and the mode of the next step at the
 footprint predicted by eq. 16-18 (II-D).
 ``single-frame`` (:class:`SingleFramePipeline`), the ablation baseline: AHC on the raw depth of the
@@ -35,7 +35,7 @@ Inputs (frames):
   forefoot first on a step down a stair or a ramp, where a heel-only divider dates the strike
   late by the stance's first part; ``"heel"``: the heel pad only, the paper's heel-strike
   wording). A foot strike (contact after at least ``min_heel_off_s`` [A: 0.1 s] without,
-  :class:`~exobench.perception.footprint.GaitDivider`; shorter gaps are chatter, counted in
+  :class:`~exobench.perception.terrain.footprint.GaitDivider`; shorter gaps are chatter, counted in
   ``stats["n_contact_chatter"]``) records the odometry position and velocity; a pad already in
   contact at its first sample is a standing foot, not a strike.
 
@@ -45,7 +45,7 @@ samples received so far, if at most ``max_odometry_age_s`` [A: 0.25 s; the odome
 the camera rate] away, otherwise the odometry is missing; at a heel strike the position is that
 sample's moved on at its velocity to the strike time.
 
-Footprints (eq. 16-18 with :func:`~exobench.perception.footprint.predict_footprint`): p_pd is the
+Footprints (eq. 16-18 with :func:`~exobench.perception.terrain.footprint.predict_footprint`): p_pd is the
 tracked body's position at the next heel strike, delta_nxt by ``footprint.step_estimate``
 [deviation, default ``"median"`` of the last four steps: eq. 17 (``"eq17"``, the paper's)
 doubles the noise of the step sizes measured between head or chest camera positions (+-0.05 m:
@@ -165,16 +165,16 @@ from exobench.core import (
     check_range,
 )
 from exobench.mapping.tsdf import Tsdf, TsdfConfig
-from exobench.perception.footprint import (
+from exobench.perception.terrain.footprint import (
     FootprintConfig,
     GaitDivider,
     HeelStrike,
     heading_frame,
     predict_footprint,
 )
-from exobench.perception.plane_extraction import AhcConfig, extract_planes
-from exobench.perception.plane_tracking import PlaneSet, PlaneTrackingConfig, voxel_keys
-from exobench.perception.terrain_description import (
+from exobench.perception.terrain.plane_extraction import AhcConfig, extract_planes
+from exobench.perception.terrain.plane_tracking import PlaneSet, PlaneTrackingConfig, voxel_keys
+from exobench.perception.terrain.terrain_description import (
     TerrainConfig,
     TerrainDescription,
     describe_terrain,

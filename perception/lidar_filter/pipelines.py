@@ -3,7 +3,7 @@
 ``filter-none``, ``filter-threshold`` (eq. 4.15), ``filter-naive-ground`` (eq. 4.16),
 ``filter-normal-ground`` (eq. 4.17-4.19) and ``filter-floor-ground`` (eq. 4.16 with the ground
 a band about the scan's own floor plane; not in the thesis) wrap the filters of
-:mod:`exobench.perception.intensity_filter` unchanged (each scan's ``ring`` goes to the filter:
+:mod:`exobench.perception.lidar_filter.filters` unchanged (each scan's ``ring`` goes to the filter:
 the normal filter's range-image normals use it); each returns a
 :class:`~exobench.core.estimates.FilterEstimate` with one keep mask per LiDAR scan and the
 compute time per scan (kinematics + filter).
@@ -13,7 +13,7 @@ exoskeleton's kinematics and trunk tilt, not assumed level (:class:`FootprintKin
 
 - the latest encoder state (:class:`~exobench.core.frames.JointState`) and trunk IMU orientation
   (:class:`~exobench.core.frames.ImuSample`, ``R_world_imu``) go through the URDF of the
-  calibration with pinocchio (:class:`~exobench.perception.tof_kinematics.TofKinematics`), which
+  calibration with pinocchio (:class:`~exobench.perception.kinematics.tof_kinematics.TofKinematics`), which
   gives the LiDAR mount in ``stance_ground``: gravity-aligned axes, origin on the ground under
   the stance ankle (foot flat: ``sole_height_m`` below the joint);
 - the footprint frame ``f`` is that frame turned about the vertical to the trunk's heading (x
@@ -52,7 +52,7 @@ from exobench.core.errors import ConfigError
 from exobench.core.estimates import FilterEstimate
 from exobench.core.frames import ContactSample, Frame, ImuSample, JointState, LidarScan
 
-from .intensity_filter import (
+from .filters import (
     FilterReason,
     FloorGroundConfig,
     FloorGroundFilter,
@@ -100,7 +100,7 @@ class FootprintKinematics:
     """
 
     def __init__(self, calibration: Calibration, sensor_id: str, imu_sensor_id: str = "imu_trunk") -> None:
-        from .tof_kinematics import TofKinematics
+        from exobench.perception.kinematics.tof_kinematics import TofKinematics
 
         self.sensor_id = sensor_id
         self.imu_sensor_id = imu_sensor_id
@@ -337,7 +337,7 @@ class FilterNaiveGround(_FilterPipeline):
 
 class FilterFloorGround(FilterNaiveGround):
     """``filter-floor-ground``: eq. (4.16) with the ground a band about the scan's own floor plane
-    (:class:`~exobench.perception.intensity_filter.FloorGroundFilter`), ``T_footprint_sensor``
+    (:class:`~exobench.perception.lidar_filter.filters.FloorGroundFilter`), ``T_footprint_sensor``
     from kinematics."""
 
     name: ClassVar[str] = "filter-floor-ground"

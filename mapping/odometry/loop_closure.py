@@ -1,7 +1,7 @@
 """Submap-based Scan Context++ loop detection of LEO-SLAM (seeds/003 section 4.2.1).
 
 Every finalised node's submap is described with Scan Context++
-(:class:`exobench.perception.scan_context.ScanContextPP`) in the level frame of its keyframe,
+(:class:`exobench.perception.place_recognition.scan_context.ScanContextPP`) in the level frame of its keyframe,
 after removing the ceiling (points higher than ``ceiling_above_sensor_m`` above the sensor).
 The search is restricted to the node set ``K`` inside the search ellipsoid ``a_s`` centred at
 the current node (eq. 4.11-4.12)::
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from exobench.core.errors import ConfigError, check_range
-from exobench.perception.scan_context import (
+from exobench.perception.place_recognition.scan_context import (
     ContextDescriptor,
     PlaceMatch,
     ScanContextConfig,

@@ -1,0 +1,1 @@
+"""Locomotion-mode prediction (the ``locomotion`` track)."""

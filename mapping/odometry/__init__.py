@@ -1,0 +1,1 @@
+"""LiDAR odometry and SLAM (the ``odometry`` track)."""

@@ -1,0 +1,1 @@
+"""Terrain from depth images: planes, plane tracking, terrain description, footprints."""
