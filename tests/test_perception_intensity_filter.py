@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from exobench.core.errors import ConfigError, UnknownNameError
-from exobench.perception.lidar_filter.filters import (
+from exobench.perception.lidar_filter import (
     FILTERS,
     FilterReason,
     FloorGroundConfig,
@@ -26,10 +26,12 @@ from exobench.perception.lidar_filter.filters import (
     NoFilter,
     NormalGroundConfig,
     NormalGroundFilter,
+    make_filter,
+)
+from exobench.perception.lidar_filter.ground import fit_floor_plane
+from exobench.perception.lidar_filter.normals import (
     estimate_normals,
     estimate_range_image_normals,
-    fit_floor_plane,
-    make_filter,
     range_image_index,
     range_image_normal_candidates,
 )
@@ -229,7 +231,7 @@ def test_registry_and_config_errors():
     with pytest.raises(UnknownNameError):
         make_filter("median")
     with pytest.raises(ConfigError):
-        make_filter("intensity", bogus=1)
+        make_filter("threshold", bogus=1)
     with pytest.raises(ConfigError):
         IntensityBandConfig(intensity_min=120, intensity_max=100)
     with pytest.raises(ConfigError):
