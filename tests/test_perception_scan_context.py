@@ -16,9 +16,9 @@ from exobench.perception.place_recognition.gaussian_scan_context import (
     GaussianScanContextConfig,
     bin_gaussians,
 )
+from exobench.perception.place_recognition.recognizer import ScanContextPP
 from exobench.perception.place_recognition.scan_context import (
     ScanContextConfig,
-    ScanContextPP,
     accumulate_submap,
     level_frame,
     shift_similarities,

@@ -25,11 +25,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from exobench.core.errors import ConfigError, check_range
+from exobench.perception.place_recognition.recognizer import ScanContextPP
 from exobench.perception.place_recognition.scan_context import (
     ContextDescriptor,
     PlaceMatch,
     ScanContextConfig,
-    ScanContextPP,
     best_shift,
     level_frame,
 )

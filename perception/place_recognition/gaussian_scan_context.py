@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from exobench.core.errors import ConfigError, check_range
-from exobench.perception.place_recognition.scan_context import PlaceRecognizer, ScanContextConfig
+from exobench.perception.place_recognition.recognizer import PlaceRecognizer
+from exobench.perception.place_recognition.scan_context import ScanContextConfig
 
 __all__ = ["VARIANTS", "GaussianScanContext", "GaussianScanContextConfig", "bin_gaussians", "huber_weights"]
 
