@@ -386,7 +386,7 @@ def _tsdf_fps(episode: Episode, repeats: int) -> dict[str, Any]:
     (the issue's 640x480 figure; ``terrain-recon`` itself decimates frames wider than
     ``max_work_width_px`` first, which its latency figure includes)."""
     from exobench.core.frames import OdometrySample, RgbdFrame
-    from exobench.mapping.locomotion.pipelines import scale_intrinsics
+    from exobench.mapping.locomotion.depth import scale_intrinsics
     from exobench.mapping.tsdf import Tsdf, TsdfConfig
 
     odom = {round(float(f.stamp_s), 6): np.asarray(f.T_odom_body, dtype=float) for f in episode.frames
