@@ -45,7 +45,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from exobench.core.calibration import Calibration
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
 from exobench.core.transforms import transform_points
@@ -149,9 +149,8 @@ class LeoSlamPipeline:
             check_range("keyframe_distance_m", self.keyframe_distance_m, 0.0, None, low_open=True)
             check_range("keyframe_rotation_deg", self.keyframe_rotation_deg, 0.0, 180.0, low_open=True)
             for name in ("submap_count", "loop_neighbors", "min_points", "max_lost"):
-                v = getattr(self, name)
-                if not isinstance(v, int) or isinstance(v, bool) or v < (0 if name == "loop_neighbors" else 1):
-                    raise ConfigError(name, v, f"a positive integer ({name})")
+                low = 0 if name == "loop_neighbors" else 1
+                object.__setattr__(self, name, check_int(name, getattr(self, name), low))
             check_range("loop_max_correspondence_m", self.loop_max_correspondence_m, 0.0, 100.0, low_open=True)
             check_range("loop_min_fitness", self.loop_min_fitness, 0.0, 1.0)
             check_range("loop_max_correction_m", self.loop_max_correction_m, 0.0, None, low_open=True)

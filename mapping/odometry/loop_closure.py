@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import ConfigError, check_int, check_range
 from exobench.perception.place_recognition.recognizer import ScanContextPP
 from exobench.perception.place_recognition.scan_context import (
     ContextDescriptor,
@@ -74,8 +74,7 @@ class LoopDetectorConfig:
                 raise ConfigError(name, getattr(self, name), "three finite non-negative numbers (x, y, z)")
         if np.any(np.asarray(self.ellipsoid_base_m) <= 0):
             raise ConfigError("ellipsoid_base_m", self.ellipsoid_base_m, "three positive semi-axes, m")
-        if not isinstance(self.exclude_recent, int) or self.exclude_recent < 1:
-            raise ConfigError("exclude_recent", self.exclude_recent, "an integer >= 1")
+        object.__setattr__(self, "exclude_recent", check_int("exclude_recent", self.exclude_recent, 1))
         if self.ceiling_above_sensor_m is not None:
             check_range("ceiling_above_sensor_m", self.ceiling_above_sensor_m, 0.0, None, low_open=True)
         self.sc_config()  # validates the descriptor fields

@@ -14,7 +14,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import check_int, check_range
 from exobench.core.estimates import StaircaseEstimate
 
 from .pipeline_base import StairsPipeline, check_common_config
@@ -123,9 +123,7 @@ class BatchRansacStairs(StairsPipeline):
                 ("refine_iterations", 0),
                 ("seed", 0),
             ):
-                v = getattr(self, name)
-                if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                    raise ConfigError(name, v, f"an integer >= {low}")
+                object.__setattr__(self, name, check_int(name, getattr(self, name), low))
 
     def _reset_estimator(self) -> None:
         self._points: list[tuple[float, float, float]] = []

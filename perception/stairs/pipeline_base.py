@@ -41,7 +41,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
-from exobench.core.errors import ConfigError, ExobenchError, check_range
+from exobench.core.errors import ConfigError, ExobenchError, check_int, check_range
 from exobench.core.estimates import PlaneEstimate, PointAssignment, StaircaseEstimate
 from exobench.core.frames import Frame, ImuSample, JointState, StreamStats, ToFReading, TofStatus
 from exobench.perception.kinematics.tof_kinematics import ESTIMATOR_FRAME, TofKinematics
@@ -76,8 +76,7 @@ def check_common_config(cfg: Any) -> None:
     if cfg.stance_side not in ("l", "r"):
         raise ConfigError("stance_side", cfg.stance_side, "'l' or 'r'")
     check_range("th_pl_m", cfg.th_pl_m, 0.0, 2.0)
-    if isinstance(cfg.reliable_n, bool) or not isinstance(cfg.reliable_n, int) or cfg.reliable_n < 1:
-        raise ConfigError("reliable_n", cfg.reliable_n, "an integer >= 1")
+    object.__setattr__(cfg, "reliable_n", check_int("reliable_n", cfg.reliable_n, 1))
 
 
 class StairsPipeline(ABC):

@@ -77,7 +77,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exobench.core import ConfigError, check_range
+from exobench.core import check_int, check_range
 from exobench.perception.terrain.plane_tracking import DetectedPlane, voxel_keys
 
 
@@ -105,9 +105,7 @@ class AhcConfig:
 
     def __post_init__(self) -> None:
         for name, low in (("cell_px", 2), ("min_support_px", 1), ("max_rounds", 1), ("support_stride_px", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
-                raise ConfigError(f"ahc.{name}", v, f"an integer >= {low}")
+            object.__setattr__(self, name, check_int(f"ahc.{name}", getattr(self, name), low))
         check_range("ahc.depth_sigma_per_m", self.depth_sigma_per_m, 0.0, 1.0)
         check_range("ahc.std_tol_init_m", self.std_tol_init_m, 0.0, 1.0, low_open=True)
         check_range("ahc.std_tol_merge_m", self.std_tol_merge_m, 0.0, 1.0, low_open=True)

@@ -79,7 +79,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exobench.core import ConfigError, check_range
+from exobench.core import check_int, check_range
 
 from .plane_tracking import PlaneSet, TrackedPlane, voxel_centers
 
@@ -122,11 +122,8 @@ class TerrainConfig:
         check_range("terrain.support_fit_tol_m", self.support_fit_tol_m, 0.0)
         check_range("terrain.drop_lookahead_m", self.drop_lookahead_m, 0.0)
         check_range("terrain.crease_min_angle_deg", self.crease_min_angle_deg, 0.0, 90.0)
-        if isinstance(self.crease_min_score, bool) or not isinstance(self.crease_min_score, (int, np.integer)) \
-                or self.crease_min_score < 1:
-            raise ConfigError("terrain.crease_min_score", self.crease_min_score, "an integer >= 1")
-        if isinstance(self.min_score, bool) or not isinstance(self.min_score, (int, np.integer)) or self.min_score < 1:
-            raise ConfigError("terrain.min_score", self.min_score, "an integer >= 1")
+        object.__setattr__(self, "crease_min_score", check_int("terrain.crease_min_score", self.crease_min_score, 1))
+        object.__setattr__(self, "min_score", check_int("terrain.min_score", self.min_score, 1))
 
 
 @dataclass(frozen=True)
