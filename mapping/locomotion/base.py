@@ -65,11 +65,8 @@ from exobench.perception.terrain.footprint import (
     predict_footprint,
 )
 from exobench.perception.terrain.plane_tracking import PlaneSet
-from exobench.perception.terrain.terrain_description import (
-    TerrainDescription,
-    describe_terrain,
-    plane_height_at,
-)
+from exobench.perception.terrain.terrain_description import TerrainDescription, describe_terrain
+from exobench.perception.terrain.terrain_types import plane_height_at
 
 from .body import inverse_se3, tracked_point_neutral
 from .config import STATUSES, LocomotionConfig

@@ -15,7 +15,7 @@ from exobench.mapping.tsdf import TsdfConfig
 from exobench.perception.terrain.footprint import FootprintConfig
 from exobench.perception.terrain.plane_extraction import AhcConfig
 from exobench.perception.terrain.plane_tracking import PlaneTrackingConfig
-from exobench.perception.terrain.terrain_description import TerrainConfig
+from exobench.perception.terrain.terrain_types import TerrainConfig
 
 __all__ = ["LocomotionConfig", "TerrainReconConfig", "check_locomotion_config"]
 
