@@ -2,7 +2,7 @@
 
 - :func:`bench_rtls`: on the case-A stream (simulated, or a recorded session), the points the
   RTLS pipeline put into each surface are replayed in arrival order twice: once through the
-  recursive plane (:class:`exobench.perception.rtls.RtlsPlane`: add, then read normal and
+  recursive plane (:class:`exobench.perception.stairs.rtls.RtlsPlane`: add, then read normal and
   sigma), once by refitting a batch total least squares plane (SVD of all the surface's points
   so far) after each point; the same is done with all the points as one sequence, where the
   batch cost grows with the count. Medians per point and their ratios come from the same run.
@@ -36,7 +36,7 @@ def case_a_episode(seed: int = 0) -> Episode:
 
 
 def _surface_streams(episode: Episode) -> tuple[list[np.ndarray], np.ndarray]:
-    from exobench.perception.pipelines import RtlsStairs
+    from exobench.perception.stairs import RtlsStairs
 
     pipe = RtlsStairs()
     pipe.reset(episode.calibration)
@@ -56,7 +56,7 @@ def _time_sequence(pts: np.ndarray, first: int = 0) -> tuple[list[float], list[f
     a batch refit on all points so far with numpy (centre + SVD); and the same batch refit in
     the recursion's own scalar arithmetic (re-accumulating ``V`` and ``e`` over all points,
     as a device without the recursion would). The points before ``first`` are added untimed."""
-    from exobench.perception.rtls import RtlsPlane
+    from exobench.perception.stairs.rtls import RtlsPlane
 
     rec_t, batch_t, scalar_t = [], [], []
     plane = RtlsPlane()
@@ -386,7 +386,7 @@ def _tsdf_fps(episode: Episode, repeats: int) -> dict[str, Any]:
     (the issue's 640x480 figure; ``terrain-recon`` itself decimates frames wider than
     ``max_work_width_px`` first, which its latency figure includes)."""
     from exobench.core.frames import OdometrySample, RgbdFrame
-    from exobench.mapping.locomotion import scale_intrinsics
+    from exobench.mapping.locomotion.depth import scale_intrinsics
     from exobench.mapping.tsdf import Tsdf, TsdfConfig
 
     odom = {round(float(f.stamp_s), 6): np.asarray(f.T_odom_body, dtype=float) for f in episode.frames

@@ -30,22 +30,22 @@ ENTRY_POINT_GROUP = "exobench.pipelines"
 # name -> (entry point, track); the track tag lets `exobench run` pick a track's pipelines
 # without importing them
 BUILTIN_PIPELINES: dict[str, tuple[str, str]] = {
-    "rtls": ("exobench.perception.pipelines:RtlsStairs", "stairs"),
-    "rtls-htvr": ("exobench.perception.pipelines:RtlsHtvrStairs", "stairs"),
-    "batch-ransac": ("exobench.perception.pipelines:BatchRansacStairs", "stairs"),
-    "filter-none": ("exobench.perception.filter_pipelines:FilterNone", "lidar-filter"),
-    "filter-threshold": ("exobench.perception.filter_pipelines:FilterThreshold", "lidar-filter"),
-    "filter-naive-ground": ("exobench.perception.filter_pipelines:FilterNaiveGround", "lidar-filter"),
-    "filter-normal-ground": ("exobench.perception.filter_pipelines:FilterNormalGround", "lidar-filter"),
-    "filter-floor-ground": ("exobench.perception.filter_pipelines:FilterFloorGround", "lidar-filter"),
-    "kiss-icp": ("exobench.mapping.kiss_icp_pipeline:KissIcpPipeline", "odometry"),
-    "leo-slam": ("exobench.mapping.leo_slam:LeoSlamPipeline", "odometry"),
-    "sc++": ("exobench.perception.place_recognition:ScanContextPPPipeline", "loop-closure"),
-    "gsc-height": ("exobench.perception.place_recognition:GscHeightPipeline", "loop-closure"),
-    "gsc-huber": ("exobench.perception.place_recognition:GscHuberPipeline", "loop-closure"),
-    "gsc-intensity": ("exobench.perception.place_recognition:GscIntensityPipeline", "loop-closure"),
-    "terrain-recon": ("exobench.mapping.locomotion:TerrainReconstructionPipeline", "locomotion"),
-    "single-frame": ("exobench.mapping.locomotion:SingleFramePipeline", "locomotion"),
+    "rtls": ("exobench.perception.stairs.rtls_pipeline:RtlsStairs", "stairs"),
+    "rtls-htvr": ("exobench.perception.stairs.rtls_pipeline:RtlsHtvrStairs", "stairs"),
+    "batch-ransac": ("exobench.perception.stairs.batch_ransac:BatchRansacStairs", "stairs"),
+    "filter-none": ("exobench.perception.lidar_filter.pipelines:FilterNone", "lidar-filter"),
+    "filter-threshold": ("exobench.perception.lidar_filter.pipelines:FilterThreshold", "lidar-filter"),
+    "filter-naive-ground": ("exobench.perception.lidar_filter.pipelines:FilterNaiveGround", "lidar-filter"),
+    "filter-normal-ground": ("exobench.perception.lidar_filter.pipelines:FilterNormalGround", "lidar-filter"),
+    "filter-floor-ground": ("exobench.perception.lidar_filter.pipelines:FilterFloorGround", "lidar-filter"),
+    "kiss-icp": ("exobench.mapping.odometry.kiss_icp:KissIcpPipeline", "odometry"),
+    "leo-slam": ("exobench.mapping.odometry.leo_slam:LeoSlamPipeline", "odometry"),
+    "sc++": ("exobench.perception.place_recognition.pipelines:ScanContextPPPipeline", "loop-closure"),
+    "gsc-height": ("exobench.perception.place_recognition.pipelines:GscHeightPipeline", "loop-closure"),
+    "gsc-huber": ("exobench.perception.place_recognition.pipelines:GscHuberPipeline", "loop-closure"),
+    "gsc-intensity": ("exobench.perception.place_recognition.pipelines:GscIntensityPipeline", "loop-closure"),
+    "terrain-recon": ("exobench.mapping.locomotion.pipelines:TerrainReconstructionPipeline", "locomotion"),
+    "single-frame": ("exobench.mapping.locomotion.pipelines:SingleFramePipeline", "locomotion"),
 }
 
 

@@ -13,6 +13,8 @@ the class); it never reads files, owns a viewer or knows the simulator::
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Mapping
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from .calibration import Calibration
@@ -43,19 +45,65 @@ class Pipeline(Protocol):
         """Return the final estimate of the episode."""
 
 
-def config_from_dict(config_cls: type, values: dict[str, Any], *, prefix: str = "") -> Any:
+def config_from_dict(config_cls: type, values: Mapping[str, Any], *, prefix: str = "") -> Any:
     """Build a config dataclass from plain values, refusing unknown keys and wrong types.
 
     Values given as strings (from the command line) are converted to the field's default type.
+    A field whose default is itself a config dataclass (a stage of the pipeline) takes either a
+    nested mapping (``{"filter": {"kind": "threshold"}}``) or dotted keys
+    (``{"filter.kind": "threshold"}``), at any depth; the values given are applied over that
+    default. Unknown keys raise :class:`UnknownNameError` naming the dotted path; a plain value
+    given to a whole nested config raises :class:`ConfigError`. ``prefix`` (e.g. ``"kiss-icp."``)
+    only names the owner in messages.
     """
-    fields = {f.name: f for f in dataclasses.fields(config_cls)}
+    kind = f"{prefix.rstrip('.') or config_cls.__name__} parameter"
+    return _build(config_cls, None, values, kind, prefix, "")
+
+
+def _field_default(f: dataclasses.Field) -> Any:
+    if f.default is not dataclasses.MISSING:
+        return f.default
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return None
+
+
+def _build(config_cls: type, base: Any, values: Mapping[str, Any], kind: str, prefix: str, path: str) -> Any:
+    """``config_cls(**values)`` (``base`` None) or ``replace(base, **values)``, nested fields built
+    recursively; ``path`` is the dotted path of this config inside the top one (``""`` or ``"a.b."``)."""
+    fields = {f.name: f for f in dataclasses.fields(config_cls) if f.init}
     kwargs: dict[str, Any] = {}
+    nested: dict[str, dict[str, Any]] = {}
     for key, raw in values.items():
-        if key not in fields:
-            raise UnknownNameError(f"{prefix or config_cls.__name__} parameter", key, fields)
-        default = fields[key].default
-        kwargs[key] = coerce_like(f"{prefix}{key}" if prefix else key, raw, default)
-    return config_cls(**kwargs)
+        name, dot, rest = str(key).partition(".")
+        if name not in fields:
+            raise UnknownNameError(kind, f"{path}{key}", [f"{path}{n}" for n in fields])
+        default = base_value = getattr(base, name) if base is not None else _field_default(fields[name])
+        if dataclasses.is_dataclass(default) and not isinstance(default, type):
+            if dot:
+                nested.setdefault(name, {})[rest] = raw
+            elif isinstance(raw, Mapping):
+                nested.setdefault(name, {}).update(raw)
+            elif type(raw) is type(default):
+                kwargs[name] = raw
+            else:
+                raise ConfigError(f"{prefix}{path}{name}", raw,
+                                  f"a {type(default).__name__}: give its fields as {path}{name}.<field>")  # fmt: skip
+        elif dot:
+            raise UnknownNameError(kind, f"{path}{key}", [f"{path}{n}" for n in fields])
+        else:
+            kwargs[name] = coerce_like(f"{prefix}{path}{name}", raw, base_value)
+    for name, sub in nested.items():
+        inner = kwargs.pop(name, None)
+        inner = inner if inner is not None else (getattr(base, name) if base is not None else _field_default(fields[name]))
+        kwargs[name] = _build(type(inner), inner, sub, kind, prefix, f"{path}{name}.")
+    try:
+        return config_cls(**kwargs) if base is None else dataclasses.replace(base, **kwargs)
+    except ConfigError as e:
+        if not path:
+            raise
+        # name the field by its dotted path inside the top-level config
+        raise ConfigError(f"{prefix}{path}{e.field}", e.value, e.allowed) from None
 
 
 def coerce_like(field_name: str, raw: Any, default: Any) -> Any:
@@ -74,7 +122,7 @@ def coerce_like(field_name: str, raw: Any, default: Any) -> Any:
             f = float(raw)
         except (TypeError, ValueError):
             raise ConfigError(field_name, raw, "an integer") from None
-        if f != int(f):
+        if not math.isfinite(f) or f != int(f):
             raise ConfigError(field_name, raw, "an integer")
         return int(f)
     if isinstance(default, float):

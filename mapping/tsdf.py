@@ -92,7 +92,7 @@ from dataclasses import dataclass
 import numpy as np
 import open3d as o3d
 
-from exobench.core import ConfigError, check_range
+from exobench.core import check_int, check_range
 
 o3c = o3d.core
 _CPU = o3c.Device("CPU:0")
@@ -135,9 +135,7 @@ class TsdfConfig:
         check_range("tsdf.depth_max_m", self.depth_max_m, self.depth_min_m, 100.0, low_open=True)
         for name, low in (("block_resolution", 2), ("block_count", 1), ("integrate_stride_px", 1),
                           ("refine_max_voxels", 1), ("refine_steps", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
-                raise ConfigError(f"tsdf.{name}", v, f"an integer >= {low}")
+            object.__setattr__(self, name, check_int(f"tsdf.{name}", getattr(self, name), low))
         check_range("tsdf.obs_weight", self.obs_weight, 0.0, 1e6, low_open=True)
         check_range("tsdf.max_weight", self.max_weight, self.obs_weight, 1e9)
         check_range("tsdf.raycast_min_weight", self.raycast_min_weight, 0.0, self.max_weight, low_open=True)

@@ -64,11 +64,11 @@ def plugin(tmp_path, monkeypatch):
 
 
 def test_builtins_are_registered_without_importing_them():
-    before = "exobench.perception.pipelines" in sys.modules
+    before = "exobench.perception.stairs.rtls_pipeline" in sys.modules
     reg = build_registry(entry_points=False)
     assert {"rtls", "rtls-htvr", "batch-ransac"} <= set(reg.names())
-    assert reg.spec("rtls").entry_point == "exobench.perception.pipelines:RtlsStairs"
-    assert ("exobench.perception.pipelines" in sys.modules) == before
+    assert reg.spec("rtls").entry_point == "exobench.perception.stairs.rtls_pipeline:RtlsStairs"
+    assert ("exobench.perception.stairs.rtls_pipeline" in sys.modules) == before
 
 
 def test_entry_point_pipeline_is_found_and_run(plugin, tmp_path):

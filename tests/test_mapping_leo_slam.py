@@ -17,11 +17,11 @@ import pytest
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import ImuSample, LidarScan
-from exobench.mapping.gicp import GicpCloud, GicpConfig, align
-from exobench.mapping.leo_slam import LeoSlamPipeline
-from exobench.mapping.loop_closure import in_search_ellipsoid
-from exobench.mapping.pose_graph import PoseGraph, PoseGraphConfig
-from exobench.mapping.preprocess import PreprocessConfig, deskew, preprocess
+from exobench.mapping.odometry.gicp import GicpCloud, GicpConfig, align
+from exobench.mapping.odometry.leo_slam import LeoSlamPipeline
+from exobench.mapping.odometry.loop_closure import in_search_ellipsoid
+from exobench.mapping.odometry.pose_graph import PoseGraph, PoseGraphConfig
+from exobench.mapping.odometry.preprocess import PreprocessConfig, deskew, preprocess
 
 ROOM_MIN = np.array([-2.0, -2.0, 0.0])
 ROOM_MAX = np.array([14.0, 10.0, 2.8])

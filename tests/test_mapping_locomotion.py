@@ -18,7 +18,7 @@ from exobench.core import (
     UnknownNameError,
 )
 from exobench.mapping.locomotion import SingleFramePipeline, TerrainReconstructionPipeline
-from exobench.perception.plane_extraction import AhcConfig
+from exobench.perception.terrain.plane_extraction import AhcConfig
 
 W, H = 160, 120  # small images keep the test fast; the pipelines are resolution-agnostic
 FOVY = np.radians(58.0)
@@ -487,7 +487,7 @@ def _shift(f, dt):
 def test_upsampled_raycast_is_exact_on_planes():
     """upsample_depth: bilinear in 1/z reproduces a plane's full-resolution depth (1/z is affine
     in the pixel coordinates of a plane); across a depth jump it takes the nearest sample."""
-    from exobench.mapping.locomotion import scale_intrinsics, upsample_depth
+    from exobench.mapping.locomotion.depth import scale_intrinsics, upsample_depth
 
     def plane_depth(Km, w, h, n, d0):
         u, v = np.meshgrid(np.arange(w), np.arange(h))
@@ -530,7 +530,7 @@ def test_mode_refers_to_the_swinging_foot(stairs_walk):
 def test_decimated_image_projects_points_where_the_full_one_does(m_width):
     """decimate(): the kept pixel (i, j) of the small image is pixel (m i + off, m j + off) of the
     full one, and the adjusted K projects 3-D points onto it (independent check by projection)."""
-    from exobench.mapping.locomotion import decimate
+    from exobench.mapping.locomotion.depth import decimate
 
     m, width = m_width
     h = 480

@@ -9,7 +9,7 @@ from scipy.ndimage import maximum_filter, minimum_filter
 
 from exobench.core import ConfigError
 from exobench.mapping.tsdf import Tsdf, TsdfConfig
-from exobench.perception.plane_extraction import AhcConfig, extract_planes
+from exobench.perception.terrain.plane_extraction import AhcConfig, extract_planes
 
 VOXEL = TsdfConfig().voxel_size_m
 

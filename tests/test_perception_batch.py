@@ -18,7 +18,8 @@ from test_perception_pipelines import CAL, R_PELVIS_IMU, SOLE_M, _true_ray
 from test_perception_staircase import RISER_M, RISER_X_M, TREAD_M, stair_hit, sweep_stream
 
 from exobench.core import ConfigError, ImuSample, JointState, ToFReading
-from exobench.perception.pipelines import BatchRansacStairs, ScanCloud, connected_support, tls_plane
+from exobench.perception.stairs import BatchRansacStairs
+from exobench.perception.stairs.ransac import ScanCloud, connected_support, tls_plane
 
 THRESHOLD_M = 5e-3
 

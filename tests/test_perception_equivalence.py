@@ -19,9 +19,9 @@ from test_perception_pipelines import CAL, make_frames
 from test_perception_staircase import sweep_stream
 
 from exobench.core import ImuSample, JointState, PlaneEstimate, ToFReading, TofStatus
-from exobench.perception.pipelines import RtlsHtvrStairs, RtlsStairs, sensor_flags
-from exobench.perception.readout import orient_normal, riser_height_m, tread_depth_m
-from exobench.perception.staircase import StaircaseAlgorithm, StaircaseParams
+from exobench.perception.stairs import RtlsHtvrStairs, RtlsStairs, sensor_flags
+from exobench.perception.stairs.readout import orient_normal, riser_height_m, tread_depth_m
+from exobench.perception.stairs.staircase import StaircaseAlgorithm, StaircaseParams
 
 TOL = 1e-12
 

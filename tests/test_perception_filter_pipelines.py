@@ -7,8 +7,7 @@ import pytest
 
 from exobench.core.frames import ContactSample, ImuSample, JointState, LidarScan
 from exobench.core.transforms import matrix_to_quat_wxyz, rot_x, rot_y, rot_z
-from exobench.perception.filter_pipelines import FILTER_PIPELINES, FilterNaiveGround, FilterNormalGround
-from exobench.perception.intensity_filter import (
+from exobench.perception.lidar_filter import (
     IntensityBandConfig,
     IntensityThresholdFilter,
     NaiveGroundConfig,
@@ -17,6 +16,7 @@ from exobench.perception.intensity_filter import (
     NormalGroundConfig,
     NormalGroundFilter,
 )
+from exobench.perception.lidar_filter.pipelines import FILTER_PIPELINES, FilterNaiveGround, FilterNormalGround
 
 LIDAR = "lidar_trunk"
 
@@ -183,7 +183,8 @@ def test_bad_config_raises_config_error():
 
 
 def test_kiss_icp_keeps_last_pose_on_empty_scans(calibration):
-    from exobench.mapping.kiss_icp_pipeline import KissConfig, KissIcpPipeline
+    from exobench.mapping.odometry.kiss_icp import KissConfig, KissIcpPipeline
+    from exobench.perception.lidar_filter import FilterStageConfig
 
     rng = np.random.default_rng(4)
     # a static box room seen from the origin: the pose must stay at the identity
@@ -199,7 +200,7 @@ def test_kiss_icp_keeps_last_pose_on_empty_scans(calibration):
                          np.linspace(0, 0.099, len(p)), stamp - 0.1)
     empty = LidarScan(0.25, LIDAR, np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.uint16), np.zeros(0), 0.15)
     frames = [room(0.1), room(0.2), empty, room(0.35)]
-    est = _run(KissIcpPipeline, calibration, frames, KissConfig(filter="threshold", voxel_size_m=0.2))
+    est = _run(KissIcpPipeline, calibration, frames, KissConfig(filter=FilterStageConfig(kind="threshold"), voxel_size_m=0.2))
     assert est.status == ("ok", "ok", "empty_scan", "ok")
     assert est.stats["empty_scans"] == 1 and est.T_world_sensor.shape == (4, 4, 4)
     np.testing.assert_array_equal(est.T_world_sensor[2], est.T_world_sensor[1])

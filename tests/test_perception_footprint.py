@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError
-from exobench.perception.footprint import (
+from exobench.perception.terrain.footprint import (
     FootprintConfig,
     GaitDivider,
     HeelStrike,

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from exobench.core.errors import ConfigError, UnknownNameError
-from exobench.perception.intensity_filter import (
+from exobench.perception.lidar_filter import (
     FILTERS,
     FilterReason,
     FloorGroundConfig,
@@ -26,10 +26,12 @@ from exobench.perception.intensity_filter import (
     NoFilter,
     NormalGroundConfig,
     NormalGroundFilter,
+    make_filter,
+)
+from exobench.perception.lidar_filter.ground import fit_floor_plane
+from exobench.perception.lidar_filter.normals import (
     estimate_normals,
     estimate_range_image_normals,
-    fit_floor_plane,
-    make_filter,
     range_image_index,
     range_image_normal_candidates,
 )
@@ -229,7 +231,7 @@ def test_registry_and_config_errors():
     with pytest.raises(UnknownNameError):
         make_filter("median")
     with pytest.raises(ConfigError):
-        make_filter("intensity", bogus=1)
+        make_filter("threshold", bogus=1)
     with pytest.raises(ConfigError):
         IntensityBandConfig(intensity_min=120, intensity_max=100)
     with pytest.raises(ConfigError):
@@ -414,7 +416,7 @@ def test_far_grazing_floor_reads_as_a_depth_jump_unless_allowed():
 
 
 def test_pipeline_config_passes_the_normal_method_through():
-    from exobench.perception.filter_pipelines import FilterNormalGround
+    from exobench.perception.lidar_filter.pipelines import FilterNormalGround
 
     assert FilterNormalGround().filter.config.normal_method == "range-image"
     pipe = FilterNormalGround(FilterNormalGround.Config(normal_method="knn", ri_col_halfwidth=6, ri_ring_jump_rel=0.4))
@@ -502,7 +504,7 @@ def test_fit_floor_plane_recovers_a_known_plane_and_refuses_a_bad_one():
 
 
 def test_naive_ground_test_config_and_pipeline():
-    from exobench.perception.filter_pipelines import FilterFloorGround, FilterNaiveGround
+    from exobench.perception.lidar_filter.pipelines import FilterFloorGround, FilterNaiveGround
 
     # the thesis's naive filter tests eq. (4.16) as written; the floor filter the band about the floor plane
     assert NaiveGroundConfig().ground_test == "below" and FilterNaiveGround().filter.config.ground_test == "below"

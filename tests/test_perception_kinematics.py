@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from exobench.core import Calibration, ImuSample, JointState, SensorMount
-from exobench.perception.tof_kinematics import TofKinematics
+from exobench.perception.kinematics.tof_kinematics import TofKinematics
 
 
 # --- independent rotations (not exobench's) -------------------------------------------------

@@ -27,8 +27,8 @@ from exobench.core import (
     UnknownNameError,
     config_from_dict,
 )
-from exobench.perception.pipelines import BatchRansacStairs, RtlsHtvrStairs, RtlsStairs, sensor_flags
-from exobench.perception.readout import riser_height_m, tread_depth_m
+from exobench.perception.stairs import BatchRansacStairs, RtlsHtvrStairs, RtlsStairs, sensor_flags
+from exobench.perception.stairs.readout import riser_height_m, tread_depth_m
 
 SOLE_M = 0.07
 JOINTS = [

@@ -13,11 +13,6 @@ import pytest
 from exobench.core.calibration import Calibration, SensorMount
 from exobench.core.errors import ConfigError
 from exobench.core.frames import ImuSample, LidarScan
-from exobench.perception.gaussian_scan_context import (
-    GaussianScanContext,
-    GaussianScanContextConfig,
-    huber_weights,
-)
 from exobench.perception.place_recognition import (
     GaussianPlaceRecognitionConfig,
     GscHeightPipeline,
@@ -27,7 +22,13 @@ from exobench.perception.place_recognition import (
     ScanContextPPPipeline,
     remove_ceiling,
 )
-from exobench.perception.scan_context import ScanContextConfig, ScanContextPP, ring_key
+from exobench.perception.place_recognition.gaussian_scan_context import (
+    GaussianScanContext,
+    GaussianScanContextConfig,
+    huber_weights,
+)
+from exobench.perception.place_recognition.recognizer import ScanContextPP
+from exobench.perception.place_recognition.scan_context import ScanContextConfig, ring_key
 
 PIPELINES = (ScanContextPPPipeline, GscHeightPipeline, GscHuberPipeline, GscIntensityPipeline)
 SECTOR = 2 * math.pi / 60
@@ -193,7 +194,7 @@ def test_exclude_recent_and_bad_configs():
 
 @pytest.mark.parametrize("variant", ("height", "huber", "intensity"))
 def test_component_cells_equal_the_full_gaussian_reference(variant):
-    from exobench.perception.place_recognition import ComponentGaussianScanContext
+    from exobench.perception.place_recognition.component_gsc import ComponentGaussianScanContext
 
     pts, inten = _place(7)
     rng = np.random.default_rng(8)

@@ -6,8 +6,8 @@ import pytest
 from analytic_staircase import H, K, W, camera, face_planes, faces, render
 
 from exobench.core import ConfigError
-from exobench.perception.plane_extraction import AhcConfig, extract_planes, segment_depth
-from exobench.perception.plane_tracking import DetectedPlane, voxel_centers
+from exobench.perception.terrain.plane_extraction import AhcConfig, extract_planes, segment_depth
+from exobench.perception.terrain.plane_tracking import DetectedPlane, voxel_centers
 
 
 def match(plane: DetectedPlane):

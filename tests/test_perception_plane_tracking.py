@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError
-from exobench.perception.plane_tracking import (
+from exobench.perception.terrain.plane_tracking import (
     DetectedPlane,
     PlaneSet,
     PlaneTrackingConfig,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from exobench.perception.rtls import HorizontalPlane, RtlsPlane, VerticalPlane, make_plane
+from exobench.perception.stairs.rtls import HorizontalPlane, RtlsPlane, VerticalPlane, make_plane
 
 OFFSET = np.array([3.2, -2.7, 4.1])  # metres away from the origin, where V - n e e^T cancels
 

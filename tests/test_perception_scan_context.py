@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from exobench.core.errors import ConfigError
-from exobench.perception.gaussian_scan_context import (
+from exobench.perception.lidar_filter.filters import NaiveGroundFilter
+from exobench.perception.place_recognition.gaussian_scan_context import (
     GaussianScanContext,
     GaussianScanContextConfig,
     bin_gaussians,
 )
-from exobench.perception.intensity_filter import NaiveGroundFilter
-from exobench.perception.scan_context import (
+from exobench.perception.place_recognition.recognizer import ScanContextPP
+from exobench.perception.place_recognition.scan_context import (
     ScanContextConfig,
-    ScanContextPP,
     accumulate_submap,
     level_frame,
     shift_similarities,

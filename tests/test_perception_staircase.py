@@ -9,7 +9,7 @@ The synthetic streams are generated here, independently of exobench: two beams 8
 import numpy as np
 import pytest
 
-from exobench.perception.staircase import StaircaseAlgorithm, StaircaseParams
+from exobench.perception.stairs.staircase import StaircaseAlgorithm, StaircaseParams
 
 RISER_M, TREAD_M, RISER_X_M = 0.162, 0.28, 0.30
 

@@ -4,13 +4,12 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError
-from exobench.perception.plane_tracking import DetectedPlane, PlaneSet, PlaneTrackingConfig, voxel_keys
-from exobench.perception.terrain_description import (
-    TerrainConfig,
-    describe_terrain,
-    plane_class,
-    predict_mode,
-    slope_deg,
+from exobench.perception.terrain import TerrainConfig, describe_terrain, plane_class, predict_mode, slope_deg
+from exobench.perception.terrain.plane_tracking import (
+    DetectedPlane,
+    PlaneSet,
+    PlaneTrackingConfig,
+    voxel_keys,
 )
 
 CELL = 0.05

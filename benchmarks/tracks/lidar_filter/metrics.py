@@ -87,7 +87,7 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
 def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tuple[dict[str, Any], Any]:
     """kiss-icp on the kept points of every scan, scored as the odometry track does: (``odom_``
     metrics, the :class:`TrajectoryEstimate`)."""
-    from exobench.mapping.kiss_icp_pipeline import run_kiss_icp
+    from exobench.mapping.odometry.kiss_icp import run_kiss_icp
 
     from ..lidar_trajectory import score_trajectory
 

@@ -193,7 +193,7 @@ def best_f1(curve: PRCurve) -> tuple[float, float]:
 def yaw_errors(yaw_true: np.ndarray, match_index: np.ndarray, yaw_est: np.ndarray, correct: np.ndarray) -> np.ndarray:
     """|wrap(estimated - true)| of the relative yaw of the correct matches, rad.
 
-    The column shift's convention (:class:`~exobench.perception.scan_context.PlaceMatch`): the
+    The column shift's convention (:class:`~exobench.perception.place_recognition.scan_context.PlaceMatch`): the
     query cloud is the match's cloud rotated by ``yaw_est``, i.e. ``yaw_est = yaw_match - yaw_query``.
     """
     y = np.asarray(yaw_true, dtype=float).reshape(-1)

@@ -2,22 +2,22 @@
 
 One loop of Algorithm 2 per LiDAR sweep (:meth:`LeoSlamPipeline.process`):
 
-1. preprocessing (:mod:`exobench.mapping.preprocess`): NaN removal, constant-velocity deskew,
+1. preprocessing (:mod:`exobench.mapping.odometry.preprocess`): NaN removal, constant-velocity deskew,
    crop boxes, voxel grid, statistical outlier rejection -> ``P_p`` (registration) and ``P_f``
    (map). The deskew moves every point to the sensor frame at mid-sweep with the velocity of
    the previous pair of sweeps (referencing the middle keeps a velocity error from biasing the
    pose, which at walking-to-running speeds otherwise makes the estimate zig-zag); the pose at
    ``sweep_start_s`` is reported. The sweeps before the first velocity estimate are processed
    again, deskewed, as soon as it is known, so the first submap is not distorted;
-2. multi-level alignment with GICP (:mod:`exobench.mapping.gicp`):
+2. multi-level alignment with GICP (:mod:`exobench.mapping.odometry.gicp`):
    scan-to-scan ``s2s`` (``P_t`` onto ``P_{t-1}`` from the constant-velocity guess), whose
    result seeds scan-to-submaps ``s2S`` (``P_t`` onto the ``N_s`` previous submaps);
 3. the scan joins the open submap; when the distance from the last node exceeds ``Delta_m`` or
-   the rotation reaches ``Delta_theta`` a node is created (:mod:`exobench.mapping.submaps`):
+   the rotation reaches ``Delta_theta`` a node is created (:mod:`exobench.mapping.odometry.submaps`):
    submap-to-submaps ``S2S`` aligns the submap with the ``N_s`` previous ones, fixes the keyframe
-   and adds the node to the iSAM2 pose graph (:mod:`exobench.mapping.pose_graph`);
+   and adds the node to the iSAM2 pose graph (:mod:`exobench.mapping.odometry.pose_graph`);
 4. submap Scan Context++ with ceiling removal inside the growing search ellipsoid
-   (eq. 4.11-4.12, :mod:`exobench.mapping.loop_closure`); a detected loop is verified by GICP
+   (eq. 4.11-4.12, :mod:`exobench.mapping.odometry.loop_closure`); a detected loop is verified by GICP
    of the set ``S_c`` (the current node and the ``v`` before it) against ``S_l`` (the loop node
    and ``v`` nodes on either side), starting from the current relative pose (which carries
    ``d_l`` of eq. 4.11). If it converges the current node is corrected (eq. 4.13), the loop
@@ -31,7 +31,7 @@ scan-to-submaps alignment failed, ``"lost"`` when both failed, ``"empty_scan"``,
 the first is the identity. Open3D runs single-threaded inside :meth:`process` (deterministic).
 
 Not in this implementation: the ground-aware intensity filter of the map branch (section 4.2.2,
-see :mod:`exobench.perception.intensity_filter`) and external odometry / IMU initial guesses.
+see :mod:`exobench.perception.lidar_filter.filters`) and external odometry / IMU initial guesses.
 """
 
 from __future__ import annotations
@@ -45,15 +45,15 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from exobench.core.calibration import Calibration
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
 from exobench.core.transforms import transform_points
-from exobench.mapping.gicp import GicpCloud, GicpConfig, GicpResult, align, single_threaded
-from exobench.mapping.loop_closure import LoopDetector, LoopDetectorConfig
-from exobench.mapping.pose_graph import PoseGraph, PoseGraphConfig
-from exobench.mapping.preprocess import PreprocessConfig, clean_points, preprocess, voxel_downsample
-from exobench.mapping.submaps import Node, OpenSubmap, keyframe_due, nodes_cloud
+from exobench.mapping.odometry.gicp import GicpCloud, GicpConfig, GicpResult, align, single_threaded
+from exobench.mapping.odometry.loop_closure import LoopDetector, LoopDetectorConfig
+from exobench.mapping.odometry.pose_graph import PoseGraph, PoseGraphConfig
+from exobench.mapping.odometry.preprocess import PreprocessConfig, clean_points, preprocess, voxel_downsample
+from exobench.mapping.odometry.submaps import Node, OpenSubmap, keyframe_due, nodes_cloud
 
 __all__ = ["LeoSlamPipeline"]
 
@@ -149,9 +149,8 @@ class LeoSlamPipeline:
             check_range("keyframe_distance_m", self.keyframe_distance_m, 0.0, None, low_open=True)
             check_range("keyframe_rotation_deg", self.keyframe_rotation_deg, 0.0, 180.0, low_open=True)
             for name in ("submap_count", "loop_neighbors", "min_points", "max_lost"):
-                v = getattr(self, name)
-                if not isinstance(v, int) or isinstance(v, bool) or v < (0 if name == "loop_neighbors" else 1):
-                    raise ConfigError(name, v, f"a positive integer ({name})")
+                low = 0 if name == "loop_neighbors" else 1
+                object.__setattr__(self, name, check_int(name, getattr(self, name), low))
             check_range("loop_max_correspondence_m", self.loop_max_correspondence_m, 0.0, 100.0, low_open=True)
             check_range("loop_min_fitness", self.loop_min_fitness, 0.0, 1.0)
             check_range("loop_max_correction_m", self.loop_max_correction_m, 0.0, None, low_open=True)

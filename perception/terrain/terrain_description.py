@@ -29,10 +29,8 @@ that covers the neighbourhood wins. Two supporting planes that meet at a crease 
 than ``crease_min_angle_deg`` apart, both with a score of at least ``crease_min_score``: a ramp's
 start or end) are told apart by their line of intersection instead, each plane owning the side
 where most of its support lies [A]: at a shallow crease cells straddling it fit either plane,
-so the supports overlap by up to 0.25 m (a 11.8 deg ramp's plane reached 0.27 m past its crest
-onto the landing, and, higher there, claimed footprints on the landing), while the two plane
-equations place the crease within a few centimetres (on the 9 tuned ramp episodes 210 -> 212 of
-218 steps right, on 12 unseen ones 239 -> 242 of 261). :meth:`TerrainDescription.crease_ahead`
+so the supports overlap by up to 0.25 m, while the two plane equations place the crease within a
+few centimetres. :meth:`TerrainDescription.crease_ahead`
 moves a foot whose toes would be across such a crease onto the plane ahead (a flat foot does not
 rest across a crease). With a known current plane, planes more than ``max_step_rise_m`` above or below the current
 footprint are skipped (a table top, a floor seen down a stairwell).
@@ -58,19 +56,13 @@ current footprint:
   current level has no plane under it. If that first plane is a ramp whose extension passes
   under the predicted footprint below the current terrain by no more than
   ``ramp_max_slope_deg`` over the step (``cur`` -> ``nxt``): RD, reason ``"ramp_ahead"`` [A]. A
-  head camera on a landing sees a ramp down only beyond the crest (the near part is steeper
-  below the view than the camera looks down); measured on a head-mounted jog down a 17.8 deg
-  ramp (seed 1), the steps on the unseen upper part were SD by "drop_ahead": 75 % -> 90 %;
+  head camera on a landing sees a ramp down only beyond the crest;
 - otherwise no plane under the predicted footprint: the current terrain is assumed to continue
   (C a ramp: RA/RD along it; C horizontal, or no plane under it but its height given and not
   measured on a ramp: LG), reason ``"extrapolated"``; neither known: mode ``""``, reason
   ``"no_terrain"``.
 
-The paper gives no values for its thresholds; the defaults are [A] choices: level ground up to
-6 deg (building codes allow 1:12 = 4.8 deg for ramps' landings), ramps up to 25 deg (the paper's
-steepest is 17.8 deg), risers 0.10-0.30 m (its stairs are 0.15-0.25 m), adjacent tread centres
-within 0.8 m (a tread 0.25-0.35 m deep plus the rise, with room for partly seen treads).
-Pure numpy.
+The config, result types and per-plane geometry are in :mod:`.terrain_types`. Pure numpy.
 """
 
 from __future__ import annotations
@@ -79,113 +71,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exobench.core import ConfigError, check_range
-
 from .plane_tracking import PlaneSet, TrackedPlane, voxel_centers
-
-TERRAIN_TYPES = ("level", "ramp", "stairs")
-PLANE_CLASSES = ("horizontal", "ramp", "steep")
-
-
-@dataclass(frozen=True)
-class TerrainConfig:
-    """Thresholds of the terrain description and of the mode decision (module docstring)."""
-
-    level_max_slope_deg: float = 6.0
-    ramp_max_slope_deg: float = 25.0
-    level_min_area_m2: float = 0.05
-    ramp_min_area_m2: float = 0.05
-    stair_min_area_m2: float = 0.02
-    stair_center_max_m: float = 0.8
-    stair_rise_min_m: float = 0.10
-    stair_rise_max_m: float = 0.30
-    max_step_rise_m: float = 0.6
-    support_margin_m: float = 0.06
-    support_radius_m: float = 0.10
-    support_fit_tol_m: float = 0.01
-    min_score: int = 1
-    drop_lookahead_m: float = 1.5
-    crease_min_angle_deg: float = 5.0
-    crease_min_score: int = 3
-
-    def __post_init__(self) -> None:
-        check_range("terrain.level_max_slope_deg", self.level_max_slope_deg, 0.0, 45.0)
-        check_range("terrain.ramp_max_slope_deg", self.ramp_max_slope_deg, self.level_max_slope_deg, 89.0)
-        for name in ("level_min_area_m2", "ramp_min_area_m2", "stair_min_area_m2"):
-            check_range(f"terrain.{name}", getattr(self, name), 0.0)
-        check_range("terrain.stair_center_max_m", self.stair_center_max_m, 0.0, low_open=True)
-        check_range("terrain.stair_rise_min_m", self.stair_rise_min_m, 0.0, low_open=True)
-        check_range("terrain.stair_rise_max_m", self.stair_rise_max_m, self.stair_rise_min_m)
-        check_range("terrain.max_step_rise_m", self.max_step_rise_m, self.stair_rise_min_m)
-        check_range("terrain.support_margin_m", self.support_margin_m, 0.0)
-        check_range("terrain.support_radius_m", self.support_radius_m, 0.0)
-        check_range("terrain.support_fit_tol_m", self.support_fit_tol_m, 0.0)
-        check_range("terrain.drop_lookahead_m", self.drop_lookahead_m, 0.0)
-        check_range("terrain.crease_min_angle_deg", self.crease_min_angle_deg, 0.0, 90.0)
-        if isinstance(self.crease_min_score, bool) or not isinstance(self.crease_min_score, (int, np.integer)) \
-                or self.crease_min_score < 1:
-            raise ConfigError("terrain.crease_min_score", self.crease_min_score, "an integer >= 1")
-        if isinstance(self.min_score, bool) or not isinstance(self.min_score, (int, np.integer)) or self.min_score < 1:
-            raise ConfigError("terrain.min_score", self.min_score, "an integer >= 1")
-
-
-@dataclass(frozen=True)
-class Terrain:
-    """T = <tau, s, Gamma>: type, terrain id, plane ids (stairs: ordered by height, lowest first)."""
-
-    kind: str
-    terrain_id: int
-    plane_ids: tuple[int, ...]
-
-
-@dataclass(frozen=True)
-class ModeDecision:
-    """The mode of the next step and how it was found.
-
-    ``reason``: ``"ok"``, ``"extrapolated"`` (no plane under the predicted footprint),
-    ``"drop_ahead"`` (none, lower ground beyond it: SD),
-    ``"current_unknown"`` (no plane under the current one), ``"current_remembered"`` (none,
-    but its height was given) or ``"no_terrain"`` (neither).
-    ``dz_m``: height of the terrain under the predicted footprint minus under the current one
-    (NaN when either is unknown).
-    """
-
-    mode: str
-    reason: str
-    next_plane_id: int | None
-    current_plane_id: int | None
-    next_terrain: str | None
-    current_terrain: str | None
-    dz_m: float
-
-
-def slope_deg(normal: np.ndarray) -> float:
-    """Slope theta of a plane from its normal (either orientation), deg, in [0, 90]."""
-    n = np.asarray(normal, dtype=float)
-    nz = abs(float(n[2])) / max(float(np.linalg.norm(n)), 1e-12)
-    return float(np.degrees(np.arccos(min(1.0, nz))))
-
-
-def plane_class(normal: np.ndarray, config: TerrainConfig) -> str:
-    """``"horizontal"``, ``"ramp"`` or ``"steep"`` by slope."""
-    th = slope_deg(normal)
-    if th <= config.level_max_slope_deg:
-        return "horizontal"
-    if th <= config.ramp_max_slope_deg:
-        return "ramp"
-    return "steep"
-
-
-def plane_height_at(plane: TrackedPlane, xy: np.ndarray) -> float:
-    """Height z of the (non-vertical) plane at (x, y)."""
-    return float(plane_heights_at(plane, np.asarray(xy, dtype=float)[:2])[0])
-
-
-def plane_heights_at(plane: TrackedPlane, xy: np.ndarray) -> np.ndarray:
-    """Heights z of the (non-vertical) plane at the points (K, 2) (or one (2,))."""
-    q = np.asarray(xy, dtype=float).reshape(-1, 2)
-    n, c = plane.normal, plane.center_m
-    return c[2] - (n[0] * (q[:, 0] - c[0]) + n[1] * (q[:, 1] - c[1])) / n[2]
+from .terrain_types import (
+    ModeDecision,
+    Terrain,
+    TerrainConfig,
+    plane_class,
+    plane_height_at,
+    plane_heights_at,
+)
 
 
 @dataclass

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import open3d as o3d
 
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import check_int, check_range
 
 __all__ = ["GicpCloud", "GicpConfig", "GicpResult", "align", "single_threaded"]
 
@@ -61,8 +61,7 @@ class GicpConfig:
         for name, value, high in (("max_iterations", self.max_iterations, 1000),
                                   ("covariance_neighbors", self.covariance_neighbors, 200),
                                   ("min_points", self.min_points, 10**7)):
-            if not isinstance(value, int) or isinstance(value, bool) or not 3 <= value <= high:
-                raise ConfigError(name, value, f"an integer, 3 <= {name} <= {high}")
+            object.__setattr__(self, name, check_int(name, value, 3, high))
         check_range("epsilon", self.epsilon, 0.0, 1.0, low_open=True)
         check_range("relative_change", self.relative_change, 0.0, 1.0)
         check_range("min_fitness", self.min_fitness, 0.0, 1.0)

@@ -4,11 +4,11 @@ Four pipelines (track ``loop-closure``) share one driver, :class:`PlaceRecogniti
 differ in the descriptor (seeds/003 section 4.2.3):
 
 - ``sc++``: Scan Context++, the maximum height per bin (eq. 4.20-4.25,
-  :class:`~exobench.perception.scan_context.ScanContextPP`);
+  :class:`~exobench.perception.place_recognition.scan_context.ScanContextPP`);
 - ``gsc-height``: GSC, ``mu^z + alpha Sigma^zz`` per bin (eq. 4.26-4.28);
 - ``gsc-huber``: GSC with Huber-weighted statistics (eq. 4.29-4.33, then 4.28);
 - ``gsc-intensity``: GSC on the intensity (eq. 4.28 on ``psi``)
-  (:class:`~exobench.perception.gaussian_scan_context.GaussianScanContext`).
+  (:class:`~exobench.perception.place_recognition.gaussian_scan_context.GaussianScanContext`).
 
 What a pipeline does with the frames (it sees the calibration and the frames, never the truth):
 
@@ -21,19 +21,14 @@ What a pipeline does with the frames (it sees the calibration and the frames, ne
   scan" stands in for the thesis' distance-based keyframes: at the exoskeleton's 0.3-0.6 m/s and
   10 Hz, k = 5 is one keyframe every 0.15-0.3 m.
 - ``on = "scan"``: the keyframe scan alone, in its level frame
-  (:func:`~exobench.perception.scan_context.level_frame`: gravity-aligned, x along the sensor's
+  (:func:`~exobench.perception.place_recognition.scan_context.level_frame`: gravity-aligned, x along the sensor's
   heading, origin at the sensor). ``on = "submap"``: the last ``submap_scans`` scans accumulated in
-  the keyframe's level frame (:func:`~exobench.perception.scan_context.accumulate_submap`) with
+  the keyframe's level frame (:func:`~exobench.perception.place_recognition.scan_context.accumulate_submap`) with
   each scan's IMU orientation and *no translation* (there is no odometry: at walking speed the
   sensor moves 0.15-0.3 m over 5 scans, which smears the submap by that much). The submap gives
   the 16-ring LiDAR the denser vertical coverage the thesis' submap-based SC is after (the trunk
   sways, so the rings of successive scans fall at different heights).
-- Ceiling removal (the thesis removes the ceiling indoors): ``ceiling = "auto"`` finds the
-  ceiling as the most populated ``ceiling_bin_m`` height bin among the points more than
-  ``ceiling_search_above_m`` above the sensor, when that bin holds at least
-  ``ceiling_min_share`` of them, and removes every point above ``that height - ceiling_margin_m``
-  (no ceiling found: nothing removed); ``"fixed"`` removes the points higher than
-  ``ceiling_above_sensor_m`` above the sensor; ``"none"`` keeps them.
+- Ceiling removal (:func:`~.config.remove_ceiling`).
 - Description and query: the descriptor of the keyframe cloud, then the best match among the
   earlier keyframes except the ``exclude_recent`` most recent (the thesis' ``xi``), by ring-key
   k-d tree and column-shift alignment (eq. 4.23-4.24); then the keyframe is stored. The
@@ -41,13 +36,9 @@ What a pipeline does with the frames (it sees the calibration and the frames, ne
   ``tau``, as section 5.2.3 does). ``time_per_keyframe_s`` is the wall time of levelling,
   accumulation, ceiling removal, description, query and insertion.
 
-GSC cells are computed by :class:`ComponentGaussianScanContext` (only the mean and variance that
-eq. 4.28 reads; ``component_cells=False``: the full 4 x 4 covariance of the reference module,
-same cells). Defaults not given by the text: ``exclude_recent = 40`` keyframes (20 s at 10 Hz
-with k = 5, the track's recent window); ``ceiling_min_share = 0.1``: in a 1.8 m corridor a
-VLP-16 at head height sees the ceiling only beyond about 3.6 m, so the ceiling layer is a small
-share of the points above the sensor, but the densest 5 cm layer by far (walls spread over
-every height).
+GSC cells are computed by :class:`~.component_gsc.ComponentGaussianScanContext` (only the mean
+and variance that eq. 4.28 reads; ``component_cells=False``: the full 4 x 4 covariance of the
+reference module, same cells).
 
 Faulty input never raises: non-finite points (coordinates or intensity) are dropped (counted); a
 scan whose intensity array does not match its points keeps its geometry with zero intensity
@@ -66,214 +57,31 @@ import math
 import time
 from abc import ABC, abstractmethod
 from collections import Counter, deque
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 import numpy as np
 
 from exobench.core.calibration import Calibration
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import ConfigError
 from exobench.core.estimates import PlaceRecognitionEstimate
 from exobench.core.frames import Frame, ImuSample, LidarScan
 from exobench.core.transforms import quat_wxyz_to_matrix
 
-from .gaussian_scan_context import GaussianScanContext, GaussianScanContextConfig
-from .scan_context import (
-    PlaceRecognizer,
-    ScanContextConfig,
-    ScanContextPP,
-    accumulate_submap,
-)
+from .component_gsc import ComponentGaussianScanContext
+from .config import GaussianPlaceRecognitionConfig, PlaceRecognitionConfig, remove_ceiling
+from .gaussian_scan_context import GaussianScanContext
+from .recognizer import PlaceRecognizer, ScanContextPP
+from .scan_context import accumulate_submap
 
 __all__ = [
-    "CEILING_MODES",
-    "ComponentGaussianScanContext",
-    "GaussianPlaceRecognitionConfig",
     "GscHeightPipeline",
     "GscHuberPipeline",
     "GscIntensityPipeline",
-    "PlaceRecognitionConfig",
     "PlaceRecognitionPipeline",
     "ScanContextPPPipeline",
-    "remove_ceiling",
 ]
 
-CEILING_MODES = ("auto", "fixed", "none")
-ON_MODES = ("scan", "submap")
 IMU_BUFFER = 512
-
-
-def _int(name: str, value: Any, low: int, high: int) -> None:
-    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or not low <= value <= high:
-        raise ConfigError(name, value, f"an integer in [{low}, {high}]")
-
-
-@dataclass(frozen=True)
-class PlaceRecognitionConfig:
-    """Keyframes, cloud preparation and the SC++ descriptor/retrieval parameters.
-
-    Attributes:
-        keyframe_every: a keyframe every this many LiDAR scans.
-        on: ``"scan"`` or ``"submap"``.
-        submap_scans: scans accumulated in a submap (the keyframe scan and the ones before it).
-        ceiling: ``"auto"``, ``"fixed"`` or ``"none"`` (see the module docstring).
-        ceiling_above_sensor_m: ``"fixed"``: points higher than this above the sensor go, m.
-        ceiling_search_above_m / ceiling_bin_m / ceiling_min_share / ceiling_margin_m: ``"auto"``.
-        exclude_recent: the most recent keyframes that are never candidates (``xi``).
-        min_occupied_cells: fewer occupied bins than this: no valid descriptor.
-        lidar_id: LiDAR sensor id; empty = the calibration's first LiDAR mount.
-        n_rings, n_sectors, max_radius_m, height_offset_m, ring_key_mode, num_candidates,
-        shift_search, search_ratio, beyond_max_radius, min_points: as
-        :class:`~exobench.perception.scan_context.ScanContextConfig` (indoor grid: 20 m, 1 m rings,
-        6 deg sectors; the height offset puts the ground, 1.7-1.8 m below a trunk LiDAR, above 0).
-    """
-
-    keyframe_every: int = 5
-    on: str = "scan"
-    submap_scans: int = 5
-    ceiling: str = "auto"
-    ceiling_above_sensor_m: float = 0.6
-    ceiling_search_above_m: float = 0.3
-    ceiling_bin_m: float = 0.05
-    ceiling_min_share: float = 0.1
-    ceiling_margin_m: float = 0.1
-    exclude_recent: int = 40
-    min_occupied_cells: int = 30
-    lidar_id: str = ""
-    n_rings: int = 20
-    n_sectors: int = 60
-    max_radius_m: float = 20.0
-    height_offset_m: float = 2.0
-    ring_key_mode: str = "l0"
-    num_candidates: int = 10
-    shift_search: str = "all"
-    search_ratio: float = 0.1
-    beyond_max_radius: str = "clamp"
-    min_points: int = 50
-
-    def __post_init__(self) -> None:
-        _int("keyframe_every", self.keyframe_every, 1, 10000)
-        if self.on not in ON_MODES:
-            raise ConfigError("on", self.on, " or ".join(ON_MODES))
-        _int("submap_scans", self.submap_scans, 1, 1000)
-        if self.ceiling not in CEILING_MODES:
-            raise ConfigError("ceiling", self.ceiling, ", ".join(CEILING_MODES))
-        check_range("ceiling_above_sensor_m", self.ceiling_above_sensor_m, 0.0, 100.0)
-        check_range("ceiling_search_above_m", self.ceiling_search_above_m, 0.0, 100.0)
-        check_range("ceiling_bin_m", self.ceiling_bin_m, 0.0, 10.0, low_open=True)
-        check_range("ceiling_min_share", self.ceiling_min_share, 0.0, 1.0)
-        check_range("ceiling_margin_m", self.ceiling_margin_m, 0.0, 10.0)
-        _int("exclude_recent", self.exclude_recent, 0, 10**9)
-        _int("min_occupied_cells", self.min_occupied_cells, 0, 10**9)
-        if not isinstance(self.lidar_id, str):
-            raise ConfigError("lidar_id", self.lidar_id, "a sensor id string")
-        self.context_config()  # validates the descriptor fields (ConfigError names the field)
-
-    def _context_fields(self) -> dict[str, Any]:
-        names = ("n_rings", "n_sectors", "max_radius_m", "height_offset_m", "ring_key_mode", "num_candidates",
-                 "shift_search", "search_ratio", "beyond_max_radius", "min_points")  # fmt: skip
-        return {n: getattr(self, n) for n in names}
-
-    def context_config(self) -> ScanContextConfig:
-        """The descriptor configuration (no threshold is applied by the pipelines: tau = 0)."""
-        return ScanContextConfig(**self._context_fields(), tau=0.0)
-
-
-@dataclass(frozen=True)
-class GaussianPlaceRecognitionConfig(PlaceRecognitionConfig):
-    """Plus the GSC parameters (section 5.2.3: ``alpha = 2``, ``delta = 1`` m).
-
-    Attributes:
-        alpha: variance weight of eq. (4.28). delta_m: Huber threshold of eq. (4.31), m.
-        intensity_scale: intensity byte to binned value (``gsc-intensity``).
-        component_cells: compute only the statistics eq. (4.28) reads (the mean and variance of
-            z or psi; :class:`ComponentGaussianScanContext`), the same numbers as the full
-            4 x 4 covariance of :func:`~exobench.perception.gaussian_scan_context.bin_gaussians`
-            at a quarter of the work; False: the full reference computation.
-    """
-
-    alpha: float = 2.0
-    delta_m: float = 1.0
-    intensity_scale: float = 1.0 / 255.0
-    component_cells: bool = True
-
-    def context_config(self, variant: str = "huber") -> GaussianScanContextConfig:  # type: ignore[override]
-        return GaussianScanContextConfig(
-            **self._context_fields(), tau=0.0, variant=variant, alpha=self.alpha, delta_m=self.delta_m,
-            intensity_scale=self.intensity_scale,
-        )  # fmt: skip
-
-
-class ComponentGaussianScanContext(GaussianScanContext):
-    """GSC whose cells compute only what eq. (4.28) reads: per bin the (Huber-weighted) mean and
-    variance of the one component (z, or psi for ``"intensity"``).
-
-    The same statistics as the ``[c]`` / ``[c, c]`` entries of
-    :func:`~exobench.perception.gaussian_scan_context.bin_gaussians` (eq. 4.26-4.27, or the
-    residual over x, y, z to the plain mean, eq. 4.29, the weight of eq. 4.31 and eq. 4.32-4.33),
-    equal to rounding (the residual's norm is summed axis by axis); the other 15 covariance
-    entries are not formed (the thesis' own remedy for GSC's overhead, section 5.2.3).
-    """
-
-    def _cells(self, p4: np.ndarray, flat_bin: np.ndarray, n_bins: int) -> np.ndarray:
-        from .gaussian_scan_context import huber_weights
-
-        cfg = self.config
-        c = 3 if cfg.variant == "intensity" else 2
-        p = np.asarray(p4, dtype=float)
-        v = p[:, 3] * cfg.intensity_scale if c == 3 else p[:, 2]
-        b = np.asarray(flat_bin, dtype=np.int64)
-        counts_all = np.bincount(b, minlength=n_bins)
-        bins = np.flatnonzero(counts_all)
-        dense = np.full(n_bins, -1, dtype=np.int64)
-        dense[bins] = np.arange(len(bins))
-        k = dense[b]
-        K = len(bins)
-        counts = counts_all[bins].astype(float)
-        ones = np.ones(len(p))
-        sw = np.bincount(k, weights=ones, minlength=K)
-        if cfg.variant == "huber":
-            r2 = np.zeros(len(p))
-            for j in range(3):  # eq. (4.29): squared distance to the plain mean, axis by axis
-                dj = p[:, j] - (np.bincount(k, weights=p[:, j], minlength=K) / sw)[k]
-                r2 += dj * dj
-            w = huber_weights(np.sqrt(r2), cfg.delta_m)  # eq. (4.31)
-            sw = np.bincount(k, weights=w, minlength=K)
-            denom = sw  # eq. (4.33)
-        else:
-            w = ones
-            denom = counts - 1.0  # eq. (4.27)
-        mu = np.bincount(k, weights=w * v, minlength=K) / sw  # eq. (4.26) / (4.32)
-        d = v - mu[k]
-        S = np.bincount(k, weights=w * d * d, minlength=K)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            var = np.where(denom > 0, S / denom, 0.0)
-        C = np.zeros(n_bins)
-        C[bins] = mu + cfg.alpha * var  # eq. (4.28)
-        return C
-
-
-def remove_ceiling(points_level: np.ndarray, config: PlaceRecognitionConfig) -> tuple[np.ndarray, float]:
-    """Mask of the points kept and the cut height above the sensor (inf: nothing removed).
-
-    ``points_level`` (N, 3) in a level sensor-centred frame (z up, sensor at 0).
-    """
-    z = np.asarray(points_level, dtype=float).reshape(-1, 3)[:, 2]
-    if config.ceiling == "none" or len(z) == 0:
-        return np.ones(len(z), dtype=bool), math.inf
-    if config.ceiling == "fixed":
-        cut = float(config.ceiling_above_sensor_m)
-        return z <= cut, cut
-    above = z[z > config.ceiling_search_above_m]
-    if len(above) == 0:
-        return np.ones(len(z), dtype=bool), math.inf
-    b = np.floor(above / config.ceiling_bin_m).astype(np.int64)
-    counts = np.bincount(b - b.min())
-    peak = int(np.argmax(counts))
-    if counts[peak] < config.ceiling_min_share * len(above):
-        return np.ones(len(z), dtype=bool), math.inf
-    cut = (peak + b.min()) * config.ceiling_bin_m - config.ceiling_margin_m
-    return z <= cut, float(cut)
 
 
 class PlaceRecognitionPipeline(ABC):

@@ -1,7 +1,7 @@
 """Submap-based Scan Context++ loop detection of LEO-SLAM (seeds/003 section 4.2.1).
 
 Every finalised node's submap is described with Scan Context++
-(:class:`exobench.perception.scan_context.ScanContextPP`) in the level frame of its keyframe,
+(:class:`exobench.perception.place_recognition.scan_context.ScanContextPP`) in the level frame of its keyframe,
 after removing the ceiling (points higher than ``ceiling_above_sensor_m`` above the sensor).
 The search is restricted to the node set ``K`` inside the search ellipsoid ``a_s`` centred at
 the current node (eq. 4.11-4.12)::
@@ -24,12 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from exobench.core.errors import ConfigError, check_range
-from exobench.perception.scan_context import (
+from exobench.core.errors import ConfigError, check_int, check_range
+from exobench.perception.place_recognition.recognizer import ScanContextPP
+from exobench.perception.place_recognition.scan_context import (
     ContextDescriptor,
     PlaceMatch,
     ScanContextConfig,
-    ScanContextPP,
     best_shift,
     level_frame,
 )
@@ -74,8 +74,7 @@ class LoopDetectorConfig:
                 raise ConfigError(name, getattr(self, name), "three finite non-negative numbers (x, y, z)")
         if np.any(np.asarray(self.ellipsoid_base_m) <= 0):
             raise ConfigError("ellipsoid_base_m", self.ellipsoid_base_m, "three positive semi-axes, m")
-        if not isinstance(self.exclude_recent, int) or self.exclude_recent < 1:
-            raise ConfigError("exclude_recent", self.exclude_recent, "an integer >= 1")
+        object.__setattr__(self, "exclude_recent", check_int("exclude_recent", self.exclude_recent, 1))
         if self.ceiling_above_sensor_m is not None:
             check_range("ceiling_above_sensor_m", self.ceiling_above_sensor_m, 0.0, None, low_open=True)
         self.sc_config()  # validates the descriptor fields

@@ -3,7 +3,7 @@
 
 API (other modules code against exactly this)::
 
-    from exobench.perception.plane_extraction import AhcConfig, extract_planes, segment_depth
+    from exobench.perception.terrain.plane_extraction import AhcConfig, extract_planes, segment_depth
     planes = extract_planes(depth_m, K, T_world_cam, AhcConfig(), cell_m=0.05)  # list[DetectedPlane]
     seg = segment_depth(depth_m, K, AhcConfig())   # AhcSegmentation, camera frame
     seg.labels_px     # (H, W) int32: plane index (same order as extract_planes) or -1
@@ -11,7 +11,7 @@ API (other modules code against exactly this)::
 
 ``depth_m`` (H, W) float metres (0 / NaN / inf = invalid), ``K`` its 3x3 pinhole matrix,
 ``T_world_cam`` the 4x4 camera-to-world pose of the optical frame (x right, y down, z forward).
-``extract_planes`` returns :class:`exobench.perception.plane_tracking.DetectedPlane` objects in
+``extract_planes`` returns :class:`exobench.perception.terrain.plane_tracking.DetectedPlane` objects in
 the world frame: centre = mean and unit normal = PCA of the points of the plane's interior
 cells (below), the normal oriented towards the camera; ``area_m2`` (occupied ``cell_m`` squares
 in the plane's 2-D grid times cell_m^2) and ``cells`` (support voxels, ``voxel_keys``) as in
@@ -47,7 +47,7 @@ and a tree is merged at once if the PCA of its union still passes the MSE test, 
 its mutual proposals (pairs that chose each other) are merged. The least allowed merge of the
 graph is always mutual, so every round merges something until no allowed merge is left
 (5-6 rounds on the test staircases). Where merges compete the result can differ from [34]'s
-one-at-a-time order. [34]'s pixel-wise boundary refinement is not part of the paper's three
+one-at-a-time order. The vectorised statistics are in :mod:`.ahc_math`. [34]'s pixel-wise boundary refinement is not part of the paper's three
 steps and is not done (labels are per cell), but as [34] erodes cluster borders before it,
 the final PCA of a plane uses its interior cells (all 4 neighbours in the cluster; all cells
 if fewer than 4): border cells may straddle an edge and tilt the fit by a few degrees; then
@@ -60,15 +60,8 @@ mm^-1 = 1.6e-3 m^-1, tolerances 5 / 8 mm, T_ang 15-90 deg over 0.5-4 m, merge 60
 0.04 z + 0.02 mm, cells 10 x 10 px, min support 800 px); ``min_area_m2`` = 0.02 and
 ``min_width_m`` = 0.08 [A] (a 0.17 m riser is 0.17 wide, a nosing strip ~0.04).
 
-PCA on raw depth: noise along the viewing rays biases the normal of a narrow plane seen
-obliquely (with [34]'s Kinect-like noise 1.6e-3 z^2 m, 0.17 m risers at 2.4 m came out up to
-~4 deg off); on the TSDF ray cast (2-3 mm noise) or clean depth the planes of the test
-staircases are within ~2 deg and 2 mm.
-
 Faulty input (None, wrong shape, all invalid, NaN, non-finite K or pose) gives no planes and
-an all -1 label image; never raises. Pure numpy, deterministic. Cost (640x480 staircase ray
-cast, 9 planes, median CPU time on a shared 2-core machine): segment_depth 7.3 ms,
-extract_planes 10.5 ms (wall time 3-4x that under a load average of ~9).
+an all -1 label image; never raises. Pure numpy, deterministic.
 """
 
 from __future__ import annotations
@@ -77,8 +70,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exobench.core import ConfigError, check_range
-from exobench.perception.plane_tracking import DetectedPlane, voxel_keys
+from exobench.core import check_int, check_range
+from exobench.perception.terrain.plane_tracking import DetectedPlane, voxel_keys
+
+from .ahc_math import forest_labels, group_sum, moment_mse, moment_pca
 
 
 @dataclass(frozen=True)
@@ -105,9 +100,7 @@ class AhcConfig:
 
     def __post_init__(self) -> None:
         for name, low in (("cell_px", 2), ("min_support_px", 1), ("max_rounds", 1), ("support_stride_px", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < low:
-                raise ConfigError(f"ahc.{name}", v, f"an integer >= {low}")
+            object.__setattr__(self, name, check_int(f"ahc.{name}", getattr(self, name), low))
         check_range("ahc.depth_sigma_per_m", self.depth_sigma_per_m, 0.0, 1.0)
         check_range("ahc.std_tol_init_m", self.std_tol_init_m, 0.0, 1.0, low_open=True)
         check_range("ahc.std_tol_merge_m", self.std_tol_merge_m, 0.0, 1.0, low_open=True)
@@ -156,105 +149,6 @@ class AhcSegmentation:
     cell_grid: tuple[int, int] = (0, 0)
     stats: dict[str, float | str] = field(default_factory=dict)
 
-
-# moments columns: n, sx, sy, sz, sxx, sxy, sxz, syy, syz, szz
-def _cov(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = m[:, 0:1]
-    mean = m[:, 1:4] / n
-    e = m[:, 4:10] / n
-    cov = np.empty((len(m), 3, 3))
-    cov[:, 0, 0] = e[:, 0] - mean[:, 0] ** 2
-    cov[:, 0, 1] = cov[:, 1, 0] = e[:, 1] - mean[:, 0] * mean[:, 1]
-    cov[:, 0, 2] = cov[:, 2, 0] = e[:, 2] - mean[:, 0] * mean[:, 2]
-    cov[:, 1, 1] = e[:, 3] - mean[:, 1] ** 2
-    cov[:, 1, 2] = cov[:, 2, 1] = e[:, 4] - mean[:, 1] * mean[:, 2]
-    cov[:, 2, 2] = e[:, 5] - mean[:, 2] ** 2
-    return mean, cov
-
-
-def _eig3(cov: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(least, middle eigenvalue, unit eigenvector of the least) of symmetric 3x3 matrices, in
-    closed form: the trigonometric solution of the characteristic cubic, the eigenvector as the
-    longest cross product of two rows of (A - l I). Rows whose two least eigenvalues are too
-    close for that (relative gap < 1e-6) fall back to ``numpy.linalg.eigh``."""
-    a00, a11, a22 = cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2]
-    a01, a02, a12 = cov[:, 0, 1], cov[:, 0, 2], cov[:, 1, 2]
-    q = (a00 + a11 + a22) / 3.0
-    b00, b11, b22 = a00 - q, a11 - q, a22 - q
-    p = np.sqrt(np.maximum((b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) / 6.0,
-                           1e-300))
-    det = b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02)
-    phi = np.arccos(np.clip(det / (2.0 * p ** 3), -1.0, 1.0)) / 3.0
-    lam_max = q + 2.0 * p * np.cos(phi)
-    lam_min = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
-    lam_mid = 3.0 * q - lam_max - lam_min
-    r0 = np.stack([a00 - lam_min, a01, a02], axis=1)
-    r1 = np.stack([a01, a11 - lam_min, a12], axis=1)
-    r2 = np.stack([a02, a12, a22 - lam_min], axis=1)
-
-    def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                         a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-    cands = np.stack([cross(r0, r1), cross(r0, r2), cross(r1, r2)], axis=1)  # (n, 3, 3)
-    norms = np.einsum("nij,nij->ni", cands, cands)
-    best = np.argmax(norms, axis=1)
-    idx = np.arange(len(cov))
-    vec = cands[idx, best] / np.sqrt(np.maximum(norms[idx, best], 1e-300))[:, None]
-    bad = (lam_mid - lam_min) <= 1e-6 * np.maximum(lam_max, 1e-300)
-    if bad.any():
-        w, v = np.linalg.eigh(cov[bad])
-        lam_min[bad], lam_mid[bad], vec[bad] = w[:, 0], w[:, 1], v[:, :, 0]
-    return np.maximum(lam_min, 0.0), np.maximum(lam_mid, 0.0), vec
-
-
-def _pca(m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(mean, normal, mse, middle eigenvalue) of moment rows: normal = eigenvector of the least
-    eigenvalue of the covariance, mse = that eigenvalue."""
-    mean, cov = _cov(m)
-    lam_min, lam_mid, normal = _eig3(cov)
-    return mean, normal, lam_min, lam_mid
-
-
-def _forest_labels(n: int, child: np.ndarray, parent: np.ndarray) -> tuple[int, np.ndarray]:
-    """Components of the graph on n nodes whose edges child -> parent form a forest in which
-    each node has at most one parent and the only cycles are mutual pairs (the proposals of a
-    merge round). Returns (number of components, compact label per node)."""
-    root = np.arange(n)
-    root[child] = parent
-    ar = np.arange(n)
-    smaller_of_pair = (root != ar) & (root[root] == ar) & (ar < root)
-    root[smaller_of_pair] = ar[smaller_of_pair]  # a mutual pair is rooted at its smaller id
-    while True:
-        nxt = root[root]
-        if np.array_equal(nxt, root):
-            break
-        root = nxt
-    uniq, lab = np.unique(root, return_inverse=True)
-    return len(uniq), lab
-
-def _group_sum(groups: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray:
-    """Sum of ``rows`` (M, C) per group id (M,) in [0, n)."""
-    m, ncol = rows.shape
-    flat = (groups[:, None] * ncol + np.arange(ncol)).ravel()
-    return np.bincount(flat, weights=rows.ravel(), minlength=n * ncol).reshape(n, ncol)
-
-
-def _mse(m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(mean, least eigenvalue of the covariance) of moment rows, closed form (trigonometric
-    solution of the characteristic cubic; the least eigenvalue is well conditioned when it is
-    separated from the others, which is the case that matters for a plane test)."""
-    mean, cov = _cov(m)
-    a00, a11, a22 = cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2]
-    a01, a02, a12 = cov[:, 0, 1], cov[:, 0, 2], cov[:, 1, 2]
-    q = (a00 + a11 + a22) / 3.0
-    b00, b11, b22 = a00 - q, a11 - q, a22 - q
-    p = np.sqrt(np.maximum((b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)) / 6.0,
-                           1e-300))
-    det = b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02)
-    r = np.clip(det / (2.0 * p ** 3), -1.0, 1.0)
-    lam_min = q + 2.0 * p * np.cos(np.arccos(r) / 3.0 + 2.0 * np.pi / 3.0)
-    return mean, np.maximum(lam_min, 0.0)
 
 
 def _empty(shape: tuple[int, ...], status: str) -> AhcSegmentation:
@@ -324,7 +218,7 @@ def segment_depth(depth_m: np.ndarray | None, K: np.ndarray, config: AhcConfig |
     mom_all = np.stack([n_px, cols(z_r0, 1), cols(z_r1, 0), cols(z_r0, 0), cols(q_r0, 2), cols(q_r1, 1),
                         cols(q_r0, 1), cols(q_r2, 0), cols(q_r1, 0), cols(q_r0, 0)], axis=1)
     mom = mom_all[idx_ok]
-    mean, normal, mse, _ = _pca(mom)
+    mean, normal, mse, _ = moment_pca(mom)
     keep = mse < c.t_mse(mean[:, 2], c.std_tol_init_m)
     idx_ok, mom, mean, normal = idx_ok[keep], mom[keep], mean[keep], normal[keep]
     stats["cells_planar"] = float(idx_ok.size)
@@ -351,8 +245,8 @@ def segment_depth(depth_m: np.ndarray | None, K: np.ndarray, config: AhcConfig |
     rounds = 0
     while ea.size and rounds < c.max_rounds:
         rounds += 1
-        cm = _group_sum(label, mom, n_clusters)
-        _, cn, _, _ = _pca(cm)
+        cm = group_sum(label, mom, n_clusters)
+        _, cn, _, _ = moment_pca(cm)
         la, lb = label[ea], label[eb]
         diff = la != lb
         lo, hi = np.minimum(la[diff], lb[diff]), np.maximum(la[diff], lb[diff])
@@ -360,7 +254,7 @@ def segment_depth(depth_m: np.ndarray | None, K: np.ndarray, config: AhcConfig |
         if key.size == 0:
             break
         pa, pb = key // n_clusters, key % n_clusters
-        mean_m, mse_m = _mse(cm[pa] + cm[pb])
+        mean_m, mse_m = moment_mse(cm[pa] + cm[pb])
         allowed = (np.abs(np.einsum("ij,ij->i", cn[pa], cn[pb])) >= cos_merge) & \
                   (mse_m < c.t_mse(mean_m[:, 2], c.std_tol_merge_m))
         if not allowed.any():
@@ -376,14 +270,14 @@ def segment_depth(depth_m: np.ndarray | None, K: np.ndarray, config: AhcConfig |
         e_sorted_a, e_sorted_b = pa[order], pb[order]
         partner = np.where(e_sorted_a[best_edge] == proposer, e_sorted_b[best_edge], e_sorted_a[best_edge])
         # trees of proposals
-        _, comp = _forest_labels(n_clusters, proposer, partner)
-        gm = _group_sum(comp, cm, int(comp.max()) + 1)
-        g_mean, g_mse = _mse(gm)
+        _, comp = forest_labels(n_clusters, proposer, partner)
+        gm = group_sum(comp, cm, int(comp.max()) + 1)
+        g_mean, g_mse = moment_mse(gm)
         tree_ok = g_mse < c.t_mse(g_mean[:, 2], c.std_tol_merge_m)
         use = tree_ok[comp[proposer]]
         mutual = first[partner] == best_edge
         use |= mutual
-        n_new, comp2 = _forest_labels(n_clusters, proposer[use], partner[use])
+        n_new, comp2 = forest_labels(n_clusters, proposer[use], partner[use])
         if n_new == n_clusters:
             break
         label = comp2[label]
@@ -393,25 +287,25 @@ def segment_depth(depth_m: np.ndarray | None, K: np.ndarray, config: AhcConfig |
     # clusters -> planes. The final PCA uses the cluster's interior cells (all 4 neighbours in
     # the cluster), as [34] erodes cluster borders before its refinement: border cells are the
     # ones that may straddle an edge and tilt the fit; all cells if fewer than 4 are interior.
-    cm = _group_sum(label, mom, n_clusters)
+    cm = group_sum(label, mom, n_clusters)
     full = np.full(hc * wc, -1, np.int64)
     full[idx_ok] = label
     fg = np.pad(full.reshape(hc, wc), 1, mode="edge")
     centre = fg[1:-1, 1:-1]
     interior = ((fg[:-2, 1:-1] == centre) & (fg[2:, 1:-1] == centre) & (fg[1:-1, :-2] == centre)
                 & (fg[1:-1, 2:] == centre)).reshape(-1)[idx_ok]
-    cm_in = _group_sum(label[interior], mom[interior], n_clusters)
+    cm_in = group_sum(label[interior], mom[interior], n_clusters)
     n_in = np.bincount(label[interior], minlength=n_clusters)
     fit = np.where((n_in >= 4)[:, None], cm_in, cm)
-    _, c_normal, _, _ = _pca(fit)
+    _, c_normal, _, _ = moment_pca(fit)
     # then only the cells whose own normal is within refit_angle_deg of that fit (drops the
     # straddling cells of small clusters that have no interior)
     close = np.abs(np.einsum("ij,ij->i", normal, c_normal[label])) >= np.cos(np.radians(c.refit_angle_deg))
-    cm_close = _group_sum(label[close], mom[close], n_clusters)
+    cm_close = group_sum(label[close], mom[close], n_clusters)
     n_close = np.bincount(label[close], minlength=n_clusters)
     fit = np.where((n_close >= 1)[:, None], cm_close, fit)
-    c_mean, c_normal, c_mse, _ = _pca(fit)
-    _, _, _, full_mid = _pca(cm)
+    c_mean, c_normal, c_mse, _ = moment_pca(fit)
+    _, _, _, full_mid = moment_pca(cm)
     n_px = cm[:, 0]
     width = np.sqrt(12.0 * full_mid)  # full width of a uniform strip
     big = np.flatnonzero((n_px >= c.min_support_px) & (width >= c.min_width_m))

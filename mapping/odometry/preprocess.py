@@ -17,7 +17,7 @@ the map:
    map cloud loses its points within one registration voxel of a rejected one.
 
 The ground-aware intensity filter of section 4.2.2 lives in
-:mod:`exobench.perception.intensity_filter`; it is not applied here.
+:mod:`exobench.perception.lidar_filter.filters`; it is not applied here.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import open3d as o3d
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import ConfigError, check_int, check_range
 
 __all__ = ["PreprocessConfig", "clean_points", "deskew", "preprocess", "voxel_downsample"]
 
@@ -68,8 +68,7 @@ class PreprocessConfig:
     def __post_init__(self) -> None:
         _check_box("self_box_m", self.self_box_min_m, self.self_box_max_m)
         _check_box("outer_box_m", self.outer_box_min_m, self.outer_box_max_m)
-        if not isinstance(self.sor_neighbors, int) or not 0 <= self.sor_neighbors <= 1000:
-            raise ConfigError("sor_neighbors", self.sor_neighbors, "an integer, 0 <= sor_neighbors <= 1000")
+        object.__setattr__(self, "sor_neighbors", check_int("sor_neighbors", self.sor_neighbors, 0, 1000))
         check_range("sor_std_ratio", self.sor_std_ratio, 0.0, None, low_open=True)
         check_range("voxel_m", self.voxel_m, 0.0, 10.0, low_open=True)
         check_range("map_voxel_m", self.map_voxel_m, 0.0, 10.0, low_open=True)

@@ -1,6 +1,6 @@
 """Gaussian Scan Context (seeds/003 section 4.2.3, eq. 4.26-4.33).
 
-Scan Context++ (:mod:`exobench.perception.scan_context`) with each cell filled from a Gaussian
+Scan Context++ (:mod:`exobench.perception.place_recognition.scan_context`) with each cell filled from a Gaussian
 fitted to the points of its bin instead of their maximum height. Binning, ring/sector keys,
 k-d tree retrieval, column-shift alignment and the threshold ``tau`` are those of SC++.
 
@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from exobench.core.errors import ConfigError, check_range
-from exobench.perception.scan_context import PlaceRecognizer, ScanContextConfig
+from exobench.perception.place_recognition.recognizer import PlaceRecognizer
+from exobench.perception.place_recognition.scan_context import ScanContextConfig
 
 __all__ = ["VARIANTS", "GaussianScanContext", "GaussianScanContextConfig", "bin_gaussians", "huber_weights"]
 

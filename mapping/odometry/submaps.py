@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from exobench.core.transforms import transform_points
-from exobench.mapping.preprocess import voxel_downsample
+from exobench.mapping.odometry.preprocess import voxel_downsample
 
 __all__ = ["Node", "OpenSubmap", "keyframe_due", "nodes_cloud", "rotation_angle"]
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exobench.core import ConfigError
+from exobench.core import ConfigError, check_int
 
 SIDES = ("l", "r")
 
@@ -120,8 +120,7 @@ class FootprintConfig:
     def __post_init__(self) -> None:
         if self.step_estimate not in STEP_ESTIMATES:
             raise ConfigError("footprint.step_estimate", self.step_estimate, list(STEP_ESTIMATES))
-        if isinstance(self.n_recent, bool) or not isinstance(self.n_recent, (int, np.integer)) or self.n_recent < 2:
-            raise ConfigError("footprint.n_recent", self.n_recent, "an integer >= 2")
+        object.__setattr__(self, "n_recent", check_int("footprint.n_recent", self.n_recent, 2))
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exobench.core import ConfigError, check_range
+from exobench.core import check_int, check_range
 
 _BITS = 21
 _OFFSET = 1 << (_BITS - 1)  # voxel indices in [-2^20, 2^20): +-52 km at 5 cm
@@ -136,13 +136,10 @@ class PlaneTrackingConfig:
         if self.match_offset_m is not None:
             check_range("plane_tracking.match_offset_m", self.match_offset_m, 0.0, 10.0, low_open=True)
         check_range("plane_tracking.iou_min", self.iou_min, 0.0, 1.0, low_open=True)
-        if isinstance(self.scope_min_cells, bool) or not isinstance(self.scope_min_cells, (int, np.integer)) \
-                or self.scope_min_cells < 1:
-            raise ConfigError("plane_tracking.scope_min_cells", self.scope_min_cells, "an integer >= 1")
+        object.__setattr__(self, "scope_min_cells", check_int("plane_tracking.scope_min_cells", self.scope_min_cells, 1))
         check_range("plane_tracking.scope_min_fraction", self.scope_min_fraction, 0.0, 1.0)
-        if self.max_score is not None and (isinstance(self.max_score, bool) or not isinstance(
-                self.max_score, (int, np.integer)) or self.max_score < 1):
-            raise ConfigError("plane_tracking.max_score", self.max_score, "None or an integer >= 1")
+        if self.max_score is not None:
+            object.__setattr__(self, "max_score", check_int("plane_tracking.max_score", self.max_score, 1))
 
 
 @dataclass

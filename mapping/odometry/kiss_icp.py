@@ -12,10 +12,12 @@ Details:
   is the LiDAR at ``sweep_start_s + max(time_offset_s)`` and that is the stamp stored. With
   ``deskew=False`` the scan is taken as instantaneous and stamped ``sweep_start_s``.
 - ``voxel_size_m = 0`` takes kiss-icp's own default (``max_range_m / 100``).
-- ``filter``: ``"none"`` (default), ``"threshold"``, ``"naive-ground"``, ``"normal-ground"`` or
-  ``"floor-ground"`` runs that intensity filter (seeds/003 Sec. 4.2.2; the last is ours) (:mod:`exobench.perception.filter_pipelines`,
-  with its default parameters and ``T_footprint_sensor`` from the exoskeleton's kinematics)
-  before odometry, as Table 5.4 does. :func:`run_kiss_icp` takes precomputed keep masks instead.
+- ``filter``: the intensity filter stage run before odometry, as Table 5.4 does
+  (:class:`~exobench.perception.lidar_filter.FilterStageConfig`: ``filter.kind`` is ``"none"``
+  (default), ``"threshold"``, ``"naive-ground"``, ``"normal-ground"`` or ``"floor-ground"``,
+  each with its parameters nested, e.g. ``filter.naive_ground.ground_margin_m``), with
+  ``T_footprint_sensor`` from the exoskeleton's kinematics. :func:`run_kiss_icp` takes
+  precomputed keep masks instead.
 - Faults never raise: a scan with fewer than ``min_points`` usable points (empty, all NaN, or
   all removed by the filter) keeps the last pose with status ``"empty_scan"``; a registration
   that raises or returns a non-finite pose keeps the last pose with status ``"failed"`` (and the
@@ -25,6 +27,7 @@ Details:
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -33,13 +36,12 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import ConfigError, check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
+from exobench.perception.lidar_filter.config import FilterStageConfig
 
-FILTER_KINDS = ("none", "threshold", "naive-ground", "normal-ground", "floor-ground")
-
-__all__ = ["FILTER_KINDS", "KissIcpPipeline", "KissOdometry", "run_kiss_icp"]
+__all__ = ["KissConfig", "KissIcpPipeline", "KissOdometry", "run_kiss_icp"]
 
 
 @dataclass(frozen=True)
@@ -54,7 +56,7 @@ class KissConfig:
         max_threads: ``registration.max_num_threads`` (0 = automatic).
         min_points: scans with fewer usable points keep the last pose.
         lidar_id: the LiDAR used (empty: the first LiDAR seen).
-        filter: intensity filter applied before odometry (:data:`FILTER_KINDS`).
+        filter: the intensity filter stage applied before odometry (kind and parameters).
     """
 
     max_range_m: float = 100.0
@@ -65,20 +67,18 @@ class KissConfig:
     max_threads: int = 1
     min_points: int = 50
     lidar_id: str = ""
-    filter: str = "none"
+    filter: FilterStageConfig = FilterStageConfig()
 
     def __post_init__(self) -> None:
         check_range("max_range_m", self.max_range_m, 0.0, 1000.0, low_open=True)
         check_range("min_range_m", self.min_range_m, 0.0, self.max_range_m, high_open=True)
         check_range("voxel_size_m", self.voxel_size_m, 0.0, 10.0)
         for name, lo, hi in (("max_points_per_voxel", 1, 1000), ("max_threads", 0, 64), ("min_points", 1, 10**6)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
-                raise ConfigError(name, v, f"an integer in [{lo}, {hi}]")
+            object.__setattr__(self, name, check_int(name, getattr(self, name), lo, hi))
         if not isinstance(self.deskew, bool):
             raise ConfigError("deskew", self.deskew, "True or False")
-        if self.filter not in FILTER_KINDS:
-            raise ConfigError("filter", self.filter, " or ".join(repr(k) for k in FILTER_KINDS))
+        if not isinstance(self.filter, FilterStageConfig):
+            raise ConfigError("filter", self.filter, "a FilterStageConfig")
 
     def kiss_config(self) -> Any:
         """The package's ``KISSConfig`` (pydantic) with these values."""
@@ -194,11 +194,13 @@ class KissIcpPipeline:
         self._odo = KissOdometry(self.config)
         self._lidar = self.config.lidar_id
         self._filter = None
-        if self.config.filter != "none":
-            from exobench.perception.filter_pipelines import filter_pipeline
+        stage = self.config.filter
+        if stage.kind != "none":
+            from exobench.perception.lidar_filter.pipelines import filter_pipeline
 
-            cls = filter_pipeline(self.config.filter)
-            self._filter = cls(cls.Config(lidar_id=self.config.lidar_id))
+            cls = filter_pipeline(stage.kind)
+            params = dataclasses.asdict(stage.config())
+            self._filter = cls(cls.Config(lidar_id=self.config.lidar_id, **params))
             self._filter.reset(calibration)
 
     def process(self, frame: Frame) -> TrajectoryEstimate | None:
@@ -221,7 +223,7 @@ class KissIcpPipeline:
         return None
 
     def finalize(self) -> TrajectoryEstimate:
-        extra: dict[str, Any] = {"filter": self.config.filter}
+        extra: dict[str, Any] = {"filter": self.config.filter.kind}
         if self._filter is not None:
             f = self._filter.finalize().stats
             extra["filter_stats"] = {k: v for k, v in f.items() if isinstance(v, (int, float, str))}

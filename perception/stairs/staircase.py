@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from exobench.core.errors import ConfigError, check_range
+from exobench.core.errors import ConfigError, check_int, check_range
 
 from .rtls import PlaneFit, make_plane
 
@@ -103,9 +103,7 @@ class StaircaseParams:
         check_range("th_z_m", self.th_z_m, 0.0, 1.0, low_open=True)
         check_range("th_pl_m", self.th_pl_m, 0.0, 2.0)
         for name, low in (("queue_q", 2), ("buffer_b", 1), ("reliable_n", 1), ("n_surfaces", 1)):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < low or v > 100_000:
-                raise ConfigError(name, v, f"an integer {low} <= {name} <= 100000")
+            object.__setattr__(self, name, check_int(name, getattr(self, name), low, 100_000))
         if self.riser_flat_low not in ("assign", "discard"):
             raise ConfigError("riser_flat_low", self.riser_flat_low, "'assign' or 'discard'")
 

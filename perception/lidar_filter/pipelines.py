@@ -3,7 +3,7 @@
 ``filter-none``, ``filter-threshold`` (eq. 4.15), ``filter-naive-ground`` (eq. 4.16),
 ``filter-normal-ground`` (eq. 4.17-4.19) and ``filter-floor-ground`` (eq. 4.16 with the ground
 a band about the scan's own floor plane; not in the thesis) wrap the filters of
-:mod:`exobench.perception.intensity_filter` unchanged (each scan's ``ring`` goes to the filter:
+:mod:`exobench.perception.lidar_filter.filters` unchanged (each scan's ``ring`` goes to the filter:
 the normal filter's range-image normals use it); each returns a
 :class:`~exobench.core.estimates.FilterEstimate` with one keep mask per LiDAR scan and the
 compute time per scan (kinematics + filter).
@@ -13,7 +13,7 @@ exoskeleton's kinematics and trunk tilt, not assumed level (:class:`FootprintKin
 
 - the latest encoder state (:class:`~exobench.core.frames.JointState`) and trunk IMU orientation
   (:class:`~exobench.core.frames.ImuSample`, ``R_world_imu``) go through the URDF of the
-  calibration with pinocchio (:class:`~exobench.perception.tof_kinematics.TofKinematics`), which
+  calibration with pinocchio (:class:`~exobench.perception.kinematics.tof_kinematics.TofKinematics`), which
   gives the LiDAR mount in ``stance_ground``: gravity-aligned axes, origin on the ground under
   the stance ankle (foot flat: ``sole_height_m`` below the joint);
 - the footprint frame ``f`` is that frame turned about the vertical to the trunk's heading (x
@@ -40,7 +40,7 @@ of the sweep). Faults never raise; they are counted in ``FilterEstimate.stats``:
 
 from __future__ import annotations
 
-import math
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -52,103 +52,38 @@ from exobench.core.errors import ConfigError
 from exobench.core.estimates import FilterEstimate
 from exobench.core.frames import ContactSample, Frame, ImuSample, JointState, LidarScan
 
-from .intensity_filter import (
-    FilterReason,
+from .config import (
     FloorGroundConfig,
-    FloorGroundFilter,
     IntensityBandConfig,
-    IntensityThresholdFilter,
     NaiveGroundConfig,
+    NoFilterConfig,
+    NormalGroundConfig,
+)
+from .filters import (
+    FilterReason,
+    FloorGroundFilter,
+    IntensityThresholdFilter,
     NaiveGroundFilter,
     NoFilter,
-    NormalGroundConfig,
     NormalGroundFilter,
 )
+from .footprint import FootprintKinematics
 
 __all__ = [
+    "FILTER_PIPELINES",
     "FilterFloorGround",
     "FilterNaiveGround",
     "FilterNone",
     "FilterNormalGround",
     "FilterThreshold",
-    "FootprintKinematics",
-    "footprint_from_stance",
+    "filter_pipeline",
 ]
 
 
-def footprint_from_stance(T_stance_sensor: np.ndarray, R_world_base: np.ndarray) -> np.ndarray:
-    """``T_footprint_sensor`` from the sensor pose in ``stance_ground`` and the trunk rotation.
-
-    The footprint frame is ``stance_ground`` rotated about its z axis by the heading of the base
-    link's x axis (projected on the horizontal plane; identity when it is vertical).
-    """
-    x = np.asarray(R_world_base, dtype=float)[:, 0]
-    yaw = math.atan2(x[1], x[0]) if math.hypot(x[0], x[1]) > 1e-9 else 0.0
-    c, s = math.cos(yaw), math.sin(yaw)
-    T_f_stance = np.eye(4)
-    T_f_stance[:2, :2] = [[c, s], [-s, c]]  # Rz(-yaw)
-    return T_f_stance @ np.asarray(T_stance_sensor, dtype=float)
-
-
-class FootprintKinematics:
-    """``T_footprint_sensor`` of one sensor from encoders, the trunk IMU and insole contacts.
-
-    Args:
-        calibration: URDF, mounts and ``sole_height_m`` of the device.
-        sensor_id: the LiDAR mount.
-        imu_sensor_id: the trunk IMU whose orientation is ``R_world_imu``.
-    """
-
-    def __init__(self, calibration: Calibration, sensor_id: str, imu_sensor_id: str = "imu_trunk") -> None:
-        from .tof_kinematics import TofKinematics
-
-        self.sensor_id = sensor_id
-        self.imu_sensor_id = imu_sensor_id
-        self._kin = {side: TofKinematics(calibration, side, imu_sensor_id) for side in ("l", "r")}
-        self._kin["l"].T_base_sensor(sensor_id)  # unknown mount: UnknownNameError now, not per scan
-        self._contact: dict[str, bool] = {}  # pad sensor id -> in contact
-        self.stance_side: str | None = None
-
-    @property
-    def has_state(self) -> bool:
-        return self._kin["l"].has_state
-
-    def update(self, frame: Frame) -> None:
-        """Take an encoder state, an IMU orientation of the trunk IMU or an insole contact."""
-        if isinstance(frame, JointState):
-            for k in self._kin.values():
-                k.update_joints(frame)
-        elif isinstance(frame, ImuSample) and frame.sensor_id == self.imu_sensor_id:
-            if np.all(np.isfinite(np.asarray(frame.quat_wxyz, dtype=float))) and np.linalg.norm(frame.quat_wxyz) > 0:
-                for k in self._kin.values():
-                    k.update_imu(frame)
-        elif isinstance(frame, ContactSample):
-            self._contact[frame.sensor_id] = bool(frame.in_contact)
-
-    def _side_in_contact(self, side: str) -> bool | None:
-        pads = [v for sid, v in self._contact.items() if sid.startswith(f"contact_{side}_")]
-        return any(pads) if pads else None
-
-    def T_footprint_sensor(self) -> np.ndarray | None:
-        """The transform at the current state, None without a state or when not finite."""
-        if not self.has_state:
-            return None
-        T = {side: k.T_estimator_sensor(self.sensor_id) for side, k in self._kin.items()}
-        left, right = self._side_in_contact("l"), self._side_in_contact("r")
-        if left and not right:
-            side = "l"
-        elif right and not left:
-            side = "r"
-        else:  # the stance foot is the lower one: the sensor is higher above it
-            side = "l" if T["l"][2, 3] >= T["r"][2, 3] else "r"
-        self.stance_side = side
-        out = footprint_from_stance(T[side], self._kin[side].R_world_base())
-        return out if np.all(np.isfinite(out)) else None
-
-
 @dataclass(frozen=True)
-class _BaseConfig:
-    """Common fields: which LiDAR is filtered (empty: every LiDAR scan) and the trunk IMU."""
+class _PipelineFields:
+    """The pipeline's own fields beside its filter's: which LiDAR is filtered (empty: every LiDAR
+    scan) and the trunk IMU."""
 
     lidar_id: str = ""
     imu_id: str = "imu_trunk"
@@ -160,16 +95,19 @@ class _FilterPipeline:
     name: ClassVar[str] = ""
     track: ClassVar[str] = "lidar-filter"
     uses_footprint: ClassVar[bool] = False
+    filter_cls: ClassVar[type[NoFilter]] = NoFilter
 
     def __init__(self, config: Any | None = None) -> None:
         self.config = config if config is not None else self.Config()  # type: ignore[attr-defined]
-        self.filter = self._make_filter()
+        self.filter = self.filter_cls(self.filter_config())
         self._kin: dict[str, FootprintKinematics] = {}
         self._calibration: Calibration | None = None
         self._reset_state()
 
-    def _make_filter(self) -> NoFilter:
-        return NoFilter()
+    def filter_config(self) -> Any:
+        """The filter's own config: the fields of ``filter_cls.Config`` of this pipeline's config."""
+        cfg_cls = self.filter_cls.Config
+        return cfg_cls(**{f.name: getattr(self.config, f.name) for f in dataclasses.fields(cfg_cls)})
 
     def _reset_state(self) -> None:
         self._stamps: list[float] = []
@@ -276,36 +214,19 @@ class FilterNone(_FilterPipeline):
     name: ClassVar[str] = "filter-none"
 
     @dataclass(frozen=True)
-    class Config(_BaseConfig):
-        """Only the common fields: the filter itself has no parameters."""
-
-    def _make_filter(self) -> NoFilter:
-        return NoFilter()
-
-
-@dataclass(frozen=True)
-class _BandFields(_BaseConfig):
-    """The kept intensity band ``psi*`` (bytes); defaults as :class:`IntensityBandConfig`."""
-
-    intensity_min: float = IntensityBandConfig.intensity_min
-    intensity_max: float = IntensityBandConfig.intensity_max
-
-    def band(self) -> dict[str, float]:
-        return {"intensity_min": float(self.intensity_min), "intensity_max": float(self.intensity_max)}
+    class Config(NoFilterConfig, _PipelineFields):
+        """Only the pipeline's fields: the filter itself has no parameters."""
 
 
 class FilterThreshold(_FilterPipeline):
     """``filter-threshold``: the plain intensity band of eq. (4.15)."""
 
     name: ClassVar[str] = "filter-threshold"
+    filter_cls: ClassVar[type[NoFilter]] = IntensityThresholdFilter
 
     @dataclass(frozen=True)
-    class Config(_BandFields):
-        def __post_init__(self) -> None:
-            IntensityBandConfig(**self.band())
-
-    def _make_filter(self) -> NoFilter:
-        return IntensityThresholdFilter(IntensityBandConfig(**self.config.band()))
+    class Config(IntensityBandConfig, _PipelineFields):
+        """:class:`IntensityBandConfig` and the pipeline's fields."""
 
 
 class FilterNaiveGround(_FilterPipeline):
@@ -313,41 +234,25 @@ class FilterNaiveGround(_FilterPipeline):
 
     name: ClassVar[str] = "filter-naive-ground"
     uses_footprint: ClassVar[bool] = True
+    filter_cls: ClassVar[type[NoFilter]] = NaiveGroundFilter
 
     @dataclass(frozen=True)
-    class Config(_BandFields):
-        ground_test: str = NaiveGroundConfig.ground_test
-        ground_margin_m: float = NaiveGroundConfig.ground_margin_m
-        ground_depth_m: float = NaiveGroundConfig.ground_depth_m
-        plane_margin_m: float = NaiveGroundConfig.plane_margin_m
-        plane_search_m: float = NaiveGroundConfig.plane_search_m
-        use_full_transform: bool = NaiveGroundConfig.use_full_transform
-
-        def __post_init__(self) -> None:
-            self.filter_config()
-
-        def filter_config(self) -> NaiveGroundConfig:
-            return NaiveGroundConfig(**self.band(), ground_test=self.ground_test, ground_margin_m=self.ground_margin_m,
-                                     ground_depth_m=self.ground_depth_m, plane_margin_m=self.plane_margin_m,
-                                     plane_search_m=self.plane_search_m, use_full_transform=self.use_full_transform)  # fmt: skip
-
-    def _make_filter(self) -> NoFilter:
-        return NaiveGroundFilter(self.config.filter_config())
+    class Config(NaiveGroundConfig, _PipelineFields):
+        """:class:`NaiveGroundConfig` and the pipeline's fields."""
 
 
-class FilterFloorGround(FilterNaiveGround):
+class FilterFloorGround(_FilterPipeline):
     """``filter-floor-ground``: eq. (4.16) with the ground a band about the scan's own floor plane
-    (:class:`~exobench.perception.intensity_filter.FloorGroundFilter`), ``T_footprint_sensor``
+    (:class:`~exobench.perception.lidar_filter.filters.FloorGroundFilter`), ``T_footprint_sensor``
     from kinematics."""
 
     name: ClassVar[str] = "filter-floor-ground"
+    uses_footprint: ClassVar[bool] = True
+    filter_cls: ClassVar[type[NoFilter]] = FloorGroundFilter
 
     @dataclass(frozen=True)
-    class Config(FilterNaiveGround.Config):
-        ground_test: str = FloorGroundConfig.ground_test
-
-    def _make_filter(self) -> NoFilter:
-        return FloorGroundFilter(self.config.filter_config())
+    class Config(FloorGroundConfig, _PipelineFields):
+        """:class:`FloorGroundConfig` and the pipeline's fields."""
 
 
 class FilterNormalGround(_FilterPipeline):
@@ -355,39 +260,17 @@ class FilterNormalGround(_FilterPipeline):
 
     name: ClassVar[str] = "filter-normal-ground"
     uses_footprint: ClassVar[bool] = True
+    filter_cls: ClassVar[type[NoFilter]] = NormalGroundFilter
 
     @dataclass(frozen=True)
-    class Config(_BandFields):
-        epsilon_eta: float = NormalGroundConfig.epsilon_eta
-        normal_method: str = NormalGroundConfig.normal_method
-        normal_k: int = NormalGroundConfig.normal_k
-        normal_radius_m: float = NormalGroundConfig.normal_radius_m
-        ri_col_halfwidth: int = NormalGroundConfig.ri_col_halfwidth
-        ri_azimuth_jump_rel: float = NormalGroundConfig.ri_azimuth_jump_rel
-        ri_ring_jump_rel: float = NormalGroundConfig.ri_ring_jump_rel
-        ri_max_ring_skip: int = NormalGroundConfig.ri_max_ring_skip
-
-        def __post_init__(self) -> None:
-            self.filter_config()
-
-        def filter_config(self) -> NormalGroundConfig:
-            return NormalGroundConfig(**self.band(), epsilon_eta=self.epsilon_eta, normal_method=self.normal_method,
-                                      normal_k=self.normal_k, normal_radius_m=self.normal_radius_m,
-                                      ri_col_halfwidth=self.ri_col_halfwidth, ri_azimuth_jump_rel=self.ri_azimuth_jump_rel,
-                                      ri_ring_jump_rel=self.ri_ring_jump_rel,
-                                      ri_max_ring_skip=self.ri_max_ring_skip)  # fmt: skip
-
-    def _make_filter(self) -> NoFilter:
-        return NormalGroundFilter(self.config.filter_config())
+    class Config(NormalGroundConfig, _PipelineFields):
+        """:class:`NormalGroundConfig` and the pipeline's fields."""
 
 
 FILTER_PIPELINES: dict[str, type[_FilterPipeline]] = {
-    "none": FilterNone,
-    "threshold": FilterThreshold,
-    "naive-ground": FilterNaiveGround,
-    "normal-ground": FilterNormalGround,
-    "floor-ground": FilterFloorGround,
+    cls.filter_cls.name: cls for cls in (FilterNone, FilterThreshold, FilterNaiveGround, FilterNormalGround, FilterFloorGround)
 }
+"""Filter name (:data:`~exobench.perception.lidar_filter.filters.FILTERS`) -> its pipeline."""
 
 
 def filter_pipeline(kind: str) -> type[_FilterPipeline]:

@@ -1,0 +1,47 @@
+"""Where a sensor mount sits on the standing device, from the robot description in the calibration."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from exobench.core import Calibration
+
+__all__ = ["inverse_se3", "tracked_point_neutral"]
+
+
+def inverse_se3(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid transform (4, 4)."""
+    out = np.eye(4)
+    out[:3, :3] = T[:3, :3].T
+    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return out
+
+
+
+def tracked_point_neutral(calibration: Calibration, sensor_id: str, *, link_origin: bool = False) -> tuple[float, float] | None:
+    """Where the mount ``sensor_id`` (``link_origin``: the origin of its parent link) sits in the
+    robot description (URDF, loaded with pinocchio) at its neutral configuration (standing
+    straight): (how far ahead of the base link (the pelvis) along its x axis (forward), how high
+    above the soles (the feet: the parent links of the ``contact`` mounts, their origins
+    ``sole_height_m`` above the sole)), m. None when the description or a link cannot be read."""
+    try:
+        import pinocchio as pin
+
+        model = pin.buildModelFromXML(calibration.robot_urdf)
+        data = model.createData()
+        pin.framesForwardKinematics(model, data, pin.neutral(model))
+        mount = calibration.mount(sensor_id)
+
+        def placement(link: str) -> np.ndarray:
+            return np.asarray(data.oMf[model.getFrameId(link, pin.BODY)].homogeneous, dtype=float)
+
+        T_w_point = placement(mount.parent_link) @ (np.eye(4) if link_origin else np.asarray(mount.T_parent_sensor, dtype=float))
+        x = float((inverse_se3(placement(calibration.base_link)) @ T_w_point)[0, 3])
+        feet = {m.parent_link for m in calibration.mounts_of_kind("contact")}
+        sole = min(float(placement(f)[2, 3]) for f in feet) - float(calibration.sole_height_m)
+        h = float(T_w_point[2, 3]) - sole
+    except Exception:  # no usable description: the caller falls back
+        return None
+    return (x, h) if math.isfinite(x) and math.isfinite(h) else None

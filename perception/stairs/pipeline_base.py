@@ -1,0 +1,265 @@
+"""What the stairs-track pipelines share: frame checks, ToF kinematics, bookkeeping, read-out.
+
+Every pipeline follows :class:`exobench.core.pipeline.Pipeline`. It consumes the encoder
+states, the trunk IMU and the two calf ToF sensors of the climbing leg, turns each valid range
+into a point of the ``stance_ground`` frame with :class:`TofKinematics` and estimates the
+surfaces S0..S4. Frames of other sensors are ignored. Faulty input never raises; it is counted
+in ``stats`` (:class:`exobench.core.frames.StreamStats` plus extras):
+
+- ``n_no_return``: ToF status not VALID; ``n_nan``: VALID status but a non-finite range;
+  ``n_bad_range``: negative range; ``n_without_state``: no encoder or IMU state yet;
+  ``n_bad_state``: an encoder state with non-finite angles or an IMU quaternion that is not
+  finite and about unit (the frame is ignored, the previous state kept);
+  ``n_out_of_order``: a frame older than the previous one of the same sensor (skipped; a stale
+  encoder or IMU state never replaces a newer one); ``n_ignored``: frames of other sensors.
+
+Sensor flags: the paper's "right"/"left" sensor flags are the climbing leg's two calf sensors
+by their side: for the right leg ``tof_r_lat`` is "r" and ``tof_r_med`` is "l"; for the left leg
+``tof_l_med`` is "r" and ``tof_l_lat`` is "l".
+
+``assignments`` hold one entry per ToF frame received (of any sensor, in arrival order), so
+they line up with the episode's ToF ground truth; unused readings have index -2 and a NaN
+point. ``compute_time_s`` holds, per used point, the time (``time.perf_counter_ns``) spent on
+the work the paper times per point: the point's forward kinematics from the latest encoder and
+IMU states (computed lazily, so a new state costs the first point that uses it) and
+``Assign``/``SurfUpdate`` (RTLS); frame checks and bookkeeping are outside it. For the batch
+baseline it is the kinematics time plus an equal share of the time spent in ``finalize``.
+
+The online estimate that ``process`` returns is rebuilt only after a point was used, and only
+the planes that changed are read out again (RTLS).
+"""
+
+
+from __future__ import annotations
+
+import math
+import time
+from abc import ABC, abstractmethod
+from dataclasses import asdict
+from typing import Any, ClassVar
+
+import numpy as np
+
+from exobench.core.calibration import Calibration
+from exobench.core.errors import ConfigError, ExobenchError, check_int, check_range
+from exobench.core.estimates import PlaneEstimate, PointAssignment, StaircaseEstimate
+from exobench.core.frames import Frame, ImuSample, JointState, StreamStats, ToFReading, TofStatus
+from exobench.perception.kinematics.tof_kinematics import ESTIMATOR_FRAME, TofKinematics
+
+from .readout import orient_normal, riser_height_m, tread_depth_m
+from .rtls import PlaneFit
+from .staircase import FLAGS
+
+
+def sensor_flags(leg: str) -> dict[str, str]:
+    """ToF sensor id -> the paper's flag (``"r"``/``"l"``) for the calf sensors of ``leg``."""
+    if leg == "r":
+        return {"tof_r_lat": "r", "tof_r_med": "l"}
+    if leg == "l":
+        return {"tof_l_med": "r", "tof_l_lat": "l"}
+    raise ConfigError("leg", leg, "'l' or 'r'")
+
+
+def _floats(values: Any) -> list[float]:
+    """A state vector (array or sequence) as a flat list of Python floats.
+
+    Frame checks run on every encoder and IMU frame; plain floats keep them cheap.
+    """
+    if isinstance(values, np.ndarray) and values.dtype == np.float64:
+        return values.ravel().tolist()
+    return np.asarray(values, dtype=float).ravel().tolist()
+
+
+def check_common_config(cfg: Any) -> None:
+    if cfg.leg not in ("l", "r"):
+        raise ConfigError("leg", cfg.leg, "'l' or 'r'")
+    if cfg.stance_side not in ("l", "r"):
+        raise ConfigError("stance_side", cfg.stance_side, "'l' or 'r'")
+    check_range("th_pl_m", cfg.th_pl_m, 0.0, 2.0)
+    object.__setattr__(cfg, "reliable_n", check_int("reliable_n", cfg.reliable_n, 1))
+
+
+class StairsPipeline(ABC):
+    """Frame handling, kinematics, bookkeeping and read-out shared by the stairs pipelines."""
+
+    name: ClassVar[str]
+    track: ClassVar[str] = "stairs"
+    Config: ClassVar[type]
+
+    def __init__(self, config: Any | None = None) -> None:
+        self.config = config if config is not None else self.Config()
+        self._kin: TofKinematics | None = None
+
+    # --- protocol ---
+    def reset(self, calibration: Calibration) -> None:
+        cfg = self.config
+        self._flags = sensor_flags(cfg.leg)
+        for sid in self._flags:
+            calibration.mount(sid)  # raises UnknownNameError when the calibration lacks it
+        self._sensor_of_flag = {f: s for s, f in self._flags.items()}
+        self._config_dict = asdict(cfg)
+        self._kin = TofKinematics(calibration, stance_side=cfg.stance_side, imu_sensor_id=cfg.imu_sensor_id)
+        self._stats = StreamStats(extra={"n_ignored": 0, "n_bad_range": 0, "n_bad_state": 0, "n_used": 0})
+        self._last_stamp: dict[str, float] = {}
+        self._readings: list[tuple[float, str, tuple[float, float, float] | None, int]] = []  # stamp, sensor, point, uid
+        self._uid_stamp: list[float] = []
+        self._times_ns: list[float] = []  # ns per used point
+        self._reset_estimator()
+
+    def process(self, frame: Frame) -> StaircaseEstimate | None:
+        if self._kin is None:
+            raise ExobenchError("process() called before reset()")
+        st = self._stats
+        st.n_frames += 1
+        if isinstance(frame, ToFReading):
+            self._tof(frame)
+        elif isinstance(frame, JointState):
+            if self._in_order(frame) and self._valid_joints(frame):
+                self._kin.update_joints(frame)
+        elif isinstance(frame, ImuSample) and frame.sensor_id == self.config.imu_sensor_id:
+            if self._in_order(frame) and self._valid_imu(frame):
+                self._kin.update_imu(frame)
+        else:
+            st.extra["n_ignored"] += 1
+        return self._online()
+
+    def finalize(self) -> StaircaseEstimate:
+        if self._kin is None:
+            raise ExobenchError("finalize() called before reset()")
+        return self._finalize()
+
+    # --- frames ---
+    def _in_order(self, frame: Frame) -> bool:
+        stamp = float(frame.stamp_s)
+        last = self._last_stamp.get(frame.sensor_id)
+        if not math.isfinite(stamp) or (last is not None and stamp < last):
+            self._stats.n_out_of_order += 1
+            return False
+        self._last_stamp[frame.sensor_id] = stamp
+        return True
+
+    def _valid_joints(self, frame: JointState) -> bool:
+        q = _floats(frame.position_rad)
+        if len(q) != len(frame.names) or not all(map(math.isfinite, q)):
+            self._stats.extra["n_bad_state"] += 1
+            return False
+        return True
+
+    def _valid_imu(self, frame: ImuSample) -> bool:
+        q = _floats(frame.quat_wxyz)
+        if len(q) != 4 or not all(map(math.isfinite, q)) or not 0.5 < math.hypot(*q) < 1.5:
+            self._stats.extra["n_bad_state"] += 1
+            return False
+        return True
+
+    def _usable_range(self, frame: ToFReading, r: float) -> bool:
+        """Whether a reading can become a point; otherwise count why not."""
+        st = self._stats
+        if frame.status != TofStatus.VALID:
+            st.n_no_return += 1
+        elif not math.isfinite(r):
+            st.n_nan += 1
+        elif r < 0.0:
+            st.extra["n_bad_range"] += 1
+        elif not self._kin.has_state:
+            st.n_without_state += 1
+        else:
+            return True
+        return False
+
+    def _tof(self, frame: ToFReading) -> None:
+        st = self._stats
+        sid = frame.sensor_id
+        flag = self._flags.get(sid)
+        if flag is None:
+            st.extra["n_ignored"] += 1
+            self._readings.append((frame.stamp_s, sid, None, -1))
+            return
+        try:
+            r = float(frame.range_m)
+        except (TypeError, ValueError):
+            r = float("nan")
+        if self._in_order(frame) and self._usable_range(frame, r):
+            uid = len(self._uid_stamp)
+            kin, consume, clock = self._kin, self._consume, time.perf_counter_ns
+            t0 = clock()
+            p = kin.point_xyz(sid, r)
+            consume(uid, p, flag)
+            t1 = clock()
+            self._times_ns.append(t1 - t0)
+            self._uid_stamp.append(float(frame.stamp_s))
+            self._readings.append((frame.stamp_s, sid, p, uid))
+            st.extra["n_used"] += 1
+            return
+        self._readings.append((frame.stamp_s, sid, None, -1))
+
+    # --- estimator hooks ---
+    @abstractmethod
+    def _reset_estimator(self) -> None:
+        """Forget the estimator's state (the shared input handling is reset by the base)."""
+
+    @abstractmethod
+    def _consume(self, uid: int, p: tuple[float, float, float], flag: str) -> None:
+        """Take the used point ``uid`` (its work is timed per point)."""
+
+    def _online(self) -> StaircaseEstimate | None:
+        return None
+
+    @abstractmethod
+    def _finalize(self) -> StaircaseEstimate:
+        """The final estimate of the episode."""
+
+    # --- read-out ---
+    def _plane(self, index: int, plane: PlaneFit, counts: dict[str, int], ok: bool, ok_uid: int | None) -> PlaneEstimate:
+        centroid = plane.centroid
+        return PlaneEstimate(
+            index=index,
+            normal=orient_normal(plane.normal, centroid),
+            centroid=centroid,
+            n_points={self._sensor_of_flag[f]: int(counts[f]) for f in FLAGS},
+            sigma_m=float(plane.sigma_m),
+            reliable=bool(ok),
+            reliable_stamp_s=None if ok_uid is None else self._uid_stamp[ok_uid],
+        )
+
+    def _estimate(
+        self,
+        planes: list[PlaneEstimate],
+        surface_of_uid: np.ndarray | None,
+        extra: dict[str, Any],
+        readout: tuple[float, float] | None = None,
+    ) -> StaircaseEstimate:
+        """The estimate; with ``surface_of_uid`` (final) also the assignments and the timings.
+
+        ``readout`` is ``(riser_height_m, tread_depth_m)`` when the caller already has it.
+        """
+        assignments: tuple[PointAssignment, ...] = ()
+        if surface_of_uid is not None:
+            where = surface_of_uid.tolist()
+            assignments = tuple(
+                PointAssignment(
+                    stamp_s=s,
+                    sensor_id=sid,
+                    point=np.full(3, np.nan) if p is None else np.array(p, dtype=float),
+                    surface_index=where[u] if u >= 0 else -2,
+                )
+                for s, sid, p, u in self._readings
+            )
+        stats: dict[str, Any] = self._stats.as_dict()
+        stats.update(extra)
+        stats["config"] = dict(self._config_dict)
+        if readout is None:
+            readout = (riser_height_m(planes), tread_depth_m(planes))
+        return StaircaseEstimate(
+            planes=tuple(planes),
+            riser_height_m=readout[0],
+            tread_depth_m=readout[1],
+            assignments=assignments,
+            stats=stats,
+            compute_time_s=self._compute_time_s() if surface_of_uid is not None else np.zeros(0),
+            frame_id=ESTIMATOR_FRAME,
+        )
+
+    def _compute_time_s(self) -> np.ndarray:
+        return np.array(self._times_ns, dtype=float) * 1e-9
+
