@@ -23,8 +23,8 @@ from exobench.core import Episode, EpisodeTruth, Frame, SceneTruth, ToFTruth
 from exobench.core.transforms import make_T
 from exobench.models.exo_spec import CONTACT_IDS, TOF_IDS, ExoSpec
 
-from .gait import Motion, climb_step
 from .imu import ImuSensor, imu_dynamics
+from .motion import Motion, climb_step
 from .proprio import ENCODER_ID, ContactSensor, EncoderSensor, contact_forces
 from .scenarios import StairScenario
 from .sensor_config import SensorsConfig, sample_times

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError, ImuSample, JointState, SceneTruth, ToFReading, TofStatus
-from exobench.envs.gait import climb_step
 from exobench.envs.imu import ImuSensor, imu_dynamics
+from exobench.envs.motion import climb_step
 from exobench.envs.scenarios import StairScenario
 from exobench.envs.sensor_config import (
     ContactConfig,
