@@ -29,6 +29,7 @@ from exobench.models.exo_spec import JOINT_RANGES_RAD, LEG_JOINTS, TOF_IDS, ExoS
 
 from ..motion import (
     STAND_KNEE_RAD,
+    SWING_SHAPES_DEEP_DIP,
     GaitError,
     Motion,
     Segment,
@@ -95,8 +96,8 @@ class StairClimbEnv(gymnasium.Env):
     trailing heel rises at the end of stair steps), and the foot follows a minimum-jerk parabola
     to the commanded point, flat at touch-down, then settles onto the surface (``settle_s``). The
     parabola is planned from the *command* and the feet alone (the first of the walker's
-    lag/toe-down shapes the legs can follow, each with its lowest apex,
-    :func:`~exobench.envs.motion.swing_apex_m`): the controller assumes that between two
+    lag/toe-down shapes the legs can follow, toes down up to 45 deg mid-swing, each with its
+    lowest apex, :func:`~exobench.envs.motion.swing_apex_m`): the controller assumes that between two
     footholds the ground is no higher than the higher of them (the swing foot's support up to
     its toe, stance and target beyond) and keeps ``clearance_m`` over that. The foot goes where
     it is told; only the judge of the touch-down sees the true staircase. The ToF sensors
@@ -196,7 +197,7 @@ class StairClimbEnv(gymnasium.Env):
     ## Version History
     - v0: initial version. Its steps are planned by the walker's step planner with the walker's
       constants (before, by a copy whose constants had drifted: heel rise on long level steps,
-      a 45 deg toe-down swing, swings ordered by apex height).
+      swings ordered by apex height and capped at 0.5 m, the apex sampled less exactly).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
@@ -478,7 +479,7 @@ class StairClimbEnv(gymnasium.Env):
         rises = heel_rises(float(new_ankle[2] - A[2]), straight=True)  # the heading stays constant
         step = plan_step(
             exo, self._belief_terrain(target_sole), start, new_ankle, 0.0, self._yaw, rises=rises,
-            clearance_m=self.clearance_m,
+            clearance_m=self.clearance_m, shapes=SWING_SHAPES_DEEP_DIP,
         )  # fmt: skip
         if step is None:
             return None

@@ -40,7 +40,14 @@ from .odometry import drift_odometry, gravity_aligned
 from .pedestrians import PedestrianPath, pedestrian_paths
 from .route import Route
 from .step import StepPlan, StepStart, heel_rises, plan_step
-from .swing import SWING_SHAPES, SwingPlan, heel_drop_segment, still_segment, swing_apex_m
+from .swing import (
+    SWING_SHAPES,
+    SWING_SHAPES_DEEP_DIP,
+    SwingPlan,
+    heel_drop_segment,
+    still_segment,
+    swing_apex_m,
+)
 from .view import GazeDown, ViewMotion, gaze_looks, view_motion
 from .walk import plan_walk
 
@@ -50,6 +57,7 @@ __all__ = [
     "STANCE_KNEE_MAX_RAD",
     "STAND_KNEE_RAD",
     "SWING_SHAPES",
+    "SWING_SHAPES_DEEP_DIP",
     "Foot",
     "Footholds",
     "Footstep",

@@ -117,6 +117,7 @@ def plan_step(
     clearance_m: float,
     toes_down_rad: float = 0.0,
     knee_down_rad: float = DESCENT_KNEE_MAX_RAD,
+    shapes: tuple[tuple[float, float], ...] = SWING_SHAPES,
 ) -> StepPlan | None:
     """The first feasible step from ``start`` to a foot at rest with its ankle at ``land_ankle_w``
     and sole pitch ``land_pitch`` (the foothold), heading ``yaw1`` after the step; None if none.
@@ -124,7 +125,8 @@ def plan_step(
     Tried in order: the trailing heel's ``rises``; the pelvis poses of
     :func:`~exobench.envs.motion.kinematics.end_pelvis_options` (the first 8; the stance knee
     flexes at most ``knee_down_rad`` on a step down, :data:`STANCE_KNEE_MAX_RAD` otherwise); the
-    swing shapes :data:`~exobench.envs.motion.swing.SWING_SHAPES`, each with the lowest apex
+    swing ``shapes`` (lag, toe-down dip; :data:`~exobench.envs.motion.swing.SWING_SHAPES`, or
+    :data:`~exobench.envs.motion.swing.SWING_SHAPES_DEEP_DIP`), each with the lowest apex
     keeping ``clearance_m`` over ``terrain``. The trunk leans :data:`CLIMB_LEAN_RAD` on a step up
     (> 5 cm), :data:`LEVEL_LEAN_RAD` otherwise. ``toes_down_rad`` > 0: a forefoot landing (the foot
     touches down on its toe tip pitched down by it, then lowers its heel: ``heel_drop``).
@@ -160,7 +162,7 @@ def plan_step(
             if not flat_opts:
                 continue
             drop = (float(land_pitch), flat_opts[:8])
-        for lag, dip in SWING_SHAPES:
+        for lag, dip in shapes:
             plan.lag, plan.dip = lag, dip
             apex = swing_apex_m(exo, terrain, plan, clearance_m=clearance_m, exact_progress=True)
             found = _first_feasible(exo, plan, apex, f0, h0, pelvis_opts[:8], drop)

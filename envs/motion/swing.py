@@ -117,6 +117,9 @@ def swing_apex_m(
 
 # swing shapes (lag, toe-down dip) the walk planner tries, plainest first
 SWING_SHAPES = tuple((lag, np.radians(dip)) for dip in (0.0, 15.0, 30.0) for lag in (0.0, 0.15, 0.3))
+# ... and with the toes down 45 deg mid-swing as a last resort: commanded steps onto high risers
+# (the gymnasium environment's) that no plainer shape clears within the ankle's range
+SWING_SHAPES_DEEP_DIP = SWING_SHAPES + tuple((lag, np.radians(45.0)) for lag in (0.0, 0.15, 0.3))
 
 
 def _inverse_min_jerk_exact(u: np.ndarray) -> np.ndarray:
