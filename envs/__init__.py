@@ -9,6 +9,6 @@ import gymnasium
 if "exobench/StairClimb-v0" not in gymnasium.registry:
     gymnasium.register(
         id="exobench/StairClimb-v0",
-        entry_point="exobench.envs.stair_climb_env:StairClimbEnv",
+        entry_point="exobench.envs.gym.stair_climb:StairClimbEnv",
         max_episode_steps=12,
     )

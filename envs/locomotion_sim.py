@@ -6,7 +6,7 @@ on stair, ramp and side-by-side stair/ramp courses.
 ``UnknownNameError``); :func:`simulate_locomotion` builds the course
 (:mod:`exobench.envs.locomotion_world`), plans a stop-and-go walk along it
 (:func:`plan_locomotion`), moves the camera like a walking person's head or chest
-(:mod:`exobench.envs.locomotion_motion`) and records an :class:`~exobench.core.Episode`.
+(:mod:`exobench.envs.motion.view`) and records an :class:`~exobench.core.Episode`.
 
 Courses (paper section III-B 1): ``stairs`` LG -> SA -> LG -> SD -> LG (a flight of ``n_steps``
 risers up, a ``landing_m`` landing, the same flight down); ``ramp`` LG -> RA -> LG -> RD -> LG
@@ -20,7 +20,7 @@ walker stops (standing, feet together) about 8 cm before every transition from l
 stairs or a ramp, as exoskeleton users often do (the short step that brings the feet together
 is not what eq. 17 extrapolates: mode prediction is harder there).
 
-Limits of the walker (:mod:`exobench.envs.walk`, kinematic, stop-and-go), measured: 0.15, 0.20
+Limits of the walker (:mod:`exobench.envs.motion.walk`, kinematic, stop-and-go), measured: 0.15, 0.20
 and 0.25 m risers with 0.25, 0.30 and 0.32 m treads (and 0.18 m risers with 0.30 m treads), and
 11.8/15.8/17.8 deg ramps work for every pattern and user height 1.65-1.88 m. Risers of 0.20-0.25 m
 are descended with forefoot landings and the trailing heel up to 40 deg off the step; 0.25 m ones
@@ -41,7 +41,7 @@ on stairs, heading); the ``head`` mount moves with the model's own neck joints (
 a smooth seeded random process with mean ``head_pitch_mean_rad`` (0.14) and standard deviation
 ``head_pitch_std_rad`` (0.26), clipped to the paper's range -0.66..1.18 rad and to the neck's joint
 range. With ``gaze="transitions"`` (default) the wearer also looks down at each terrain transition
-it approaches, as people do (two steps ahead; :mod:`exobench.envs.locomotion_motion`), the
+it approaches, as people do (two steps ahead; :mod:`exobench.envs.motion.view`), the
 random part shrunk so the episode's pitch keeps that mean and spread; ``gaze="random"`` is the
 terrain-blind pitch alone (with it, a head camera at 0.14 rad never sees a ramp down from its
 landing: 60 % on a head-mounted jog down the 17.8 deg ramp). The ``chest`` camera sits on a two-hinge rig on the pelvis (``chest_yaw``, ``chest_pitch``)
@@ -65,7 +65,7 @@ Frames (time-ordered; ties: IMU, contacts, odometry, camera):
 - ``contact_{l,r}_{heel,toe}`` insole pads (:mod:`exobench.envs.sensors.contact`), 100 Hz;
 - ``odom_<m>`` :class:`~exobench.core.OdometrySample` at each camera measurement time (also for
   lost frames): the true optical-frame pose degraded by
-  :func:`~exobench.envs.locomotion_motion.drift_odometry` (translation error ``odom_drift_pct`` %
+  :func:`~exobench.envs.motion.odometry.drift_odometry` (translation error ``odom_drift_pct`` %
   of the horizontal distance travelled, heading error ``odom_yaw_drift_deg_per_m`` per metre,
   seeded directions), in a gravity-aligned odometry frame whose origin and heading are the
   camera's at t = 0. ``calibration.extra["odometry"]`` (and a ``SensorMount`` of kind
@@ -107,7 +107,7 @@ from exobench.core.transforms import matrix_to_quat_wxyz
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.world_params import ParamSpec, check_param, from_dict_checked
 
-from .gait import GaitError, Motion
+from .motion import GaitError, Motion
 from .sensors import (
     ContactConfig,
     ContactSensor,
@@ -298,7 +298,7 @@ def plan_locomotion(scenario: LocomotionScenario) -> tuple[Any, tuple, Motion, d
     """(built world, route waypoints, walking motion, pattern numbers) of a scenario, without sensing.
 
     Tries :data:`PLAN_TRIES` (clearance, start shift, shorter steps) until the walker of
-    :func:`exobench.envs.walk.plan_walk` finds footholds for the whole course; raises
+    :func:`exobench.envs.motion.plan_walk` finds footholds for the whole course; raises
     :class:`ConfigError` naming ``riser_m`` (stairs) or ``slope_deg`` (ramps) when none works.
     """
     return _plan_cached(_world_key(scenario), scenario.exo_spec(), scenario.pattern)
@@ -344,15 +344,10 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
     from exobench.models.exo import exo_calibration
     from exobench.models.exo_spec import JOINT_RANGES_RAD
 
-    from .locomotion_motion import (
-        GAZE_WIDTH_STEPS,
-        GazeDown,
-        drift_odometry,
-        gaze_looks,
-        pedestrian_paths,
-        view_motion,
-    )
     from .locomotion_world import step_truths
+    from .motion.odometry import drift_odometry
+    from .motion.pedestrians import pedestrian_paths
+    from .motion.view import GAZE_WIDTH_STEPS, GazeDown, gaze_looks, view_motion
 
     sc = scenario
     exo = sc.exo_spec()

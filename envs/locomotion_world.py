@@ -46,8 +46,7 @@ from exobench.models.terrain import WALL_THICKNESS_M
 from exobench.models.world_params import CourseParams
 from exobench.models.worlds import BuiltWorld, CompiledScene, build_course
 
-from .gait import Footstep, GaitError, Motion, Segment, check_feasible
-from .walk import Route, plan_walk
+from .motion import Footstep, GaitError, Motion, Route, Segment, check_feasible, plan_walk
 
 STAIR_DZ_M = 0.05  # a foot landing this much higher/lower than it stood climbs/descends stairs
 RAMP_MIN_DEG = 2.0  # a surface tilted more than this is a ramp
@@ -61,7 +60,7 @@ MIN_STOP_FLAT_M = 0.6
 PARALLEL_YAW_DEG = 90.0
 STOP_TOE_GAP_M = 0.08  # toes this far before the edge at a standing stop [A]
 MAX_PLANS = 40  # planner calls before a course is declared unwalkable
-APPROACH_STEPS = 4  # the walker regulates its last steps before a transition (exobench.envs.walk.Route.approach_steps)
+APPROACH_STEPS = 4  # the walker regulates its last steps before a transition (exobench.envs.motion.Route.approach_steps)
 PARALLEL_EXTRA_APPROACH_M = 1.0  # more level floor in each lane of the parallel course, to straighten up after the U-turn
 
 
@@ -143,7 +142,7 @@ def build_locomotion_world(sc: Any, toe_m: float = 0.2, descents: bool = True) -
     ``parallel`` course, on the second lane's level approach after the U-turn; ``descents=False``
     then leaves out the stops before stairs or ramps going down. With ``"none"`` (the default)
     a stairs or ramp course is one piece, walked through every transition as the paper's
-    subjects did (the planner of :mod:`exobench.envs.walk` places the transition steps; every
+    subjects did (the planner of :mod:`exobench.envs.motion.walk` places the transition steps; every
     terrain, pattern and user height of the generality grid plans); the parallel course keeps
     one stop, on the second lane's approach after the U-turn (walked through, the planner finds
     no foothold on the second lane).
@@ -166,7 +165,7 @@ def build_locomotion_world(sc: Any, toe_m: float = 0.2, descents: bool = True) -
     la0, lb0 = course_length(course(first, ap, ap)), course_length(course(second, ap, ap))
     # the shorter lane's exit is stretched so that both lanes are L long
     # the parallel course runs along world +y (lane a) and -y (lane b): the planner of
-    # exobench.envs.walk mishandles headings near +-180 deg, so neither lane runs along -x
+    # exobench.envs.motion.walk mishandles headings near +-180 deg, so neither lane runs along -x
     a = course(first, ap + max(0.0, lb0 - la0), ap, PARALLEL_YAW_DEG)
     b = course(second, ap + max(0.0, la0 - lb0), ap)
     L = course_length(a)

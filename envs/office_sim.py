@@ -3,7 +3,7 @@
 :class:`OfficeScenario` holds the parameters (:data:`PARAMS`, validated like
 :mod:`exobench.envs.scenarios`); :func:`simulate_office` builds the office
 (:func:`exobench.models.office.build_office`), plans a stop-and-go walk along the office route
-(:func:`exobench.envs.walk.plan_walk`) cut to ``max_distance_m``, and records:
+(:func:`exobench.envs.motion.plan_walk`) cut to ``max_distance_m``, and records:
 
 - ``lidar_trunk`` :class:`~exobench.core.LidarScan` sweeps starting at ``k / lidar_rate_hz``
   (only sweeps that end within the walk), each ray cast from the sensor pose at its firing
@@ -20,7 +20,7 @@ penetration. ``T_world_estimator`` is the LiDAR pose at t = 0. Same scenario and
 frames bit for bit.
 
 Route handling: the office routes turn by 90 and 180 degrees at corners and doors; the planner
-(:func:`exobench.envs.walk.plan_walk`) tracks its progress monotonically along the polyline (the
+(:func:`exobench.envs.motion.plan_walk`) tracks its progress monotonically along the polyline (the
 loop passes corridors twice) and walks up to every corner sharper than 45 deg and turns there on
 the spot, ``max_turn_deg`` per step. Waypoints closer than :data:`MIN_SEGMENT_M` to the previous
 kept one are dropped, and the polyline is cut at ``max_distance_m``. The walker starts facing
@@ -42,7 +42,7 @@ from exobench.core.transforms import invert_T, make_T, matrix_to_quat_wxyz
 from exobench.models.exo_spec import CONTACT_IDS, ExoSpec
 from exobench.models.world_params import ParamSpec, from_dict_checked, validate_fields
 
-from .gait import Motion, rot_yaw_pitch
+from .motion import Motion, Route, plan_walk, rot_yaw_pitch
 from .sensors import (
     ENCODER_ID,
     ContactConfig,
@@ -60,7 +60,6 @@ from .sensors import (
 )
 from .sim import TRACK_RATE_HZ, step_through
 from .terrain import Terrain
-from .walk import Route, plan_walk
 
 LIDAR_ID = "lidar_trunk"
 IMU_ID = "imu_trunk"

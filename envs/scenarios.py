@@ -128,7 +128,7 @@ def staircase_params_for_case(
     width_m: float = 1.2,
     side: str = "r",
 ) -> StaircaseParams:
-    """The staircase of a climbing-step episode, placed in the world of :func:`exobench.envs.gait.climb_step`.
+    """The staircase of a climbing-step episode, placed in the world of :func:`exobench.envs.motion.climb_step`.
 
     The exoskeleton stands at the origin facing +x; the toe tip of the ``side`` foot is at
     ``(foot_m - heel_to_ankle_m, -+hip_width/2, 0)``. The staircase is yawed by ``-yaw_deg`` and

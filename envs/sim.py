@@ -23,7 +23,7 @@ from exobench.core import Episode, EpisodeTruth, Frame, SceneTruth, StairTruth, 
 from exobench.core.transforms import make_T
 from exobench.models.exo_spec import CONTACT_IDS, TOF_IDS, ExoSpec
 
-from .gait import Motion, climb_step
+from .motion import Motion, climb_step
 from .scenarios import StairScenario
 from .sensors import (
     ENCODER_ID,

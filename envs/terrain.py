@@ -1,9 +1,11 @@
-"""Vectorised terrain queries on a scene's ground truth, and the foot's sole footprint.
+"""Vectorised terrain queries on a scene's ground truth.
 
-:func:`exobench.core.height_at` answers one point at a time; the gait planner, the contact
-sensors and the penetration check ask thousands of points per episode, so :class:`Terrain`
-answers arrays of points with the same rule: the highest walkable surface (ground, tread, ramp,
-landing) whose polygon covers the point, NaN where none does.
+:func:`exobench.core.height_at` answers one point at a time; the motion planners
+(:mod:`exobench.envs.motion`), the contact sensors and the penetration check ask thousands of
+points per episode, so :class:`Terrain` answers arrays of points with the same rule: the highest
+walkable surface (ground, tread, ramp, landing) whose polygon covers the point, NaN where none
+does. :func:`label_hits` labels many ray hits with their surfaces at once. This module sits below
+both the motion and the sensor modules, which import it and nothing of each other.
 """
 
 from __future__ import annotations
@@ -11,25 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from exobench.core import SceneTruth
-from exobench.models.exo_spec import ExoSpec
 
 WALKABLE = ("ground", "tread", "ramp", "landing")
-
-
-def foot_width_m(exo: ExoSpec) -> float:
-    """Foot breadth [A: 0.055 of the user's height, Drillis and Contini anthropometry]."""
-    return 0.055 * exo.user_height_m
-
-
-def sole_grid_f(exo: ExoSpec, nx: int = 9, ny: int = 3) -> np.ndarray:
-    """Points on the sole in the foot frame (origin at the ankle joint), shape (nx*ny, 3).
-
-    A regular grid from heel to toe and across the foot breadth, including the four corners.
-    """
-    x = np.linspace(-exo.heel_to_ankle_m, exo.foot_m - exo.heel_to_ankle_m, nx)
-    y = np.linspace(-0.5, 0.5, ny) * foot_width_m(exo)
-    gx, gy = np.meshgrid(x, y, indexing="ij")
-    return np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, -exo.sole_height_m)])
 
 
 def inside_polygon(poly: np.ndarray, n: np.ndarray, pts: np.ndarray, tol_m: float) -> np.ndarray:

@@ -7,9 +7,10 @@ import pytest
 
 from exobench.core import ConfigError, ContactSample, ImuSample, OdometrySample, RgbdFrame, UnknownNameError
 from exobench.core.transforms import invert_T, quat_wxyz_to_matrix
-from exobench.envs.locomotion_motion import GAZE_DOWN_RAD, GazeDown, drift_odometry, gaze_looks, view_motion
 from exobench.envs.locomotion_sim import PARAMS, LocomotionScenario, plan_locomotion, simulate_locomotion
 from exobench.envs.locomotion_world import step_truths
+from exobench.envs.motion.odometry import drift_odometry
+from exobench.envs.motion.view import GAZE_DOWN_RAD, GazeDown, gaze_looks, view_motion
 from exobench.envs.session import read_session, write_session
 
 # small images at 10 Hz keep the file fast (rendering costs ~25 ms a frame whatever the size)
@@ -298,7 +299,7 @@ def test_walker_regulates_its_last_steps_before_each_transition(terrain):  # ram
     adjustment."""
     from exobench.envs.locomotion_sim import PATTERNS, PLAN_TRIES
     from exobench.envs.locomotion_world import build_locomotion_world, plan_pieces
-    from exobench.envs.walk import APPROACH_RANGE, EDGE_BAND_M
+    from exobench.envs.motion.footholds import APPROACH_RANGE, EDGE_BAND_M
 
     sc = LocomotionScenario(terrain=terrain, approach_m=2.2, slope_deg=15.8)  # the track's level approach
     exo = sc.exo_spec()

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError, ImuSample, JointState, SceneTruth, ToFReading, TofStatus
-from exobench.envs.gait import climb_step
+from exobench.envs.motion import climb_step
 from exobench.envs.scenarios import StairScenario
 from exobench.envs.sensors import (
     ContactConfig,

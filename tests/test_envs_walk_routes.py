@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError
+from exobench.envs.motion import Route, plan_walk
 from exobench.envs.office_sim import OfficeScenario, plan_office_walk, route_waypoints
-from exobench.envs.walk import Route, plan_walk
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.office import office_route
 from exobench.models.worlds import build_level

@@ -16,7 +16,7 @@ from gymnasium.utils.env_checker import check_env
 
 import exobench.envs  # noqa: F401  (registers the environment)
 from exobench.core import ConfigError, ExobenchError, UnknownNameError
-from exobench.envs.stair_climb_env import StairClimbEnv
+from exobench.envs.gym.stair_climb import StairClimbEnv
 from exobench.models.exo_spec import ExoSpec
 
 ENV_ID = "exobench/StairClimb-v0"
@@ -60,7 +60,7 @@ def oracle_target(info, approach_above_m=0.55):
 def test_registration_imports_nothing_heavy():
     code = (
         "import sys, gymnasium, exobench.envs; assert 'exobench/StairClimb-v0' in gymnasium.registry; "
-        "print(sorted(m for m in ('mujoco', 'exobench.envs.stair_climb_env', 'exobench.envs.gait') if m in sys.modules))"
+        "print(sorted(m for m in ('mujoco', 'exobench.envs.gym', 'exobench.envs.gym.stair_climb', 'exobench.envs.motion') if m in sys.modules))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

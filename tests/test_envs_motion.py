@@ -1,4 +1,4 @@
-"""envs.gait / envs.walk: leg IK against MuJoCo kinematics, smooth consistent derivatives, the
+"""envs.motion: leg IK against MuJoCo kinematics, smooth consistent derivatives, the
 paper's climbing step against the true staircase geometry, and walking a course."""
 
 import mujoco
@@ -7,11 +7,10 @@ import pytest
 
 from exobench.core import ConfigError
 from exobench.core.transforms import rot_y, rot_z
-from exobench.envs.gait import GaitError, climb_step, leg_fk, leg_ik, walk
+from exobench.envs.motion import GaitError, Route, climb_step, leg_fk, leg_ik, plan_walk, sole_grid_f
 from exobench.envs.scenarios import PAPER_CASES, StairScenario
 from exobench.envs.sim import compiled_staircase
-from exobench.envs.terrain import Terrain, sole_grid_f
-from exobench.envs.walk import Route
+from exobench.envs.terrain import Terrain
 from exobench.models.exo_spec import JOINT_RANGES_RAD, LEG_JOINTS, ExoSpec
 from exobench.models.world_params import CourseParams
 from exobench.models.worlds import build_course, build_level, compose
@@ -152,7 +151,7 @@ def test_walk_turns_on_level_ground_with_sagittal_legs():
     exo = ExoSpec()
     world = build_level()
     route = Route(((0.0, 0.0), (1.5, 0.0), (1.5, 1.5)), step_length_m=0.3, swing_s=0.6, double_support_s=0.1)
-    motion = walk(exo, world.truth, route)
+    motion = plan_walk(exo, world.truth, route)
     end = motion.state(motion.duration_s)
     mid = 0.5 * (end.ankle_w["l"][0] + end.ankle_w["r"][0])
     assert np.linalg.norm(mid[:2] - [1.5, 1.5]) < 0.2
@@ -184,7 +183,7 @@ def test_walk_up_and_down_stairs_lands_every_step_on_a_tread(mode):
         exit_m=1.0,
     )
     truth = build_course(course).truth
-    motion = walk(exo, truth, Route(((-0.5, 0.0), (4.2, 0.0)), stairs=mode))
+    motion = plan_walk(exo, truth, Route(((-0.5, 0.0), (4.2, 0.0)), stairs=mode))
     treads = [s.surface_id for s in truth.surfaces if s.kind == "tread"]
     landed = [f.surface_id for f in motion.footsteps]
     per_tread = 1 if mode == "step-over" else 2  # step-to: both feet on every tread
@@ -218,7 +217,7 @@ def test_walk_down_steep_stairs_lands_on_every_tread_without_penetration(height_
     start_x = edge - toe - 0.08  # standing on the landing, toes 8 cm before its edge
     route = Route(((start_x, 0.0), (edge + n * tread + 0.8, 0.0)), step_length_m=0.35, swing_s=0.42,
                   double_support_s=0.12, max_turn_deg=45.0)  # fmt: skip
-    motion = walk(exo, truth, route)
+    motion = plan_walk(exo, truth, route)
     terrain = Terrain(truth)
     down = [s for s in truth.surfaces if s.kind == "tread" and s.polygon_w[:, 0].min() >= edge - 1e-9]
     assert len(down) == n - 1  # the last tread down is the exit floor

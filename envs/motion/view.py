@@ -1,25 +1,17 @@
-"""Motions added to a planned walk for the locomotion track: camera view (neck / chest rig),
-pedestrians, and the drifting odometry.
+"""Camera view motion of the locomotion track: the head's (neck) or chest rig's extra joint motion
+added to a planned walk, with the looks down at terrain transitions.
 
-View motion (seeds/002 section IV-A 2, Fig. 4(b)): a smooth random signal z(t), a sum of
-:data:`N_PARTIALS` sinusoids with seeded frequencies in 0.15-1.2 Hz and phases, normalised over
-the episode to mean 0 and standard deviation 1 (so the realised spread is the configured one).
-The head's camera pitch below the horizon is ``mean + std * z(t)`` clipped to the paper's range
--0.66..1.18 rad (with ``gaze``, :class:`GazeDown`: plus looks down at each terrain transition,
-the mean and spread of the random part reduced so that the episode keeps ``mean`` and ``std``); the neck pitch is that minus the mount's pitch and the trunk's pitch of the gait,
-clipped to the neck's joint range. Neck yaw is 0.15 rad * a second such signal. The chest rig
-sways with a third of the head's spread around 0. ``unconventional`` adds a slow excursion
-(0.05-0.15 Hz) of +-60 deg yaw and +-0.35 rad pitch. Derivatives for the IMU come from central
-differences of these analytic signals (step :data:`DIFF_H_S`).
-
-Pedestrians: straight constant-speed walks along the course near the walker that pass it at a
-seeded time, drifting across the lane (so they cross the camera view); their height is the
-terrain height under them.
-
-Odometry (:func:`drift_odometry`): increments of the true camera position, rotated by a heading
-error growing at ``yaw_deg_per_m`` per metre of horizontal travel, plus a translation error of
-``pct`` % of the distance travelled along a seeded unit direction; orientation = heading error
-@ true orientation. All in the gravity-aligned odometry frame of the true camera at t = 0.
+A smooth random signal z(t) is a sum of :data:`N_PARTIALS` sinusoids with seeded frequencies in
+0.15-1.2 Hz and phases, normalised over the episode to mean 0 and standard deviation 1 (so the
+realised spread is the configured one; seeds/002 section IV-A 2, Fig. 4(b)). The head's camera
+pitch below the horizon is ``mean + std * z(t)`` clipped to the paper's range -0.66..1.18 rad
+(with ``gaze``, :class:`GazeDown`: plus looks down at each terrain transition, the mean and
+spread of the random part reduced so that the episode keeps ``mean`` and ``std``); the neck
+pitch is that minus the mount's pitch and the trunk's pitch of the gait, clipped to the neck's
+joint range. Neck yaw is 0.15 rad * a second such signal. The chest rig sways with a third of
+the head's spread around 0. ``unconventional`` adds a slow excursion (0.05-0.15 Hz) of +-60 deg
+yaw and +-0.35 rad pitch. Derivatives for the IMU come from central differences of these
+analytic signals (step :data:`DIFF_H_S`).
 """
 
 from __future__ import annotations
@@ -27,8 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from exobench.core.transforms import invert_T, make_T, rot_z
 
 N_PARTIALS = 8
 DIFF_H_S = 2e-4
@@ -160,81 +150,3 @@ def view_motion(mount: str, view: str, pitch_mean: float, pitch_std: float, moun
 
         return ViewMotion({"chest_pitch": chest_pitch, "chest_yaw": chest_yaw})
     return ViewMotion({})
-
-
-@dataclass(frozen=True)
-class PedestrianPath:
-    """A straight walk: position (x, y) at time t = p0 + v t; height from the terrain."""
-
-    p0_xy: np.ndarray
-    v_xy: np.ndarray
-    height_m: float
-
-    def xy(self, t: np.ndarray) -> np.ndarray:
-        return self.p0_xy[None, :] + np.asarray(t, dtype=float)[:, None] * self.v_xy[None, :]
-
-    @property
-    def yaw(self) -> float:
-        return float(np.arctan2(self.v_xy[1], self.v_xy[0]))
-
-
-def pedestrian_paths(n: int, walker_xy: object, heading: object, half_width_m: float, duration_s: float,
-                     rng: np.random.Generator) -> list[PedestrianPath]:  # fmt: skip
-    """``n`` people passing the walker: at a seeded time t_c a person is 1.2-2.5 m ahead of the
-    walker, walking towards it or away from it at 0.8-1.4 m/s along its heading and drifting
-    across the lane (lateral speed 0.15-0.35 m/s), so that it crosses the camera view."""
-    out = []
-    for _ in range(n):
-        tc = float(rng.uniform(0.2, 0.8) * duration_s)
-        ahead = float(rng.uniform(1.2, 2.5))
-        speed = float(rng.uniform(0.8, 1.4)) * (1.0 if rng.random() < 0.5 else -1.0)
-        lateral = float(rng.uniform(0.15, 0.35)) * (1.0 if rng.random() < 0.5 else -1.0)
-        height = float(rng.uniform(1.6, 1.9))
-        c = np.asarray(walker_xy(tc), dtype=float)  # type: ignore[operator]
-        psi = float(heading(tc))  # type: ignore[operator]
-        x, y = np.array([np.cos(psi), np.sin(psi)]), np.array([-np.sin(psi), np.cos(psi)])
-        v = speed * x + lateral * y
-        pc = c + ahead * x
-        out.append(PedestrianPath(pc - tc * v, v, height))
-    return out
-
-
-def gravity_aligned(T_world_cam: np.ndarray) -> np.ndarray:
-    """``T_world_odom``: origin at the camera, z up, x along the optical axis's horizontal heading."""
-    z_opt = T_world_cam[:3, 2]
-    yaw = float(np.arctan2(z_opt[1], z_opt[0]))
-    return make_T(rot_z(yaw), T_world_cam[:3, 3].copy())
-
-
-def drift_odometry(t: np.ndarray, T_world_cam: np.ndarray, pct: float, yaw_deg_per_m: float,
-                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
-    """(T_world_odom, T_odom_cam (N, 4, 4), v_odom (N, 3), distance travelled (N,)) of the drift model.
-
-    ``T_world_cam`` are true optical-frame poses at times ``t``. Distance = cumulative horizontal
-    path length of the camera. Translation error e(s) = pct/100 * s * u (u a seeded unit vector,
-    its vertical part a third of the horizontal); heading error psi(s) = +-yaw_deg_per_m * s.
-    """
-    T_world_odom = gravity_aligned(T_world_cam[0])
-    T_odom_w = invert_T(T_world_odom)
-    T_true = np.einsum("ij,njk->nik", T_odom_w, T_world_cam)
-    p = T_true[:, :3, 3]
-    step = np.linalg.norm(np.diff(p[:, :2], axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(step)])
-    u = rng.standard_normal(3)
-    u[2] /= 3.0
-    u /= np.linalg.norm(u)
-    sign = 1.0 if rng.random() < 0.5 else -1.0
-    psi = sign * np.radians(yaw_deg_per_m) * s
-    e = (pct / 100.0) * s[:, None] * u[None, :]
-    Rz = np.array([rot_z(a) for a in psi]).reshape(-1, 3, 3)
-    dp = np.diff(p, axis=0)
-    p_o = np.empty_like(p)
-    p_o[0] = p[0]
-    if len(p) > 1:
-        p_o[1:] = p[0] + np.cumsum(np.einsum("nij,nj->ni", Rz[1:], dp), axis=0)
-    p_o += e
-    T = np.repeat(np.eye(4)[None], len(t), axis=0)
-    T[:, :3, :3] = np.einsum("nij,njk->nik", Rz, T_true[:, :3, :3])
-    T[:, :3, 3] = p_o
-    v = np.gradient(p_o, t, axis=0) if len(t) > 1 else np.zeros((len(t), 3))
-    return T_world_odom, T, v, s
