@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib.metadata
 import json
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -73,6 +74,8 @@ class ToyTrack:
     suites: ClassVar[tuple[str, ...]] = ("quick",)
     default_suite: ClassVar[str] = "quick"
     streams: ClassVar[tuple[str, ...]] = ("toy",)
+    estimate_type: ClassVar[type] = float
+    smoke_scenario: ClassVar[Mapping[str, Any]] = {"noise_m": 0.0}
     timing_metrics: ClassVar[frozenset[str]] = frozenset()
     report_intro: ClassVar[str] = "Toy figures, invented for the test."
 
@@ -195,6 +198,9 @@ def test_every_builtin_track_satisfies_the_protocol_and_declares_its_streams_and
         assert isinstance(track, Track) and track.name == name
         assert set(reg.entry(name).tags) == set(track.streams)
         assert isinstance(track.timing_metrics, frozenset) and all(isinstance(m, str) for m in track.timing_metrics)
+        assert isinstance(track.estimate_type, type) and track.estimate_type.__module__ == "exobench.core.estimates"
+        assert isinstance(track.smoke_scenario, Mapping)
+        track.validate_scenario(track.smoke_scenario)
         assert reg.get(name) is track  # one instance per track
 
 
@@ -212,6 +218,9 @@ def test_duplicate_and_malformed_tracks_are_refused(monkeypatch):
     reg.register("not-a-track", "math:pi")
     with pytest.raises(ConfigError, match="not-a-track"):
         reg.load("not-a-track")
+    no_smoke = type("NoSmoke", (), {k: v for k, v in vars(ToyTrack).items() if k != "smoke_scenario"})
+    with pytest.raises(ConfigError, match="no-smoke"):
+        reg.register("no-smoke", no_smoke)
     reg.register("missing", "no_such_module_xyz:Track")
     with pytest.raises(ConfigError, match="importable"):
         reg.load("missing")
@@ -247,3 +256,9 @@ def test_a_toy_track_runs_end_to_end_through_the_command_line(toy_installed, tmp
     assert json.loads((out / "run_config.json").read_text())["track"] == "toy"
     again = CliRunner().invoke(cli, ["report", str(out)], catch_exceptions=False)
     assert again.exit_code == 0 and "level error (mm)" in again.output
+
+
+def test_the_toy_registration_does_not_outlive_its_tests():
+    """The default registries the other tests read (tests/test_conformance.py) hold no toy once
+    the toy tests above are done."""
+    assert "toy" not in track_names() and "toy-mean" not in pipeline_registry.default_registry().names()

@@ -2,7 +2,7 @@
 
 A track is one perception problem of the source papers (see TRACKS.md) and lives in its own
 folder, ``benchmarks/tracks/<name>/``: ``track.py`` (the class below: scenario type and how to
-simulate it, the streams its pipelines receive, the scorer, the published references, summary
+simulate it, the streams its pipelines receive, the estimate type they return, the scorer, the published references, summary
 rows, timing metrics, suites and cases), ``metrics.py`` (pure scoring functions), ``report.py``
 (its report sections and figures) and, where it has one, ``recording.py`` (its rerun recording).
 The runner, the report writer and the command line know only this protocol; tracks are found
@@ -131,6 +131,12 @@ class Track(Protocol):
     default_suite: ClassVar[str]
     streams: ClassVar[tuple[str, ...]]
     """Frame kinds its episodes carry (keys of ``exobench.core.frames.FRAME_TYPES``)."""
+    estimate_type: ClassVar[type]
+    """The estimate class its pipelines return from ``finalize()`` (from ``exobench.core.estimates``);
+    :meth:`score` scores any other value as a failure."""
+    smoke_scenario: ClassVar[Mapping[str, Any]]
+    """Scenario values (over the defaults) of a tiny episode that simulates in a few seconds: the
+    episode every registered pipeline of the track is checked on (``tests/test_conformance.py``)."""
     timing_metrics: ClassVar[frozenset[str]]
     """Metric keys that are wall-clock timings: the only ones allowed to differ between two runs
     of the same plan."""

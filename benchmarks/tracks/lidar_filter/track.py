@@ -87,6 +87,8 @@ class LidarFilterTrack:
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
     streams: ClassVar[tuple[str, ...]] = ("lidar", "imu", "joints", "contact")
+    estimate_type: ClassVar[type] = FilterEstimate
+    smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_scan_ms", "odom_time_per_scan_ms"})
     report_intro = (
         "Published figures (Tab. 5.4 of seeds/003) come from a Unitree B1 with a VLP-16 in a real glass-walled "

@@ -26,8 +26,8 @@ from .paper import (
     PATTERNS,
     TERRAIN_GROUPS,
     TERRAIN_LEVELS,
-    published_references,
     table_ii_value,
+    table_iii_text,
 )
 
 DASH = "–"
@@ -63,13 +63,6 @@ def _height_group(h: float) -> str:
     return min(HEIGHT_GROUPS, key=lambda g: abs(g[1] - float(h)))[0]
 
 
-def _reference(group: str) -> str:
-    for ref in published_references():
-        if ref.metric == "accuracy" and group in ref.groups:
-            return f"{ref.text} ({ref.source})"
-    return ""
-
-
 def table_iii_lines(records: Sequence[dict[str, Any]], pipelines: Sequence[str]) -> list[str]:
     """Accuracy per terrain, terrain kind, pattern and mount, beside Table III."""
     gen = generality_records(records)
@@ -99,7 +92,7 @@ def table_iii_lines(records: Sequence[dict[str, Any]], pipelines: Sequence[str])
             continue
         cells = [pct_cell([r for r in mine if r["pipeline"] == p]) for p in pipelines]
         n = len({r["episode"] for r in mine})
-        lines.append(f"| {name} | {n} | " + " | ".join(cells) + f" | {_reference(group)} |")
+        lines.append(f"| {name} | {n} | " + " | ".join(cells) + f" | {table_iii_text(group)} |")
     return [*lines, ""]
 
 

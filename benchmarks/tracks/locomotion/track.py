@@ -208,6 +208,8 @@ class LocomotionTrack:
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
     streams: ClassVar[tuple[str, ...]] = ("rgbd", "imu", "contact", "odometry")
+    estimate_type: ClassVar[type] = LocomotionEstimate
+    smoke_scenario: ClassVar[Mapping[str, Any]] = {"width_px": 96, "height_px": 72, "rate_hz": 10.0, "duration_cap_s": 4.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"latency_ms_median", "latency_ms_p95"})
 
     def params(self) -> list[ParamInfo]:

@@ -205,13 +205,15 @@ def yaw_errors(yaw_true: np.ndarray, match_index: np.ndarray, yaw_est: np.ndarra
 
 def _nan_metrics() -> dict[str, Any]:
     keys = ("max_recall_at_full_precision", "pr_auc", "best_f1", "tau_best_f1", "time_per_keyframe_ms",
+            "n_keyframes", "n_revisits", "n_detectable", "invalid_keyframes",
             "yaw_error_deg", "correct_match_fraction")  # fmt: skip
     return {k: math.nan for k in keys}
 
 
 def failure_metrics(episode: Episode | None, reason: str) -> dict[str, Any]:
-    """Metrics of a failed pipeline or simulation."""
-    return {"failed": True, "failed_reason": reason, **_nan_metrics()}
+    """Metrics of a failed pipeline or simulation: every key of a scored estimate, NaN (counts
+    included: unknown) or an empty PR curve."""
+    return {"failed": True, "failed_reason": reason, **_nan_metrics(), "pr_tau": [], "pr_precision": [], "pr_recall": []}
 
 
 def score_place_recognition(episode: Episode, estimate: PlaceRecognitionEstimate) -> dict[str, Any]:

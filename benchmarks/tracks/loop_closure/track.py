@@ -160,6 +160,8 @@ class LoopClosureTrack:
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
     streams: ClassVar[tuple[str, ...]] = ("lidar", "imu", "joints", "contact")
+    estimate_type: ClassVar[type] = PlaceRecognitionEstimate
+    smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5, "lidar_azimuth_step_deg": 1.0}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_keyframe_ms"})
     report_intro: ClassVar[str] = (
         "Published figures: Table 5.5 and section 5.2.3 of seeds/003 (KITTI and VBR sequences, "

@@ -98,6 +98,8 @@ class OdometryTrack:
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
     streams: ClassVar[tuple[str, ...]] = ("lidar", "imu", "joints", "contact")
+    estimate_type: ClassVar[type] = TrajectoryEstimate
+    smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_scan_ms"})
     report_intro = (
         "Published figures come from VBR outdoor sequences (Tab. 5.3) and a real indoor loop with a quadruped "

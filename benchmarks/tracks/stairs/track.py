@@ -159,6 +159,8 @@ class StairsTrack:
     suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
     default_suite: ClassVar[str] = "quick"
     streams: ClassVar[tuple[str, ...]] = ("tof", "imu", "joints", "contact")
+    estimate_type: ClassVar[type] = StaircaseEstimate
+    smoke_scenario: ClassVar[Mapping[str, Any]] = {}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_point_us"})
 
     def params(self) -> list[ParamInfo]:

@@ -1,0 +1,268 @@
+"""Conformance of every registered piece, driven by the registries (as dm_control's suite test).
+
+A pipeline, a track or a gymnasium environment is covered here the moment it is registered
+(the default registries: built-ins and installed entry points):
+
+- every pipeline, on its track's smoke episode (``Track.smoke_scenario``, seed 0): the default
+  config is valid and saved whole as JSON, it returns the track's ``estimate_type``, the same
+  frames give the same scores (timings aside), it survives a frame with no return, one with NaN
+  and a dropped frame in every stream (:func:`exobench.core.faults.inject_faults`) and still
+  returns its estimate type with well-formed scores, and it refuses an unknown config key;
+- every track: its smoke episode carries only its declared streams, every case of every suite
+  validates and case names are unique per suite, a failed episode and a bad estimate are scored
+  well-formed with the reason, the summary rows and the published references name metrics the
+  scorer gives, groups its suites have and pipelines that serve it;
+- every gymnasium environment whose id starts with ``exobench/`` passes gymnasium's ``check_env``.
+
+Every sensor kind's session round trip is in ``test_session_codecs.py``, driven by the codec table.
+Each smoke episode is simulated once per test session and each pipeline's clean run is kept.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import warnings
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium
+import numpy as np
+import pytest
+
+import exobench.envs  # noqa: F401  (registers the gymnasium environments)
+from exobench.benchmarks.registry import default_registry
+from exobench.benchmarks.results import json_safe
+from exobench.benchmarks.runner import PipelineRun, untimed_metrics
+from exobench.benchmarks.tracks.registry import default_track_registry
+from exobench.core.errors import UnknownNameError
+from exobench.core.faults import inject_faults
+from exobench.core.frames import FRAME_TYPES, frame_kind
+
+# read once, at collection: a registration a test makes later (such as the toy track of
+# test_benchmarks_track_registry.py, which rebuilds the default registries) is not picked up
+PIPELINE_REGISTRY = default_registry()
+TRACK_REGISTRY = default_track_registry()
+PIPELINES = PIPELINE_REGISTRY.names()
+TRACKS = TRACK_REGISTRY.names()
+GYM_IDS = sorted(k for k in gymnasium.registry if k.startswith("exobench/"))
+REASON = "conformance: pipeline raised RuntimeError: boom"
+
+
+def _track(name: str) -> Any:
+    return TRACK_REGISTRY.get(name)
+
+
+@functools.cache
+def smoke_episode(track_name: str) -> Any:
+    """The track's smoke episode (its ``smoke_scenario``, seed 0), simulated once per session."""
+    track = _track(track_name)
+    return track.simulate(track.validate_scenario(track.smoke_scenario), 0)
+
+
+def _run(name: str, frames: tuple) -> Any:
+    """Feed ``frames`` to a fresh default-config instance of the pipeline, as the runner does."""
+    pipe = PIPELINE_REGISTRY.make(name)
+    pipe.reset(smoke_episode(pipe.track).calibration)
+    for frame in frames:
+        pipe.process(frame)
+    return pipe.finalize()
+
+
+@functools.cache
+def clean_run(name: str) -> tuple[Any, dict[str, Any]]:
+    """(estimate, metrics) of the pipeline on its track's smoke episode, run once per session."""
+    track_name = PIPELINE_REGISTRY.load(name).track
+    episode = smoke_episode(track_name)
+    estimate = _run(name, episode.frames)
+    return estimate, _track(track_name).score(episode, estimate)
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal, NaN equal to NaN, recursively over dicts, lists and arrays."""
+    if isinstance(a, Mapping) and isinstance(b, Mapping):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return np.shape(a) == np.shape(b) and bool(np.array_equal(a, b, equal_nan=True))
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return type(a) is type(b) and a == b
+
+
+def _plain(value: Any, where: str) -> None:
+    """Fail unless ``value`` holds only what a results.jsonl line stores as it is: dicts with
+    string keys, lists and tuples, None, bool, int, float, str and numpy numbers (which
+    ``json_safe`` converts); anything else would be stored as its ``str``."""
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            assert isinstance(k, str), f"{where}: key {k!r} is not a string"
+            _plain(v, f"{where}.{k}")
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            _plain(v, f"{where}[{i}]")
+    else:
+        ok = (type(None), bool, int, float, str, np.bool_, np.integer, np.floating)
+        assert isinstance(value, ok), f"{where}: {type(value).__name__} is not a JSON value"
+
+
+def _well_formed(metrics: Any, where: str) -> None:
+    """A non-empty dict of plain values with a boolean ``failed``, storable as a results.jsonl line."""
+    assert isinstance(metrics, dict) and metrics, f"{where}: metrics are not a non-empty dict"
+    _plain(metrics, where)
+    assert isinstance(metrics.get("failed"), (bool, np.bool_)), f"{where}: no boolean 'failed'"
+    json.dumps(json_safe(metrics), allow_nan=False)
+
+
+def _failed_with(metrics: dict[str, Any], reason: str, where: str) -> None:
+    _well_formed(metrics, where)
+    assert metrics["failed"], f"{where}: not marked failed"
+    assert reason in str(metrics.get("failed_reason")), f"{where}: the reason is not carried"
+
+
+# ------------------------------------------------------------------ pipelines
+
+
+def test_every_pipeline_serves_a_registered_track():
+    assert PIPELINES, "no pipeline registered"
+    for name in PIPELINES:
+        assert PIPELINE_REGISTRY.load(name).track in TRACKS, name
+
+
+@pytest.mark.parametrize("name", PIPELINES)
+def test_pipeline_default_config_is_valid_and_saved_whole(name):
+    cls = PIPELINE_REGISTRY.load(name)
+    cfg = PIPELINE_REGISTRY.make_config(name, {})
+    assert _same(dataclasses.asdict(cfg), dataclasses.asdict(cls.Config()))
+    PIPELINE_REGISTRY.make(name, cfg)
+    raw = dataclasses.asdict(cfg)
+    _plain(raw, f"{name}.Config")
+    saved = json.loads(json.dumps(PipelineRun(name, "", cfg).config_dict(), allow_nan=False))
+    assert _same(saved, json.loads(json.dumps(raw))), f"{name}: the saved config differs from the config (NaN or inf?)"
+
+
+@pytest.mark.parametrize("name", PIPELINES)
+def test_pipeline_returns_its_estimate_type_and_is_deterministic(name):
+    cls = PIPELINE_REGISTRY.load(name)
+    track = _track(cls.track)
+    estimate, metrics = clean_run(name)
+    assert isinstance(estimate, track.estimate_type), f"{name} returned {type(estimate).__name__}"
+    _well_formed(metrics, name)
+    assert not metrics["failed"], f"{name} failed on the smoke episode: {metrics.get('failed_reason')}"
+    again = track.score(smoke_episode(cls.track), _run(name, smoke_episode(cls.track).frames))
+    first, second = untimed_metrics(track, metrics), untimed_metrics(track, again)
+    diff = sorted(k for k in first.keys() | second.keys() if not _same(first.get(k), second.get(k)))
+    assert not diff, f"{name} is not deterministic: {diff}"
+
+
+@pytest.mark.parametrize("name", PIPELINES)
+def test_pipeline_survives_no_return_nan_and_dropped_frames(name):
+    cls = PIPELINE_REGISTRY.load(name)
+    track = _track(cls.track)
+    episode = smoke_episode(cls.track)
+    faulty = inject_faults(episode.frames)
+    kinds = {frame_kind(f) for f in episode.frames}
+    assert len(episode.frames) - len(faulty) == len({f.sensor_id for f in episode.frames}), "a stream had < 4 frames"
+    estimate = _run(name, faulty)  # must not raise
+    assert isinstance(estimate, track.estimate_type), f"{name} returned {type(estimate).__name__} on faulty frames"
+    # scored as the runner would score a session holding these frames
+    metrics = track.score(dataclasses.replace(episode, frames=faulty), estimate)
+    _well_formed(metrics, f"{name} on faulty frames ({sorted(kinds)})")
+    assert not metrics["failed"], f"{name} on faulty frames: {metrics.get('failed_reason')}"
+    missing = {r.metric for r in track.summary_rows()} - set(metrics)
+    assert not missing, f"{name} on faulty frames: no {sorted(missing)}"
+
+
+@pytest.mark.parametrize("name", PIPELINES)
+def test_pipeline_refuses_an_unknown_config_key(name):
+    with pytest.raises(UnknownNameError, match="no_such_parameter_xyz"):
+        PIPELINE_REGISTRY.make_config(name, {"no_such_parameter_xyz": "1"})
+
+
+# ------------------------------------------------------------------ tracks
+
+
+@pytest.mark.parametrize("name", TRACKS)
+def test_track_smoke_episode_carries_only_its_streams(name):
+    track = _track(name)
+    assert isinstance(track.estimate_type, type)
+    assert set(track.streams) <= set(FRAME_TYPES), f"{name}: unknown stream kinds"
+    episode = smoke_episode(name)
+    assert episode.frames, f"{name}: the smoke episode has no frame"
+    carried = {frame_kind(f) for f in episode.frames}
+    assert carried <= set(track.streams), f"{name}: undeclared streams {carried - set(track.streams)}"
+    stamps = [f.stamp_s for f in episode.frames]
+    assert stamps == sorted(stamps), f"{name}: frames out of time order"
+    assert PIPELINE_REGISTRY.names(track=name), f"no pipeline serves {name}"
+
+
+@pytest.mark.parametrize("name", TRACKS)
+def test_track_cases_validate_with_unique_names(name):
+    track = _track(name)
+    assert track.default_suite in track.suites
+    for suite in track.suites:
+        cases = track.cases(suite)
+        assert cases, f"{name}/{suite} has no case"
+        names = [c.name for c in cases]
+        assert len(set(names)) == len(names), f"{name}/{suite}: duplicate case names"
+        for c in cases:
+            values = track.validate_scenario(c.scenario)
+            assert all(_same(values[k], v) for k, v in c.scenario.items()), (name, suite, c.name)
+    with pytest.raises(UnknownNameError):
+        track.cases("no-such-suite")
+
+
+@pytest.mark.parametrize("name", TRACKS)
+def test_track_scores_failures_well_formed_with_the_reason(name):
+    track = _track(name)
+    episode = smoke_episode(name)
+    rows = {r.metric for r in track.summary_rows()}
+    keys = []
+    for ep in (None, episode):
+        failed = track.failed_metrics(ep, REASON)
+        _failed_with(failed, REASON, f"{name}.failed_metrics({'None' if ep is None else 'episode'})")
+        assert rows <= set(failed), f"{name}: failed metrics lack summary rows {sorted(rows - set(failed))}"
+        keys.append(set(failed))
+    assert keys[0] == keys[1], f"{name}: failed metrics differ in keys with and without an episode"
+    # an estimate of the wrong type is a failure, never an exception
+    _failed_with(track.score(episode, None), "NoneType", f"{name}.score(episode, None)")
+
+
+@pytest.mark.parametrize("name", TRACKS)
+def test_track_summary_rows_and_references_resolve(name):
+    track = _track(name)
+    pipes = PIPELINE_REGISTRY.names(track=name)
+    scored = [(p, clean_run(p)[1]) for p in pipes]
+    rows = {r.metric for r in track.summary_rows()}
+    assert rows, f"{name}: no summary row"
+    for p, metrics in scored:
+        assert rows <= set(metrics), f"{name}: summary rows the scorer does not give for {p}: {sorted(rows - set(metrics))}"
+    assert set(track.timing_metrics) <= set().union(*(m for _, m in scored)), f"{name}: timing metrics never scored"
+    groups = {c.group for s in track.suites for c in track.cases(s)}
+    for ref in track.references():
+        assert ref.metric in rows, f"{name}: reference to {ref.metric!r}, which no summary row shows"
+        assert set(ref.pipelines) <= set(pipes), f"{name}: reference to pipelines {sorted(set(ref.pipelines) - set(pipes))}"
+        assert set(ref.groups) <= groups, f"{name}: reference to groups {sorted(set(ref.groups) - groups)}"
+
+
+# ------------------------------------------------------------------ gymnasium
+
+
+def test_exobench_gym_environments_are_registered():
+    assert GYM_IDS, "no exobench/ environment registered with gymnasium"
+
+
+@pytest.mark.parametrize("env_id", GYM_IDS)
+def test_gym_environment_passes_check_env(env_id):
+    from gymnasium.utils.env_checker import check_env
+
+    env = gymnasium.make(env_id)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", UserWarning)  # check_env reports most findings as warnings
+            check_env(env.unwrapped, skip_render_check=True)
+    finally:
+        env.close()
