@@ -4,7 +4,9 @@
 appended together with a single write, then flushed and fsync'ed, so a stopped run loses at most
 the episode in flight. Each record carries ``records_in_episode``; on reading, a trailing
 partial line and a trailing episode with fewer records than announced are ignored, and
-:func:`repair_results` cuts them off before a resumed run appends. NaN is stored as ``null``.
+:func:`repair_results` cuts them off before a resumed run appends. A corrupt line in the middle
+is named on stderr and costs only its own episode (which ``--resume`` runs again); every record
+after it is kept. NaN is stored as ``null``.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import json
 import math
 import os
 import platform
+import sys
 import tempfile
 from collections.abc import Iterable
 from importlib import metadata
@@ -78,40 +81,82 @@ def append_records(path: Path, records: list[dict[str, Any]]) -> None:
         os.fsync(f.fileno())
 
 
-def _complete_prefix(data: bytes) -> tuple[list[dict[str, Any]], int]:
-    """Records of complete episodes and the byte length they occupy."""
+def _scan(data: bytes) -> tuple[list[dict[str, Any]], int, list[str]]:
+    """(records of complete episodes, byte length up to the end of the last complete episode,
+    one problem text per corrupt line or broken episode).
+
+    A corrupt line (not JSON, not an object) costs only its own episode: that episode counts as
+    unfinished (``--resume`` runs it again) and every record after it is kept.
+    """
     records: list[dict[str, Any]] = []
+    problems: list[str] = []
     good_end = 0
     pending: list[dict[str, Any]] = []
-    pos = 0
+    broken: Any = _NONE  # episode key whose records are being skipped after a corrupt line
+    after_corrupt = False  # the pending episode began right after a corrupt line (named already)
+    pos, line_no = 0, 0
     while True:
         nl = data.find(b"\n", pos)
         if nl < 0:
-            break  # a trailing partial line (or nothing)
-        line = data[pos:nl].strip()
-        pos = nl + 1
-        if not line:
+            break  # a trailing partial line (or nothing): a stopped write
+        raw = data[pos:nl].strip()
+        pos, line_no = nl + 1, line_no + 1
+        if not raw:
             continue
         try:
-            rec = json.loads(line)
-        except json.JSONDecodeError:
-            break
+            rec = json.loads(raw)
+            if not isinstance(rec, dict) or "episode" not in rec:
+                raise ValueError("not a record object")
+            n_in = int(rec.get("records_in_episode", 1))
+        except (ValueError, TypeError, UnicodeDecodeError) as e:
+            what = pending[0].get("episode") if pending else None
+            problems.append(f"line {line_no} is not a valid record ({type(e).__name__}); skipped"
+                            + (f" with the rest of episode {what!r}" if what is not None else ""))
+            if pending:
+                broken, pending = pending[0].get("episode"), []
+            after_corrupt = True
+            continue
+        if broken is not _NONE and rec.get("episode") == broken:
+            continue  # the rest of an episode that had a corrupt line
+        broken = _NONE
         if pending and rec.get("episode") != pending[0].get("episode"):
-            break  # the previous episode ended short: a stopped write; nothing valid follows
+            if not after_corrupt:
+                problems.append(f"episode {pending[0].get('episode')!r} before line {line_no} is incomplete; skipped")
+            pending, after_corrupt = [], False
         pending.append(rec)
-        if len(pending) >= int(rec.get("records_in_episode", 1)):
+        if len(pending) >= n_in:
             records += pending
-            pending = []
+            pending, after_corrupt = [], False
             good_end = pos
-    return records, good_end
+    return records, good_end, problems
+
+
+_NONE = object()
+_WARNED: set[tuple[str, str]] = set()
+
+
+def _complete_prefix(data: bytes) -> tuple[list[dict[str, Any]], int]:
+    """Records of complete episodes and the byte length up to the last of them."""
+    records, end, _ = _scan(data)
+    return records, end
 
 
 def read_records(path: Path) -> list[dict[str, Any]]:
-    """Records of the complete episodes in ``results.jsonl`` (empty if the file is missing)."""
+    """Records of the complete episodes in ``results.jsonl`` (empty if the file is missing).
+
+    Each corrupt line is named once on stderr (``exobench: warning: <file> line N ...``); the
+    records around it are kept.
+    """
     path = Path(path)
     if not path.exists():
         return []
-    return _complete_prefix(path.read_bytes())[0]
+    records, _, problems = _scan(path.read_bytes())
+    for text in problems:
+        key = (str(path.resolve()), text)
+        if key not in _WARNED:
+            _WARNED.add(key)
+            print(f"exobench: warning: {path} {text}", file=sys.stderr)
+    return records
 
 
 def repair_results(path: Path) -> int:

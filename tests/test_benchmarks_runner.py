@@ -167,3 +167,35 @@ def test_plan_hands_each_pipeline_its_dotted_overrides(monkeypatch):
     reg.register("fake.v2", FakeStairs)
     plan_run(FakeTrack(), "quick", ["fake", "fake.v2"], [0], {"fake.v2.filter.band_m": "0.05", "fake.offset_m": "0.01"}, registry=reg)
     assert seen == {"fake": {"offset_m": "0.01"}, "fake.v2": {"filter.band_m": "0.05"}}
+
+
+def test_a_corrupt_line_costs_only_its_episode(reg, tmp_path, capsys):
+    plan = _plan(reg)
+    run = tmp_path / "run"
+    execute(plan, run)
+    results = run / RESULTS_FILE
+    lines = results.read_text().splitlines(keepends=True)
+    assert len(lines) == 12
+    # the third line (second record of the second episode) is garbled in the middle of the file
+    lines[2] = '{"episode": "x", garbled\n'
+    results.write_text("".join(lines))
+    capsys.readouterr()
+    kept = read_records(results)
+    assert len(kept) == 10  # every record of the five intact episodes
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "line 3" in err[0] and RESULTS_FILE in err[0]
+    assert repair_results(results) == 0  # nothing trailing to cut: later records stay
+    out = execute(plan, run, resume=True)
+    assert len(out.ran) == 1 and len(out.records) == 12
+    assert sorted(r["episode"] for r in out.records) == sorted(r["episode"] for r in read_records(results))
+
+
+def test_a_line_that_is_not_a_record_between_episodes_is_skipped(reg, tmp_path):
+    plan = _plan(reg)
+    run = tmp_path / "run"
+    execute(plan, run)
+    results = run / RESULTS_FILE
+    lines = results.read_text().splitlines(keepends=True)
+    lines.insert(4, "[1, 2]\n")  # a list instead of a record, between two episodes
+    results.write_text("".join(lines))
+    assert len(read_records(results)) == 12
