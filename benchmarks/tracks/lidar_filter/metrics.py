@@ -1,6 +1,6 @@
 """Scoring of a :class:`FilterEstimate` against the true kind of every LiDAR point (lidar-filter track).
 
-Per point the truth (:func:`..office_walks.point_classes`) says genuine (a real surface on the
+Masks are matched to scans by stamp, not by position. Per point the truth (:func:`..office_walks.point_classes`) says genuine (a real surface on the
 straight ray, also through glass), glass (the pane's own weak reflection) or ghost (a surface
 seen in a mirror or pane, reported along the original ray), and whether a genuine point lies on
 a ground surface (SceneTruth kinds ``ground``, ``tread``, ``landing``, ``ramp``). Pooled over
@@ -11,7 +11,7 @@ all scans of the episode:
 - ``glass_removed_frac``, ``ghost_removed_frac``, ``genuine_kept_frac``,
   ``nonground_kept_frac`` (genuine points off the ground kept), ``kept_frac`` (all points);
 - counts ``n_points``, ``n_glass``, ``n_ghost``, ``n_ground``; ``bad_masks`` (scans whose mask
-  is missing or of the wrong length: their points count as removed);
+  is missing or of the wrong length; any makes the estimate fail, fractions NaN);
 - ``time_per_scan_ms``: median compute time per scan.
 
 Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
@@ -100,23 +100,59 @@ def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tup
     return out, est
 
 
+def masks_by_scan(pairs: Sequence[tuple[Any, Any]], est: FilterEstimate) -> tuple[list[np.ndarray | None], int]:
+    """Each scan's mask, matched by stamp so that a dropped or empty scan shifts nothing: (one mask
+    or None per scan of ``pairs``, the number of masks that match no scan). A
+    :class:`FilterEstimate` carries no sensor ids: masks of one stamp go to that stamp's scans
+    (of any sensor) in order."""
+    stamps = np.asarray(est.stamps_s, dtype=float).reshape(-1)
+    keep = list(est.keep)
+    if len(stamps) != len(keep):
+        raise ValueError(f"{len(stamps)} stamps for {len(keep)} masks")
+    free: dict[float, list[int]] = {}
+    for i, t in enumerate(stamps):
+        free.setdefault(round(float(t), 9), []).append(i)
+    out: list[np.ndarray | None] = []
+    for scan, _ in pairs:
+        cands = free.get(round(float(scan.stamp_s), 9), [])
+        out.append(np.asarray(keep[cands.pop(0)], dtype=bool).reshape(-1) if cands else None)
+    return out, sum(len(v) for v in free.values())
+
+
 def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = False,
                  trajectories: dict[int, Any] | None = None) -> dict[str, Any]:
     """The metrics of the module docstring (never raises on a bad estimate); with ``odometry``
-    the kiss-icp trajectory is stored in ``trajectories[id(est)]`` when given."""
+    the kiss-icp trajectory is stored in ``trajectories[id(est)]`` when given.
+
+    A scan without a mask of its length is never scored as filtered: when any scan has none
+    (no masks at all, masks for another sensor or other stamps), the estimate fails with the
+    count in its reason and NaN fractions.
+    """
     try:
         pairs = lidar_pairs(episode)
+        if not pairs:
+            return failure_metrics(episode, "the episode has no LiDAR scan with point truth")
         classes, ground = [], []
         for _, truth in pairs:
             c, g = point_classes(episode, truth)
             classes.append(c)
             ground.append(g)
-        keep = list(est.keep)
+        masks, unmatched = masks_by_scan(pairs, est)
+        bad = sum(m is None or len(m) != len(c) for m, c in zip(masks, classes, strict=True))
+        if bad:
+            out = failure_metrics(
+                episode,
+                f"{bad} of {len(pairs)} scans have no mask of their length ({len(est.keep)} masks, {unmatched} match no scan)",
+            )
+            out.update({k: v for k, v in mask_fractions(classes, ground, []).items() if k in COUNT_KEYS})
+            out["bad_masks"] = bad
+            return out
+        keep = [m for m in masks if m is not None]
         out: dict[str, Any] = {"failed": False, "failed_reason": ""}
         out.update(mask_fractions(classes, ground, keep))
         out["time_per_scan_ms"] = tj.time_per_scan_ms(est.time_per_scan_s)
-        if len(keep) != len(pairs):
-            out["failed_reason"] = f"{len(keep)} masks for {len(pairs)} scans"
+        if unmatched:
+            out["failed_reason"] = f"{unmatched} masks match no scan (ignored)"
         out.update({k: math.nan for k in ODOM_KEYS})
         if odometry:
             m, traj = odometry_through_filter(episode, keep)

@@ -11,9 +11,25 @@ import numpy as np
 from .paper import TABLE_5_4, TABLE_KEYS
 
 
-def _rmse(values: list[float]) -> float:
-    v = np.array([x for x in values if x is not None and not (isinstance(x, float) and math.isnan(x))], dtype=float)
+def _finite(values: list[Any]) -> np.ndarray:
+    """The finite numbers among stored metric values (None, the stored NaN, and non-numbers dropped)."""
+    v = np.array([x for x in values if isinstance(x, (int, float)) and not isinstance(x, bool)], dtype=float)
+    return v[np.isfinite(v)]
+
+
+def _rmse(values: list[Any]) -> float:
+    v = _finite(values)
     return float(np.sqrt(np.mean(v**2))) if v.size else math.nan
+
+
+def _mean(values: list[Any]) -> float:
+    v = _finite(values)
+    return float(np.mean(v)) if v.size else math.nan
+
+
+def _median(values: list[Any]) -> float:
+    v = _finite(values)
+    return float(np.median(v)) if v.size else math.nan
 
 
 def filter_table(records: list[dict[str, Any]], pipelines: list[str]) -> list[str]:
@@ -31,9 +47,9 @@ def filter_table(records: list[dict[str, Any]], pipelines: list[str]) -> list[st
     for p in pipelines:
         rs = [r["metrics"] for r in records if r["pipeline"] == p and not r["metrics"].get("failed")]
         te, oe, tx, ty, tz = (_rmse([m.get(k) for m in rs]) for k in TABLE_KEYS)
-        sp = np.nanmean([m.get("spurious_removed_frac", math.nan) for m in rs]) * 100 if rs else math.nan
-        gk = np.nanmean([m.get("ground_kept_frac", math.nan) for m in rs]) * 100 if rs else math.nan
-        tm = np.nanmedian([m.get("time_per_scan_ms", math.nan) for m in rs]) if rs else math.nan
+        sp = _mean([m.get("spurious_removed_frac") for m in rs]) * 100
+        gk = _mean([m.get("ground_kept_frac") for m in rs]) * 100
+        tm = _median([m.get("time_per_scan_ms") for m in rs])
         ref = TABLE_5_4.get(p)
         paper = f"{ref[0]:g} / {ref[1]:g} / {ref[2]:g} {ref[3]:g} {ref[4]:g}" if ref else "–"
         lines.append(f"| {p} | {f(te, 3)} | {f(oe, 4)} | {f(tx, 3)} {f(ty, 3)} {f(tz, 3)} | {f(sp, 1)} | {f(gk, 1)} | "

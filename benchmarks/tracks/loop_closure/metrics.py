@@ -227,6 +227,8 @@ def score_place_recognition(episode: Episode, estimate: PlaceRecognitionEstimate
     if any(len(a) != K for a in arrays):
         return failure_metrics(episode, "estimate arrays of different lengths")
     match, dist, yaw_est, times = arrays
+    if K == 0:  # nothing described: not a perfect (empty) PR curve
+        return failure_metrics(episode, "no keyframes")
     pos, yaw, found = keyframe_poses(episode.truth.trajectory_w, stamps)
     if K and not np.all(found):
         return failure_metrics(episode, f"{int(np.sum(~found))} keyframe stamps match no scan start")
