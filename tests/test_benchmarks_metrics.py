@@ -139,3 +139,14 @@ def test_an_episode_without_climbing_truth_is_scored_failed_not_perfect():
     m = score_staircase(ep, StaircaseEstimate((), 0.162, 0.28))
     assert m["failed"] is True and "truth.stairs" in m["failed_reason"] and m["n_tof"] == 0
     assert math.isnan(m["riser_error_pct"]) and math.isnan(m["touchdown_error_m"])
+
+
+def test_true_geometry_comes_from_the_truth_not_the_scenario_record(rotated_episode):
+    # a session's meta.scenario may misstate the staircase: the built one (truth) is scored
+    ep = rotated_episode
+    lying = Episode({**ep.scenario, "riser_m": 0.30, "tread_m": 0.40}, ep.seed, ep.calibration, ep.frames, ep.truth)
+    T = ep.truth.T_world_estimator
+    est = StaircaseEstimate((_plane_in_estimator(T, 2, np.array([0.0, 0.0, 1.0]), np.array([0.1, 0.0, 0.162])),), 0.170, 0.27)
+    m = score_staircase(lying, est)
+    assert m["riser_error_pct"] == pytest.approx(0.008 / 0.162 * 100)
+    assert m["tread_error_pct"] == pytest.approx(0.01 / 0.28 * 100)

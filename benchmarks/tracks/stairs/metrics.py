@@ -11,7 +11,7 @@ Definitions follow the staircase paper (seeds/004, Sec. V and Fig. 5):
   touch-down point's (x, y) minus the elevation of the true S2 there, m (negative: estimated
   tread too low).
 - ``riser_error_pct`` / ``tread_error_pct``: |estimate - true| / true * 100 against the
-  scenario's riser_m / tread_m.
+  built staircase's riser_m / tread_m (``truth.scene.params``, not the scenario record).
 - ``s2_reliable_s``: time S2 became reliable after lift-off, s; ``s2_remaining_travel_m``: length
   of the foot path still to go then, up to touch-down, m.
 - ``assignment_accuracy``: among the readings the estimator used (``surface_index != -2``), the
@@ -135,8 +135,9 @@ def score_staircase(episode: Episode, est: StaircaseEstimate) -> dict[str, Any]:
         m[f"d_m_S{i}"] = float(s.signed_distance(c_w))
         m[f"reliable_S{i}"] = bool(p.reliable)
 
-    riser_true = float(episode.scenario.get("riser_m", truth.scene.params.get("riser_m", NAN)))
-    tread_true = float(episode.scenario.get("tread_m", truth.scene.params.get("tread_m", NAN)))
+    # the geometry that was built (truth), never the scenario record, which a session may misstate
+    riser_true = float(truth.scene.params.get("riser_m", NAN))
+    tread_true = float(truth.scene.params.get("tread_m", NAN))
     m["riser_est_m"], m["tread_est_m"] = float(est.riser_height_m), float(est.tread_depth_m)
     m["riser_error_pct"] = _pct_error(m["riser_est_m"], riser_true)
     m["tread_error_pct"] = _pct_error(m["tread_est_m"], tread_true)
