@@ -227,26 +227,32 @@ def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 
 @cli.command()
 @click.argument("session_dir", type=click.Path(file_okay=False))
-@click.option("--track", default="stairs", show_default=True)
+@click.option("--track", default=None, help="Track to score on (default: the track the session was recorded for; stairs for old sessions).")
 @click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
 @click.option("--set", "assignments", multiple=True, metavar="NAME.KEY=VALUE", help="Pipeline parameter.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON record per pipeline.")
-def replay(session_dir: str, track: str, pipelines: tuple[str, ...], assignments: tuple[str, ...], as_json: bool) -> None:
-    """Score pipelines on a recorded session (SESSION_DIR written by `exobench record`)."""
-    from exobench.envs.session import read_session
+def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assignments: tuple[str, ...], as_json: bool) -> None:
+    """Score pipelines on a recorded session (SESSION_DIR written by `exobench record`), after
+    checking it against its meta.json (track, file hashes, frame and truth counts)."""
+    from exobench.envs.session import check_track, content_checked, read_meta, read_session
 
     from .overrides import parse_assignments
     from .report import summary_text
     from .results import json_safe
     from .runner import plan_run, run_pipelines
 
+    meta = read_meta(session_dir)
+    check_track(session_dir, meta, track)
+    track = track or meta.get("track") or "stairs"
     overrides = parse_assignments(assignments)
     plan = plan_run(track, None, pipelines or None, [0], overrides)
     if plan.scenario_overrides:
         from exobench.core.errors import ConfigError
 
         raise ConfigError("--set", ",".join(plan.scenario_overrides), "pipeline parameters only (NAME.KEY=VALUE)")
-    episode = read_session(session_dir)
+    if not content_checked(meta):
+        click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its content is not verified", err=True)
+    episode = read_session(session_dir, track=plan.track.name)
     _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines)
     records = [
         {"episode": "session", "group": "session", "pipeline": p.name, "config": p.config_dict(), "metrics": metrics[p.name], "wall_s": walls[p.name]}
@@ -284,8 +290,8 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
     if Path(out_dir).exists():
         raise ConfigError("OUT_DIR", out_dir, "a path that does not exist yet")
     episode = trk.simulate(scenario, seed)
-    path = write_session(episode, out_dir)
-    click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed})")
+    path = write_session(episode, out_dir, track=trk.name)
+    click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed}, track {trk.name})")
 
 
 @cli.command()

@@ -112,7 +112,7 @@ def test_office_episode_roundtrip_is_bit_exact(office):
         assert _same(v, back.truth.body_tracks[k]), k
     assert ep.truth.stairs is None and back.truth.stairs is None  # an office walk has no climbing step
     assert back.scenario == ep.scenario and back.seed == ep.seed
-    assert read_meta(path)["version"] == 3
+    assert read_meta(path)["version"] == 4
 
 
 def test_lidar_lines_reference_per_scan_files(office):
@@ -255,9 +255,9 @@ def test_version_1_session_still_reads(tmp_path):
     assert np.array_equal(ep.truth.stairs.foot_track_w, [[0.0, 0.1, 0.0, 0.0], [0.1, 0.2, 0.0, 0.05]])
     assert ep.truth.stairs.tof[0].true_range_m == 0.41 and ep.truth.events == {"touchdown_s": 0.9}
     assert ep.scenario == {"riser_m": 0.17} and ep.seed == 3
-    # and re-writing it gives a version-3 session with the same content
-    back = read_session(write_session(ep, tmp_path / "v3"))
-    assert read_meta(tmp_path / "v3")["version"] == 3
+    # and re-writing it gives a version-4 session with the same content
+    back = read_session(write_session(ep, tmp_path / "v4"))
+    assert read_meta(tmp_path / "v4")["version"] == 4
     assert np.array_equal(back.truth.stairs.foot_track_w, ep.truth.stairs.foot_track_w)
     _assert_same_objects(ep.frames, back.frames, "frames")
 
@@ -304,9 +304,12 @@ def test_lidar_truth_materials_are_stored_as_indices_into_a_name_table(tmp_path)
 
 
 def test_lidar_truth_files_with_material_strings_still_read(tmp_path):
-    """Sessions written before the name table stored ``material`` as a unicode array."""
+    """Sessions written before the name table stored ``material`` as a unicode array (version 3:
+    no file hashes, so the files rewritten here are read as they are)."""
     ep = _synthetic(np.random.default_rng(6))
     path = write_session(ep, tmp_path / "s")
+    meta = json.loads((path / "meta.json").read_text())
+    (path / "meta.json").write_text(json.dumps({**meta, "version": 3}))
     old_fields = ("stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",
                   "via_geom_id", "signal", "origin_w", "dir_w")  # fmt: skip
     for k, lt in enumerate(ep.truth.lidar):

@@ -1,8 +1,9 @@
 """Recorded sessions on disk: an episode's frames, calibration and (apart) ground truth.
 
-Layout of a session directory (format ``exobench-session``, version 3)::
+Layout of a session directory (format ``exobench-session``, version 4)::
 
-    meta.json                      format, version, exobench version, scenario, seed, frame counts
+    meta.json                      format, version, exobench version, track, scenario, seed, frame
+                                   counts, truth counts, every other file's size and SHA-256
     calibration.json               sensor mounts, encoder joint names, robot description (URDF text)
     frames.jsonl                   every frame, time-ordered, one JSON object per line ("kind" first)
     <kind>/<sensor_id>/<k>.npz     arrays of the k-th frame of that sensor, for kinds with large
@@ -29,12 +30,25 @@ Versions: 1 had no binary files (LiDAR and RGB-D frames were refused) and no LiD
 version-1 sessions are still read (their LiDAR truth is empty). Version 2 wrote the climbing
 step's fields flat for every episode; version 3 writes them as a ``stairs`` object, null when the
 episode has no climbing step (versions 1 and 2 read them as the stairs part of staircase episodes
-only). Writing always gives version 3.
+only). Version 4 adds the track, the truth counts and the file hashes to ``meta.json``; a session
+is checked against them (and its frame counts) before it is read, and older versions are read
+without the hash check. Writing always gives version 4.
 """
 
 from .calibration import calibration_from_dict, calibration_to_dict
 from .codecs import CODECS, FrameCodec, frame_from_dict, frame_to_dict, register_codec
-from .io import FORMAT, SUPPORTED_VERSIONS, VERSION, iter_frames, read_meta, read_session, write_session
+from .io import (
+    FORMAT,
+    SUPPORTED_VERSIONS,
+    VERSION,
+    check_track,
+    content_checked,
+    iter_frames,
+    read_meta,
+    read_session,
+    verify_files,
+    write_session,
+)
 from .truth import truth_from_dict, truth_to_dict
 
 __all__ = [
@@ -44,6 +58,8 @@ __all__ = [
     "VERSION",
     "FrameCodec",
     "calibration_from_dict",
+    "check_track",
+    "content_checked",
     "calibration_to_dict",
     "frame_from_dict",
     "frame_to_dict",
@@ -53,5 +69,6 @@ __all__ = [
     "register_codec",
     "truth_from_dict",
     "truth_to_dict",
+    "verify_files",
     "write_session",
 ]

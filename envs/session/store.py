@@ -58,6 +58,28 @@ def plain(value: Any) -> Any:
     return value
 
 
+def load_json(path: Path) -> dict[str, Any]:
+    """The JSON object in the file ``path``; SessionError naming the file when it is missing,
+    empty, not UTF-8, truncated or malformed JSON, or holds something other than an object."""
+    try:
+        data = Path(path).read_bytes()
+    except FileNotFoundError:
+        raise SessionError(f"{path}: missing") from None
+    except OSError as e:
+        raise SessionError(f"{path}: unreadable ({e.strerror})") from None
+    if not data.strip():
+        raise SessionError(f"{path}: empty")
+    try:
+        obj = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise SessionError(f"{path}: not UTF-8 text") from None
+    except json.JSONDecodeError as e:
+        raise SessionError(f"{path}: malformed or truncated JSON ({e})") from None
+    if not isinstance(obj, dict):
+        raise SessionError(f"{path}: a JSON {type(obj).__name__}, not an object")
+    return obj
+
+
 def dumps(obj: Any) -> str:
     """Compact JSON of one line (NaN refused: write it as None)."""
     return json.dumps(obj, separators=(",", ":"), allow_nan=False)

@@ -34,7 +34,18 @@ from exobench.core import (
     ToFTruth,
 )
 
-from .store import dec_array, dec_float, dumps, enc_array, enc_float, load_npz, npz_names, plain, save_npz
+from .store import (
+    dec_array,
+    dec_float,
+    dumps,
+    enc_array,
+    enc_float,
+    load_json,
+    load_npz,
+    npz_names,
+    plain,
+    save_npz,
+)
 
 LIDAR_TRUTH_FIELDS = (
     "stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",
@@ -217,13 +228,31 @@ def write_truth(root: Path, t: EpisodeTruth) -> None:
 
 
 def read_truth(root: Path) -> EpisodeTruth:
-    """Read ``truth/`` of the session at ``root``."""
-    with open(root / "truth" / "tof.jsonl") as fh:
-        tof = tuple(tof_truth_from_dict(json.loads(line)) for line in fh if line.strip())
-    td = json.loads((root / "truth" / "episode.json").read_text())
-    lidar = tuple(
-        read_lidar_truth(root, f"truth/lidar/{k:06d}.npz") for k in range(int(td.get("n_lidar", 0)))
-    )
-    names = tuple(td.get("extra_arrays", ()))
+    """Read ``truth/`` of the session at ``root`` (SessionError naming a missing or malformed file)."""
+    tof_path, ep_path = root / "truth" / "tof.jsonl", root / "truth" / "episode.json"
+    tof = []
+    try:
+        lines = tof_path.read_bytes().decode("utf-8").splitlines()
+    except FileNotFoundError:
+        raise SessionError(f"{tof_path}: missing") from None
+    except UnicodeDecodeError:
+        raise SessionError(f"{tof_path}: not UTF-8 text") from None
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            tof.append(tof_truth_from_dict(json.loads(line)))
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as e:
+            raise SessionError(f"{tof_path} line {n}: malformed ToF truth ({type(e).__name__}: {e})") from None
+    td = load_json(ep_path)
+    try:
+        n_lidar = int(td.get("n_lidar", 0))
+        names = tuple(td.get("extra_arrays", ()))
+    except (TypeError, ValueError) as e:
+        raise SessionError(f"{ep_path}: malformed ({type(e).__name__}: {e})") from None
+    lidar = tuple(read_lidar_truth(root, f"truth/lidar/{k:06d}.npz") for k in range(n_lidar))
     extra_arrays = load_npz(root, "truth/extra.npz", names) if names else {}
-    return truth_from_dict(td, tof, lidar, extra_arrays)
+    try:
+        return truth_from_dict(td, tuple(tof), lidar, extra_arrays)
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise SessionError(f"{ep_path}: malformed truth ({type(e).__name__}: {e})") from None

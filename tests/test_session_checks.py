@@ -1,0 +1,121 @@
+"""A session checks itself before it is scored: the track it was recorded for, every file's
+hash, frame and truth counts; a missing or malformed file is one line naming it, exit 2."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+
+import pytest
+from click.testing import CliRunner
+
+from exobench.benchmarks.cli import cli
+from exobench.envs.session import read_meta
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rec") / "stairs"
+    r = CliRunner().invoke(cli, ["record", str(path)])
+    assert r.exit_code == 0, r.output
+    return path
+
+
+@pytest.fixture
+def session(recorded, tmp_path):
+    path = tmp_path / "s"
+    shutil.copytree(recorded, path)
+    return path
+
+
+def _replay(path, *args):
+    return CliRunner().invoke(cli, ["replay", str(path), "--pipeline", "rtls", "--json", *args])
+
+
+def _one_error_line(r, *needles):
+    assert r.exit_code == 2, (r.exit_code, r.output, r.exception)
+    err = r.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("exobench: error: "), r.stderr
+    for needle in needles:
+        assert needle in err[0], (needle, err[0])
+
+
+def _rehash(path):
+    """Make meta.json agree with the files as they are now (an edit that also forges the hashes)."""
+    meta = json.loads((path / "meta.json").read_text())
+    meta["files"] = {
+        rel: {"bytes": (path / rel).stat().st_size, "sha256": hashlib.sha256((path / rel).read_bytes()).hexdigest()}
+        for rel in meta.get("files", {})
+        if (path / rel).exists()
+    }
+    (path / "meta.json").write_text(json.dumps(meta))
+
+
+def test_the_session_records_its_track_and_replays_on_it(session):
+    assert read_meta(session)["track"] == "stairs"
+    r = _replay(session)  # no --track: the recorded one
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.output.splitlines()[0])["metrics"]["failed"] is False
+
+
+def test_replay_on_another_track_is_one_line(session):
+    _one_error_line(_replay(session, "--track", "odometry"), "recorded for track 'stairs'", "odometry")
+
+
+@pytest.mark.parametrize("forged", [False, True], ids=["as-cut", "hashes-forged"])
+def test_a_session_with_40_percent_of_its_frames_cut_is_refused(session, forged):
+    lines = (session / "frames.jsonl").read_text().splitlines(keepends=True)
+    (session / "frames.jsonl").write_text("".join(lines[: int(len(lines) * 0.6)]))
+    if forged:
+        _rehash(session)
+    _one_error_line(_replay(session), "frames.jsonl")
+
+
+def test_a_cut_truth_file_is_refused_even_with_forged_hashes(session):
+    lines = (session / "truth" / "tof.jsonl").read_text().splitlines(keepends=True)
+    (session / "truth" / "tof.jsonl").write_text("".join(lines[:-5]))
+    _rehash(session)
+    _one_error_line(_replay(session), "truth")
+
+
+DAMAGE = {
+    "missing": None,
+    "empty": b"",
+    "list": b"[1, 2, 3]\n",
+    "non-utf8": b'{"a": "\xff\xfe\xfa"}\n',
+    "truncated": "half",
+}
+FILES = ["meta.json", "calibration.json", "frames.jsonl", "truth/episode.json", "truth/tof.jsonl"]
+
+
+@pytest.mark.parametrize("forged", [False, True], ids=["hash", "parse"])
+@pytest.mark.parametrize("damage", list(DAMAGE))
+@pytest.mark.parametrize("rel", FILES)
+def test_a_missing_or_malformed_file_is_one_line_naming_it(session, rel, damage, forged):
+    if forged and rel == "meta.json":
+        pytest.skip("meta.json holds the hashes")
+    target = session / rel
+    data = target.read_bytes()
+    how = DAMAGE[damage]
+    if how is None:
+        target.unlink()
+    elif how == "half":
+        target.write_bytes(data[: len(data) // 2 + 7])
+    else:
+        target.write_bytes(how)
+    if forged:
+        _rehash(session)
+        if how is None:  # a file the forged meta.json no longer lists must still be there
+            assert rel not in json.loads((session / "meta.json").read_text())["files"]
+    _one_error_line(_replay(session), rel.rsplit("/", 1)[-1])
+
+
+def test_an_old_session_is_read_without_the_hash_check_and_says_so(session):
+    meta = json.loads((session / "meta.json").read_text())
+    for key in ("files", "truth_counts", "track"):
+        meta.pop(key)
+    (session / "meta.json").write_text(json.dumps({**meta, "version": 3}))
+    r = _replay(session)
+    assert r.exit_code == 0, r.output
+    assert "no file hashes" in r.stderr
