@@ -119,3 +119,44 @@ def test_an_old_session_is_read_without_the_hash_check_and_says_so(session):
     r = _replay(session)
     assert r.exit_code == 0, r.output
     assert "no file hashes" in r.stderr
+
+
+def test_float_arrays_are_stored_byte_shuffled_and_come_back_bit_exact(tmp_path):
+    import numpy as np
+
+    from exobench.envs.session.store import SHUFFLED, load_npz, save_npz
+
+    rng = np.random.default_rng(0)
+    a = np.cumsum(rng.normal(size=(5000, 3)), axis=0)
+    a[7, 1] = np.nan
+    a.view(np.uint64)[9, 2] = 0x7FF8DEADBEEF0001  # a NaN with a payload
+    a[11, 0] = -0.0
+    arrays = {"a": a, "b": rng.normal(size=4000).astype(np.float32), "c": np.arange(300, dtype=np.int64),
+              "small": np.array([1.5, np.nan])}  # fmt: skip
+    save_npz(tmp_path / "x.npz", arrays)
+    with np.load(tmp_path / "x.npz") as z:
+        assert SHUFFLED in z.files and z["a"].dtype == np.uint8 and z["c"].dtype == np.int64
+    back = load_npz(tmp_path, "x.npz", tuple(arrays))
+    for k, v in arrays.items():
+        assert back[k].dtype == v.dtype and back[k].shape == v.shape and back[k].tobytes() == v.tobytes(), k
+    save_npz(tmp_path / "shuffled.npz", {"a": a})
+    np.savez_compressed(tmp_path / "plain.npz", a=a)
+    assert (tmp_path / "shuffled.npz").stat().st_size < 0.9 * (tmp_path / "plain.npz").stat().st_size
+
+
+def test_lidar_truth_hit_points_are_stored_as_a_residual(tmp_path):
+    import numpy as np
+
+    from exobench.envs.session.truth import lidar_truth_arrays
+
+    rng = np.random.default_rng(1)
+    n = 400
+    origin, d, r = rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), rng.uniform(1, 9, n)
+    hit = origin + r[:, None] * d
+    hit[5] += 0.25  # a ghost: not on its ray
+    from exobench.core import LidarTruth
+
+    lt = LidarTruth(0.1, "l", r, hit, np.zeros(n, int), np.zeros(n, int), np.full(n, "wood"), np.zeros(n, np.int8),
+                    np.full(n, -1), rng.uniform(size=n), origin, d)  # fmt: skip
+    a = lidar_truth_arrays(lt)
+    assert "hit_w" not in a and np.count_nonzero(a["hit_w_xor"]) == 3

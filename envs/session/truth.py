@@ -11,7 +11,9 @@ the episode (all sensors): every :class:`~exobench.core.LidarTruth` field (``sta
 ``sensor_id`` as 0-d arrays) except ``material``, which is stored as ``material_index`` (N,)
 (uint8, or uint16 beyond 256 names) into ``material_names`` (the scan's distinct names, a numpy
 unicode array of the field's dtype); files written before that hold ``material`` itself (a numpy
-unicode array) and still read. Sessions written before steps/extra existed read back with empty
+unicode array) and still read. From version 4, a float64 ``hit_w`` is stored as ``hit_w_xor``, the
+XOR of its bits with ``origin_w + true_range_m * dir_w`` (zero for points seen directly), and
+rebuilt bit for bit. Sessions written before steps/extra existed read back with empty
 ones.
 """
 
@@ -146,17 +148,38 @@ def lidar_truth_arrays(t: LidarTruth) -> dict[str, np.ndarray]:
     names, index = np.unique(np.asarray(t.material).reshape(-1), return_inverse=True)
     arrays["material_names"] = names  # sorted distinct names, same dtype as the field
     arrays["material_index"] = index.astype(np.uint8 if len(names) <= 256 else np.uint16)
+    pred = _predicted_hit(arrays)
+    if pred is not None and arrays["hit_w"].dtype == np.float64 and arrays["hit_w"].shape == pred.shape:
+        arrays["hit_w_xor"] = arrays.pop("hit_w").view(np.uint64) ^ pred.view(np.uint64)
     return arrays
+
+
+def _predicted_hit(a: dict[str, np.ndarray]) -> np.ndarray | None:
+    """``origin_w + true_range_m * dir_w`` (float64, elementwise IEEE operations: the same bits
+    on every machine), which is ``hit_w`` for the points seen directly; None if the shapes or
+    dtypes do not allow it. The file keeps ``hit_w`` as the XOR of its bits with this prediction
+    (``hit_w_xor``, almost all zeros)."""
+    o, r, d = a["origin_w"], a["true_range_m"], a["dir_w"]
+    if not (o.dtype == r.dtype == d.dtype == np.float64 and o.ndim == 2 and o.shape == d.shape
+            and o.shape[1:] == (3,) and r.shape == o.shape[:1]):  # fmt: skip
+        return None
+    return np.ascontiguousarray(o + r[:, None] * d)
 
 
 def read_lidar_truth(root: Path, rel: str) -> LidarTruth:
     """A LiDAR truth file, ``material`` rebuilt from its name table (or read as written by
     sessions before the table)."""
-    if "material_index" not in npz_names(root, rel):
+    present = npz_names(root, rel)
+    if "material_index" not in present:
         a = load_npz(root, rel, LIDAR_TRUTH_FIELDS)
     else:
-        fields = tuple(n for n in LIDAR_TRUTH_FIELDS if n != "material")
-        a = load_npz(root, rel, fields + ("material_index", "material_names"))
+        fields = tuple(n for n in LIDAR_TRUTH_FIELDS if n != "material" and not (n == "hit_w" and "hit_w_xor" in present))
+        a = load_npz(root, rel, fields + ("material_index", "material_names") + (("hit_w_xor",) if "hit_w_xor" in present else ()))
+        if "hit_w_xor" in a:
+            xor, pred = a.pop("hit_w_xor"), _predicted_hit(a)
+            if pred is None or xor.dtype != np.uint64 or xor.shape != pred.shape:
+                raise SessionError(f"{root / rel}: hit_w_xor does not fit origin_w, true_range_m and dir_w")
+            a["hit_w"] = (pred.view(np.uint64) ^ xor).view(np.float64)
         index, names = a.pop("material_index"), a.pop("material_names")
         if index.ndim != 1 or names.ndim != 1 or (len(index) and int(index.max()) >= len(names)):
             raise SessionError(f"{root / rel}: material_index does not fit its {len(names)} material_names")
