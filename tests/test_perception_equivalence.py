@@ -107,7 +107,7 @@ def reference_algorithm(points, flags, params: StaircaseParams):
     S = [RefSurface(i, k) for i, k in enumerate(kinds)]
     where = [-1] * len(P)
     Q = {"r": deque(), "l": deque()}
-    cur = 0
+    ids = {"r": 0, "l": 0}  # the surface under investigation (both equal with shared ids)
     call = -1
 
     def e_z(s):
@@ -131,7 +131,8 @@ def reference_algorithm(points, flags, params: StaircaseParams):
                 remove(r, s)
         s.B.append(u)
         add(u, s)
-        if not s.ok and all(s.count[f] >= params.reliable_n for f in ("r", "l")):
+        need = params.reliable_n_riser if s.index % 2 and params.reliable_n_riser else params.reliable_n
+        if not s.ok and all(s.count[f] >= need for f in ("r", "l")):
             s.ok, s.ok_uid = True, call
         if s.index > 0 and s.ok and S[s.index - 1].B:
             prev = S[s.index - 1]
@@ -151,21 +152,31 @@ def reference_algorithm(points, flags, params: StaircaseParams):
             u = q.popleft()
             qz, target = P[u, 2], None
             flat = sigma_z < params.th_z_m
+            cur = ids[flag]
             if cur >= params.n_surfaces:
                 target = None  # beyond S4: discarded
             elif cur % 2 == 0:
                 if flat and abs(qz - z_bar) < sigma_z:
                     target = cur
+                    if params.tread_gate_m and S[cur].ok:
+                        n, e, _ = S[cur].fit(P)
+                        if abs(np.dot(P[u] - e, n)) > params.tread_gate_m:
+                            target = None
                 elif not flat and qz > e_z(S[cur]) + 1.5 * params.th_z_m:
                     target = cur + 1
             elif not flat:
                 target = cur
             elif qz > e_z(S[cur - 1]) + params.th_pl_m:
-                target = cur + 1
+                h = np.hypot(*(P[q[-1], :2] - P[u, :2]))
+                if params.riser_exit == "paper" or (h >= params.th_z_m and h > abs(P[q[-1], 2] - qz)):
+                    target = cur + 1
             elif params.riser_flat_low == "assign":
                 target = cur
             if target is not None:
-                cur = target
+                if params.sensor_ids == "shared":
+                    ids["r"] = ids["l"] = target
+                else:
+                    ids[flag] = target
                 if target < params.n_surfaces:
                     surf_update(u, S[target])
         q.append(uid)
@@ -195,15 +206,19 @@ def _assert_planes_equal(planes, surfaces, P, uid_stamps):
 def test_algorithm_equals_the_reference_on_point_streams(htvr):
     """Algorithm 1 alone, on swept point streams and parameters that exercise every branch."""
     totals = dict.fromkeys(("n_assigned", "n_discarded", "n_removed", "n_shifted"), 0)
-    for seed, yaw_deg, noise_m, b, n_rel, policy in [
-        (0, 0.0, 1.5e-3, 10, 5, "assign"),
-        (1, 20.0, 1.5e-3, 4, 2, "assign"),
-        (2, 20.0, 4e-3, 6, 3, "discard"),
-        (3, -15.0, 4e-3, 4, 2, "assign"),
-        (1, -25.0, 8e-3, 2, 1, "assign"),
+    new = {"th_pl_m": 0.08, "reliable_n_riser": 2, "tread_gate_m": 8e-3, "sensor_ids": "per_sensor", "riser_exit": "travel"}
+    for seed, yaw_deg, noise_m, b, n_rel, policy, options in [
+        (0, 0.0, 1.5e-3, 10, 5, "assign", {}),
+        (1, 20.0, 1.5e-3, 4, 2, "assign", {}),
+        (2, 20.0, 4e-3, 6, 3, "discard", {}),
+        (3, -15.0, 4e-3, 4, 2, "assign", {}),
+        (1, -25.0, 8e-3, 2, 1, "assign", {}),
+        (0, 0.0, 1.5e-3, 10, 5, "assign", new),
+        (1, 20.0, 4e-3, 10, 5, "assign", new),
+        (2, -25.0, 1.5e-3, 4, 2, "discard", new),
     ]:
         stream = sweep_stream(seed=seed, yaw_deg=yaw_deg, noise_m=noise_m)
-        params = StaircaseParams(buffer_b=b, reliable_n=n_rel, htvr=htvr, riser_flat_low=policy)
+        params = StaircaseParams(buffer_b=b, reliable_n=n_rel, htvr=htvr, riser_flat_low=policy, **options)
         alg = StaircaseAlgorithm(params)
         for _, flag, p, _ in stream:
             alg.assign(p, flag)
@@ -238,11 +253,19 @@ STREAMS = {
 }
 
 
+# the pipelines' defaults, and the paper's Algorithm 1 and read-out as published
+PAPER_CONFIG = {
+    "th_pl_m": 0.13, "reliable_n_riser": 0, "tread_gate_m": 0.0, "sensor_ids": "shared", "riser_exit": "paper",
+    "riser_at": "midpoint",
+}  # fmt: skip
+
+
 @pytest.mark.parametrize("cls", [RtlsStairs, RtlsHtvrStairs], ids=["rtls", "rtls-htvr"])
 @pytest.mark.parametrize("stream", list(STREAMS))
-def test_optimised_pipeline_equals_the_reference_computation(cls, stream):
+@pytest.mark.parametrize("config", [{}, PAPER_CONFIG], ids=["default", "paper"])
+def test_optimised_pipeline_equals_the_reference_computation(cls, stream, config):
     frames, cal = STREAMS[stream]()
-    pipe = cls()
+    pipe = cls(cls.Config(**config))
     pipe.reset(cal)
     online = [pipe.process(f) for f in frames]
     est = pipe.finalize()
@@ -260,7 +283,8 @@ def test_optimised_pipeline_equals_the_reference_computation(cls, stream):
     assert [a.surface_index for a in used] == where
     assert sum(w >= 0 for w in where) > 0.25 * len(where)
     ref_planes = _assert_planes_equal(est.planes, surfaces, P, [a.stamp_s for a in used])
-    for read, value in ((riser_height_m, est.riser_height_m), (tread_depth_m, est.tread_depth_m)):
+    riser_at = pipe.config.riser_at
+    for read, value in ((lambda p: riser_height_m(p, riser_at), est.riser_height_m), (tread_depth_m, est.tread_depth_m)):
         want = read(ref_planes)
         assert (np.isnan(want) and np.isnan(value)) or abs(want - value) <= TOL
     # the last online estimate is the final one without assignments and timings

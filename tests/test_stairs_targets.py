@@ -63,3 +63,42 @@ def test_without_noise_s2_orientation_is_within_half_a_degree(tmp_path):
         assert not m["failed"], (r["episode"], r["pipeline"])
         assert m["alpha_deg_S2"] < 0.5 and abs(m["d_m_S2"]) < 1e-3, (r["episode"], r["pipeline"])
         assert m["riser_error_pct"] is None or m["riser_error_pct"] < 5.0
+
+
+# Staircases outside the paper's three, across the building codes' range (issue 14, section 5):
+# a low riser with a long tread seen from far, a high riser at -22 deg, a tall user at -29 deg
+# close to the stairs, the lowest riser with the shortest tread. (riser, tread, yaw, L, user)
+UNSEEN = [
+    (0.1105, 0.3185, 9.10, 0.4977, 1.797),
+    (0.2105, 0.2946, -22.36, 0.2981, 1.711),
+    (0.1511, 0.2662, -28.88, 0.2967, 1.950),
+    (0.1053, 0.2203, -2.08, 0.4632, 1.741),
+]
+
+
+@pytest.fixture(scope="module")
+def unseen():
+    from exobench.envs.scenarios import StairScenario
+    from exobench.envs.sim import simulate_stairs
+
+    keys = ("riser_m", "tread_m", "yaw_deg", "distance_m", "user_height_m")
+    return [simulate_stairs(StairScenario.from_dict(dict(zip(keys, v, strict=True))), seed=7 + k) for k, v in enumerate(UNSEEN)]
+
+
+@pytest.mark.parametrize("name", ["rtls", "rtls-htvr"])
+def test_staircases_outside_the_paper_are_read_within_5_percent(unseen, name):
+    from exobench.benchmarks.tracks.stairs.metrics import score_staircase
+    from exobench.perception.stairs import RtlsHtvrStairs, RtlsStairs
+
+    cls = {"rtls": RtlsStairs, "rtls-htvr": RtlsHtvrStairs}[name]
+    for ep in unseen:
+        pipe = cls()
+        pipe.reset(ep.calibration)
+        for frame in ep.frames:
+            pipe.process(frame)
+        m = score_staircase(ep, pipe.finalize())
+        where = (name, ep.scenario["riser_m"], ep.scenario["tread_m"], ep.scenario["yaw_deg"])
+        assert not m["failed"], where
+        assert m["riser_error_pct"] < 5.0, (where, m["riser_error_pct"])
+        assert m["tread_error_pct"] < 5.0, (where, m["tread_error_pct"])  # NaN (not read) fails too
+        assert abs(m["touchdown_error_m"]) < 0.01, where

@@ -4,9 +4,13 @@ Shared by every stairs pipeline so that they differ only in how they estimate th
 Only reliable planes are used; a value that cannot be read is NaN.
 
 - Riser height: for each pair of consecutive reliable treads (S0, S2) and (S2, S4), the
-  difference of the two tread planes' heights evaluated at the midpoint (in x-y) of the two
-  centroids -- for planes, the mean of the differences at the two centroids; the mean over the
-  available pairs.
+  difference of the two tread planes' heights evaluated at one point of x-y; the mean over the
+  available pairs. ``at="midpoint"``: the midpoint of the two centroids (for planes, the mean of
+  the differences at the two centroids). ``at="upper_centroid"``: the upper tread's centroid,
+  i.e. the height of that centroid above the lower plane. The upper tread (S2, S4) is seen last
+  and shortest, often by beams that hardly move, so its orientation is the least certain; read
+  at its centroid its tilt does not enter, while the lower plane, fitted on more points over a
+  longer sweep, is extrapolated instead.
 - Tread depth: distance between the riser planes S1 and S3 along S1's horizontal normal
   direction ``h``, measured on the line through the midpoint of their centroids along ``h``.
   For vertical parallel risers this is ``h . (e3 - e1)``.
@@ -21,7 +25,7 @@ import numpy as np
 
 from exobench.core.estimates import PlaneEstimate
 
-__all__ = ["MIN_TREAD_NZ", "orient_normal", "plane_height_at", "riser_height_m", "tread_depth_m"]
+__all__ = ["MIN_TREAD_NZ", "RISER_AT", "orient_normal", "plane_height_at", "riser_height_m", "tread_depth_m"]
 
 # |n_z| above which a plane is read as a tread, below which as a riser (45 deg)
 MIN_TREAD_NZ = float(np.cos(np.radians(45.0)))
@@ -68,14 +72,26 @@ def _reliable(planes: Iterable[PlaneEstimate]) -> dict[int, tuple[list[float], l
     return out
 
 
-def riser_height_m(planes: Iterable[PlaneEstimate]) -> float:
-    """Mean height difference of consecutive reliable treads (S2-S0, S4-S2), m."""
+RISER_AT = ("midpoint", "upper_centroid")
+
+
+def riser_height_m(planes: Iterable[PlaneEstimate], at: str = "midpoint") -> float:
+    """Mean height difference of consecutive reliable treads (S2-S0, S4-S2), m.
+
+    ``at``: where the two planes are compared, ``"midpoint"`` or ``"upper_centroid"`` (module
+    docstring).
+    """
+    if at not in RISER_AT:
+        raise ValueError(f"at must be one of {RISER_AT}, not {at!r}")
     by = _reliable(planes)
     diffs = []
     for lo, hi in ((0, 2), (2, 4)):
         if lo in by and hi in by:
             (n_lo, e_lo), (n_hi, e_hi) = by[lo], by[hi]
-            x, y = 0.5 * (e_lo[0] + e_hi[0]), 0.5 * (e_lo[1] + e_hi[1])
+            if at == "midpoint":
+                x, y = 0.5 * (e_lo[0] + e_hi[0]), 0.5 * (e_lo[1] + e_hi[1])
+            else:
+                x, y = e_hi[0], e_hi[1]
             d = _height_at(n_hi, e_hi, x, y) - _height_at(n_lo, e_lo, x, y)
             if math.isfinite(d):
                 diffs.append(d)

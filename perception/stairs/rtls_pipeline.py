@@ -10,10 +10,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
+from exobench.core.errors import ConfigError
 from exobench.core.estimates import PlaneEstimate, StaircaseEstimate
 
 from .pipeline_base import StairsPipeline, check_common_config
-from .readout import riser_height_m, tread_depth_m
+from .readout import RISER_AT, riser_height_m, tread_depth_m
 from .staircase import StaircaseAlgorithm, StaircaseParams
 
 
@@ -35,26 +36,43 @@ class RtlsStairs(StairsPipeline):
             leg: climbing leg whose calf sensors ``tof_<leg>_med``/``tof_<leg>_lat`` are used.
             stance_side: supporting foot; origin of the ``stance_ground`` frame.
             imu_sensor_id: trunk IMU giving ``R_world_imu``.
-            th_z_m, th_pl_m: the paper's thresholds (8e-3 m, 0.13 m).
+            th_z_m, th_pl_m: the paper's thresholds (8e-3 m; 0.13 m in the paper, 0.08 m here).
             queue_q, buffer_b, reliable_n: ``q``, ``b``, ``N`` of Algorithm 1; not given by the
                 paper, defaults 5, 10, 5 (see :mod:`exobench.perception.stairs.staircase`).
             riser_flat_low: ``"assign"`` (listing of Algorithm 1) or ``"discard"`` (prose of
                 Sec. IV-A) for a flat queue below ``S_{id-1}.e_z + th_pl`` on a riser.
+            reliable_n_riser, tread_gate_m, sensor_ids, riser_exit: options of Algorithm 1 beyond
+                the listing (see :mod:`exobench.perception.stairs.staircase`).
+            riser_at: where the riser height is read between two treads (see
+                :mod:`exobench.perception.stairs.readout`).
+
+        ``th_pl_m`` is "the minimum height which is expected for a riser" (Sec. IV-A): the
+        paper's 0.13 m fits its staircases (0.153-0.175 m) but never leaves a riser lower than
+        that; the default 0.08 m sits below the building codes' lowest riser (0.10 m). The
+        paper's Algorithm 1 and read-out as published: ``th_pl_m=0.13, reliable_n_riser=0,
+        tread_gate_m=0, sensor_ids="shared", riser_exit="paper", riser_at="midpoint"``.
         """
 
         leg: str = "r"
         stance_side: str = "l"
         imu_sensor_id: str = "imu_trunk"
         th_z_m: float = 8e-3
-        th_pl_m: float = 0.13
+        th_pl_m: float = 0.08
         queue_q: int = 5
         buffer_b: int = 10
         reliable_n: int = 5
         riser_flat_low: str = "assign"
+        reliable_n_riser: int = 2
+        tread_gate_m: float = 8e-3
+        sensor_ids: str = "per_sensor"
+        riser_exit: str = "travel"
+        riser_at: str = "upper_centroid"
 
         def __post_init__(self) -> None:
             check_common_config(self)
             self.params(False)  # validates the algorithm's parameters
+            if self.riser_at not in RISER_AT:
+                raise ConfigError("riser_at", self.riser_at, " or ".join(map(repr, RISER_AT)))
 
         def params(self, htvr: bool) -> StaircaseParams:
             return StaircaseParams(
@@ -65,6 +83,10 @@ class RtlsStairs(StairsPipeline):
                 reliable_n=self.reliable_n,
                 htvr=htvr,
                 riser_flat_low=self.riser_flat_low,
+                reliable_n_riser=self.reliable_n_riser,
+                tread_gate_m=self.tread_gate_m,
+                sensor_ids=self.sensor_ids,
+                riser_exit=self.riser_exit,
             )
 
     def _reset_estimator(self) -> None:
@@ -98,7 +120,7 @@ class RtlsStairs(StairsPipeline):
         reliable = tuple(p for p in planes if p.reliable)
         memo = self._readout_memo
         if memo is None or len(memo[0]) != len(reliable) or any(a is not b for a, b in zip(memo[0], reliable, strict=True)):
-            memo = self._readout_memo = (reliable, (riser_height_m(reliable), tread_depth_m(reliable)))
+            memo = self._readout_memo = (reliable, (riser_height_m(reliable, self.config.riser_at), tread_depth_m(reliable)))
         return memo[1]
 
     def _extra(self) -> dict[str, Any]:

@@ -43,6 +43,24 @@ documented here):
   later read-out of the planes costs no decomposition.
 - The test ``|d| <= sigma_n`` allows 1e-12 m of round-off: for exactly coplanar points both
   sides are ~1e-17 m and the bare comparison would drop points at random.
+- Options beyond the listing, each off by default here (the paper's Algorithm 1) and on in the
+  ``rtls``/``rtls-htvr`` pipelines, which must read staircases across the building codes' range
+  (risers 0.10-0.22 m) from any approach within +-30 deg:
+  - ``sensor_ids="per_sensor"``: the paper's calling program keeps one ``id``; turned towards the
+    stairs, the two beams cross each riser at different times (Sec. V-A notes it), so with one
+    ``id`` the later beam's riser points are discarded and its last ground points go to the
+    riser. Per sensor, each beam walks S0..S4 on its own; the surfaces stay shared.
+  - ``riser_exit="travel"``: lines 14-16 read a flat queue as the next tread, but a beam that
+    climbs a riser slowly or rests on it (the calf at the end of the swing) is flat too. The
+    switch then also needs the queue to have moved horizontally by at least ``th_z`` and more
+    than vertically; a flat queue above ``th_pl`` that has not is discarded.
+  - ``tread_gate_m``: line 5 adds a point of a flat queue to the current tread; a beam resting
+    on the riser above it (or on the riser below, seen past S4) passes that test. With a
+    reliable tread the point must also lie within ``tread_gate_m`` of its plane.
+  - ``reliable_n_riser``: at 50 Hz a beam crosses a riser in 4-8 samples, of which the queue
+    test keeps a few; ``N = 5`` per sensor leaves S1 or S3 unreliable in two episodes of three,
+    and the tread depth unread. Two points of each sensor already give the two segments of
+    Sec. II.
 - Only ``n_surfaces`` (5) surfaces exist: a switch beyond S4 stops the algorithm, and every later
   point is discarded.
 
@@ -88,6 +106,16 @@ class StaircaseParams:
             plane, odd ids a 2-D vertical one; otherwise every surface is a general plane.
         riser_flat_low: ``"assign"`` (listing of Algorithm 1) or ``"discard"`` (prose), see the
             module docstring.
+        reliable_n_riser: ``N`` for the risers (odd ids); 0 (default) uses ``reliable_n`` for
+            every surface as the paper does.
+        tread_gate_m: a point that line 5 would add to a reliable tread must also lie within this
+            distance of its plane; 0 (default) adds it as the paper does.
+        sensor_ids: ``"shared"`` (one ``id`` for both sensors, the paper's calling program) or
+            ``"per_sensor"`` (each sensor's ``Assign`` advances its own ``id``), see the module
+            docstring.
+        riser_exit: ``"paper"`` (lines 14-16: a flat queue above ``S_{id-1}.e_z + th_pl`` leaves
+            the riser) or ``"travel"`` (it must also have moved horizontally), see the module
+            docstring.
     """
 
     th_z_m: float = 8e-3
@@ -98,14 +126,23 @@ class StaircaseParams:
     n_surfaces: int = 5
     htvr: bool = False
     riser_flat_low: str = "assign"
+    reliable_n_riser: int = 0
+    tread_gate_m: float = 0.0
+    sensor_ids: str = "shared"
+    riser_exit: str = "paper"
 
     def __post_init__(self) -> None:
         check_range("th_z_m", self.th_z_m, 0.0, 1.0, low_open=True)
         check_range("th_pl_m", self.th_pl_m, 0.0, 2.0)
-        for name, low in (("queue_q", 2), ("buffer_b", 1), ("reliable_n", 1), ("n_surfaces", 1)):
+        check_range("tread_gate_m", self.tread_gate_m, 0.0, 1.0)
+        for name, low in (("queue_q", 2), ("buffer_b", 1), ("reliable_n", 1), ("n_surfaces", 1), ("reliable_n_riser", 0)):
             object.__setattr__(self, name, check_int(name, getattr(self, name), low, 100_000))
         if self.riser_flat_low not in ("assign", "discard"):
             raise ConfigError("riser_flat_low", self.riser_flat_low, "'assign' or 'discard'")
+        if self.sensor_ids not in ("shared", "per_sensor"):
+            raise ConfigError("sensor_ids", self.sensor_ids, "'shared' or 'per_sensor'")
+        if self.riser_exit not in ("paper", "travel"):
+            raise ConfigError("riser_exit", self.riser_exit, "'paper' or 'travel'")
 
 
 @dataclass
@@ -145,7 +182,7 @@ class StaircaseAlgorithm:
         p = self.params
         kinds = [("horizontal" if i % 2 == 0 else "vertical") if p.htvr else "general" for i in range(p.n_surfaces)]
         self.surfaces: tuple[Surface, ...] = tuple(Surface(i, make_plane(k)) for i, k in enumerate(kinds))
-        self.current_id = 0
+        self._ids = {f: 0 for f in FLAGS}  # the surface under investigation, per sensor or shared
         self._queues: dict[str, deque[int]] = {f: deque() for f in FLAGS}
         self._points: list[tuple[float, float, float]] = []
         self._flags: list[str] = []
@@ -155,9 +192,18 @@ class StaircaseAlgorithm:
 
     # --- public read-out ---
     @property
+    def current_id(self) -> int:
+        """The surface under investigation (with ``per_sensor`` ids, the furthest of the two)."""
+        return max(self._ids.values())
+
+    def sensor_id_of(self, flag: str) -> int:
+        """The surface under investigation for the sensor ``flag``."""
+        return self._ids[flag]
+
+    @property
     def finished(self) -> bool:
-        """True once a switch beyond the last surface happened."""
-        return self.current_id >= self.params.n_surfaces
+        """True once a switch beyond the last surface happened (for every sensor)."""
+        return min(self._ids.values()) >= self.params.n_surfaces
 
     def surface_of(self, uid: int) -> int:
         """Surface the point ``uid`` is in now, -1 if none."""
@@ -199,32 +245,47 @@ class StaircaseAlgorithm:
             z_bar = sum(zs) / n
             sigma_z = math.sqrt(sum([(z - z_bar) ** 2 for z in zs]) / n)
             qu = Q.popleft()
-            self._decide(qu, pts[qu][2], z_bar, sigma_z)
+            self._decide(qu, pts[qu][2], z_bar, sigma_z, flag, Q)
         Q.append(uid)
         return uid
 
-    def _decide(self, qu: int, q_z: float, z_bar: float, sigma_z: float) -> None:
-        """Lines 5-17 for the extracted point ``qu``."""
+    def _travelled(self, qu: int, Q: deque[int]) -> bool:
+        """Whether the queue (``qu`` and the points after it) moved horizontally by at least
+        ``th_z`` and more than vertically: the beam sweeps a tread, not a riser or one spot."""
+        pts = self._points
+        x0, y0, z0 = pts[qu]
+        x1, y1, z1 = pts[Q[-1]]
+        h = math.hypot(x1 - x0, y1 - y0)
+        return h >= self.params.th_z_m and h > abs(z1 - z0)
+
+    def _decide(self, qu: int, q_z: float, z_bar: float, sigma_z: float, flag: str, Q: deque[int]) -> None:
+        """Lines 5-17 for the extracted point ``qu`` of sensor ``flag`` (``Q``: the rest of its queue)."""
         p = self.params
-        i = self.current_id
+        i = self._ids[flag]
         target = None
         if i >= p.n_surfaces:
             self.counts["n_beyond_last"] += 1
         elif i % 2 == 0:
             if sigma_z < p.th_z_m and abs(q_z - z_bar) < sigma_z:
-                target = i
+                S = self.surfaces[i]
+                if not (p.tread_gate_m and S.ok and abs(S.plane.distance3(*self._points[qu])) > p.tread_gate_m):
+                    target = i
             elif sigma_z >= p.th_z_m and q_z > self.surfaces[i].e_z + 1.5 * p.th_z_m:
                 target = i + 1
         elif sigma_z >= p.th_z_m:
             target = i
         elif q_z > self.surfaces[i - 1].e_z + p.th_pl_m:
-            target = i + 1
+            if p.riser_exit == "paper" or self._travelled(qu, Q):
+                target = i + 1
         elif p.riser_flat_low == "assign":
             target = i
         if target is None:
             self.counts["n_discarded"] += 1
             return
-        self.current_id = target
+        if p.sensor_ids == "shared":
+            self._ids["r"] = self._ids["l"] = target
+        else:
+            self._ids[flag] = target
         if target >= p.n_surfaces:
             self.counts["n_beyond_last"] += 1
             return
@@ -257,6 +318,8 @@ class StaircaseAlgorithm:
         self._add_to_surf(qu, S)
         if not S.ok:
             nb, need = S.n_by_flag, p.reliable_n
+            if S.index % 2 and p.reliable_n_riser:
+                need = p.reliable_n_riser
             if nb["r"] >= need and nb["l"] >= need:  # N points of each sensor (FLAGS)
                 S.ok = True
                 S.reliable_uid = self._call_uid
