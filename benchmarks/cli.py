@@ -44,6 +44,8 @@ def cli() -> None:
     exobench run paper --track stairs --jobs 2    the staircase paper's protocol
     exobench list                  suites, tracks, pipelines, scenario parameters
     """
+    # before any command imports mujoco: choose the OpenGL platform when MuJoCo is first imported
+    import exobench.envs.gl_platform  # noqa: F401
 
 
 def _default_out(suite: str) -> str:

@@ -33,6 +33,7 @@ import numpy as np
 
 from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.core.pipeline import coerce_like
+from exobench.envs import gl_platform
 
 from .entry_points import load_entry_point
 from .overrides import check_scenario_overrides, split_overrides
@@ -335,9 +336,14 @@ def execute(
     return outcome
 
 
+def make_pool(workers: int) -> ProcessPoolExecutor:
+    """Worker processes for episodes. spawn: workers start clean (no inherited threads or GL
+    contexts; results do not depend on it); each chooses the GL platform before importing mujoco."""
+    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"), initializer=gl_platform.install)
+
+
 def _run_pool(job_list: list[_Job], jobs: int, finish: Callable[..., None]) -> None:
-    # spawn: workers start clean (no inherited threads or GL contexts); results do not depend on it
-    pool = ProcessPoolExecutor(max_workers=min(jobs, len(job_list)), mp_context=multiprocessing.get_context("spawn"))
+    pool = make_pool(min(jobs, len(job_list)))
     pending: set[Future] = set()
     try:
         pending = {pool.submit(_run_job, job) for job in job_list}

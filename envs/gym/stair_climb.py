@@ -413,7 +413,7 @@ class StairClimbEnv(gymnasium.Env):
             try:
                 self._renderer = mujoco.Renderer(self._model, height=h, width=w)
             except Exception as e:  # no GL context: EGL/OSMesa missing or MUJOCO_GL unset
-                raise RenderError(f"cannot render off-screen ({e}); set MUJOCO_GL=egl or osmesa") from e
+                raise RenderError(f"cannot render off-screen ({e}); set MUJOCO_GL=egl or osmesa before mujoco is imported, or leave it unset and let exobench choose") from e
             self._renderer_model = self._model
         d = self._data
         d.qpos[:] = self._motion.sample(self._model, self._t).qpos[0]
