@@ -3,7 +3,9 @@
 Only click is imported at module level so that `exobench --help` answers at once; each
 command imports what it needs. Every :class:`exobench.core.errors.ExobenchError` becomes one
 line on stderr, ``exobench: error: <message>``, and exit status 2; everything is validated
-before an output folder is created, so a refused call leaves nothing behind.
+before an output folder is created, so a refused call leaves nothing behind. A run or replay
+whose simulation or scorer raised (a failure of the benchmark, not of a pipeline) ends with
+exit status 1 and the first reasons on stderr, after its table and report are written.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 
 import click
 
+EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
@@ -108,28 +111,42 @@ def run(
     overrides = parse_assignments(assignments)
     if track != "all":
         plan = plan_run(track, suite, pipelines or None, run_seeds, overrides)
-        _run_plan(plan, out or _default_out(f"{plan.track.name}-{plan.suite}"), jobs, resume, rerun_path, no_report)
+        errors = _run_plan(plan, out or _default_out(f"{plan.track.name}-{plan.suite}"), jobs, resume, rerun_path, no_report)
+        _exit_on_harness_errors(errors)
         return
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
     plans = [plan_run(name, suite, None, run_seeds, {}) for name in track_names()]
     root = out or _default_out(f"all-{suite or 'quick'}")
+    errors: list[str] = []
     for plan in plans:
         click.echo(f"\n== track {plan.track.name} / {plan.suite}")
         rrd = None
         if rerun_path:
             p = Path(rerun_path)
             rrd = str(p.with_name(f"{p.stem}-{plan.track.name}{p.suffix or '.rrd'}"))
-        _run_plan(plan, str(Path(root) / plan.track.name), jobs, resume, rrd, no_report)
+        errors += _run_plan(plan, str(Path(root) / plan.track.name), jobs, resume, rrd, no_report)
+    _exit_on_harness_errors(errors)
 
 
-def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool) -> None:
-    """Execute one validated plan with a progress bar; print its table and where it went."""
+def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160) -> None:
+    """Exit 1 naming the first failures of the simulation or the scorer (none: return)."""
+    if not errors:
+        return
+    first = "; ".join(e if len(e) <= width else e[: width - 3] + "..." for e in errors[:shown])
+    more = f" (and {len(errors) - shown} more)" if len(errors) > shown else ""
+    click.echo(f"exobench: {len(errors)} records failed in the simulation or the scorer, not in a pipeline: {first}{more}", err=True)
+    sys.exit(EXIT_FAILED)
+
+
+def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool) -> list[str]:
+    """Execute one validated plan with a progress bar; print its table and where it went.
+    Returns the failures of the simulation or the scorer (see :func:`runner.harness_errors`)."""
     from tqdm import tqdm
 
     from .report import summary_text, write_report
-    from .runner import execute, rerun_first_episode
+    from .runner import execute, harness_errors, rerun_first_episode
 
     bar: dict[str, Any] = {}
 
@@ -157,6 +174,7 @@ def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str 
         click.echo(f"report: {write_report(outcome.out_dir)}")
     if rerun_path:
         click.echo(f"rerun recording: {rerun_first_episode(plan, rerun_path)}")
+    return harness_errors(outcome.records)
 
 
 @cli.command("list")
@@ -249,7 +267,8 @@ def replay(session_dir: str, track: str, pipelines: tuple[str, ...], assignments
 
         raise ConfigError("--set", ",".join(plan.scenario_overrides), "pipeline parameters only (NAME.KEY=VALUE)")
     episode = read_session(session_dir)
-    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines)
+    scorer_errors: dict[str, str] = {}
+    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines, scorer_errors=scorer_errors)
     records = [
         {"episode": "session", "group": "session", "pipeline": p.name, "config": p.config_dict(), "metrics": metrics[p.name], "wall_s": walls[p.name]}
         for p in plan.pipelines
@@ -257,8 +276,9 @@ def replay(session_dir: str, track: str, pipelines: tuple[str, ...], assignments
     if as_json:
         for r in records:
             click.echo(json.dumps(json_safe({**r, "session": str(session_dir), "scenario": episode.scenario, "seed": episode.seed})))
-        return
-    click.echo(summary_text(json_safe(records), plan.track, [p.name for p in plan.pipelines]))
+    else:
+        click.echo(summary_text(json_safe(records), plan.track, [p.name for p in plan.pipelines]))
+    _exit_on_harness_errors([f"session {name}: {reason}" for name, reason in scorer_errors.items()])
 
 
 @cli.command()

@@ -9,6 +9,8 @@ Two steps, so that nothing touches the disk until everything is valid:
   in this process or a pool of ``jobs`` processes. Each episode is simulated once and the same
   frames go to every pipeline; its records are appended atomically to ``results.jsonl`` as
   soon as it is finished. A pipeline that raises is recorded as failed and the run goes on.
+  A failure of the harness itself (the simulation or the scorer raised) is recorded as failed
+  too, and its record carries the reason in ``harness_error`` (see :func:`harness_errors`).
   With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them.
 
 Episode seeds are derived from the run seed and the case name, so a case keeps its seed when a
@@ -166,12 +168,19 @@ def plan_run(
 
 
 def run_pipelines(
-    track: Track, episode: Any, pipelines: Sequence[PipelineRun], *, timeline_every_s: float | None = None
+    track: Track,
+    episode: Any,
+    pipelines: Sequence[PipelineRun],
+    *,
+    timeline_every_s: float | None = None,
+    scorer_errors: dict[str, str] | None = None,
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]], dict[str, float], dict[str, list]]:
     """Feed the same frames to each pipeline; estimates, metrics, wall times and online timelines.
 
-    A pipeline that raises is scored with ``track.failed_metrics`` and the error text.
-    With ``timeline_every_s`` the online estimates are kept at most that often (for rerun).
+    A pipeline that raises, or a scorer that raises, is scored with ``track.failed_metrics`` and
+    the error text; a scorer's reasons also go to ``scorer_errors`` (pipeline name -> reason)
+    when it is given. With ``timeline_every_s`` the online estimates are kept at most that often
+    (for rerun).
     """
     estimates: dict[str, Any] = {}
     metrics: dict[str, dict[str, Any]] = {}
@@ -190,10 +199,17 @@ def run_pipelines(
                     timeline.append((float(frame.stamp_s), online))
                     last_t = frame.stamp_s
             est = pipe.finalize()
-            estimates[p.name] = est
-            metrics[p.name] = track.score(episode, est)
         except Exception as e:  # a failing pipeline is a result, not a crash
             metrics[p.name] = track.failed_metrics(episode, f"pipeline raised {type(e).__name__}: {e}")
+        else:
+            estimates[p.name] = est
+            try:
+                metrics[p.name] = track.score(episode, est)
+            except Exception as e:  # a failure of the benchmark, not of the pipeline
+                reason = f"scorer raised {type(e).__name__}: {e}"
+                metrics[p.name] = track.failed_metrics(episode, reason)
+                if scorer_errors is not None:
+                    scorer_errors[p.name] = reason
         walls[p.name] = time.perf_counter() - t0
         timelines[p.name] = timeline
     return estimates, metrics, walls, timelines
@@ -215,13 +231,15 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
     except Exception as e:  # scored as a failure of every pipeline; the run goes on
         episode, sim_error = None, f"simulation raised {type(e).__name__}: {e}"
     else:
-        sim_error = None
+        sim_error = ""
     sim_wall = time.perf_counter() - t0
+    harness: dict[str, str] = {}
     if episode is None:
         metrics = {p.name: track.failed_metrics(None, sim_error) for p in job.pipelines}
         estimates, walls = {}, {p.name: 0.0 for p in job.pipelines}
+        harness = {p.name: sim_error for p in job.pipelines}
     else:
-        estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines)
+        estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scorer_errors=harness)
     base = {
         "track": track.name,
         "suite": plan.suite,
@@ -241,6 +259,7 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
             "versions": job.versions,
             "wall_s": walls[p.name],
             "sim_wall_s": sim_wall,
+            **({"harness_error": harness[p.name]} if p.name in harness else {}),
         }
         for p in job.pipelines
     ]
@@ -357,6 +376,11 @@ def _run_pool(job_list: list[_Job], jobs: int, finish: Callable[..., None]) -> N
         pool.shutdown(wait=False, cancel_futures=True)
         raise
     pool.shutdown(wait=True)
+
+
+def harness_errors(records: Sequence[Mapping[str, Any]]) -> list[str]:
+    """``"episode pipeline: reason"`` of the records whose simulation or scorer raised."""
+    return [f"{r['episode']} {r['pipeline']}: {r['harness_error']}" for r in records if r.get("harness_error")]
 
 
 def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: float = 0.1) -> Path:

@@ -143,3 +143,40 @@ def test_set_hands_a_dotted_pipeline_path_to_the_registry_whole(tmp_path, fake_s
     result = _run(args)
     assert result.exit_code == 0, result.output + result.stderr
     assert seen == {"fake": {"filter.band_m": "0.05", "offset_m": "0.001"}}
+
+
+def test_run_whose_simulation_or_scorer_fails_exits_1_with_the_first_reasons(tmp_path, fake_stairs, monkeypatch):
+    real = FakeTrack.simulate
+
+    def sim(self, scenario, seed):
+        if scenario["riser_m"] != FakeTrack().validate_scenario({})["riser_m"]:
+            raise RuntimeError("sim exploded")
+        return real(self, scenario, seed)
+
+    monkeypatch.setattr(FakeTrack, "simulate", sim)
+    result = _run(["run", "--track", "stairs", "--out", str(tmp_path / "a"), "--no-report", "--set", "riser_m=0.15"])
+    assert result.exit_code == 1, result.output + result.stderr
+    assert "failed / episodes" in result.output  # the table is still printed
+    last = result.stderr.strip().splitlines()[-1]
+    assert "simulation raised RuntimeError: sim exploded" in last and "more" in last and len(last) < 600
+    monkeypatch.setattr(FakeTrack, "simulate", real)
+
+    def score(self, episode, estimate):
+        raise ValueError("scorer exploded")
+
+    monkeypatch.setattr(FakeTrack, "score", score)
+    result = _run(["run", "--track", "stairs", "--out", str(tmp_path / "b"), "--no-report"])
+    assert result.exit_code == 1 and "scorer raised ValueError: scorer exploded" in result.stderr
+    records = [json.loads(line) for line in (tmp_path / "b" / "results.jsonl").read_text().splitlines()]
+    assert all(r["metrics"]["failed"] and "scorer exploded" in r["harness_error"] for r in records)
+
+
+def test_a_pipelines_own_failures_stay_results_and_exit_0(tmp_path, fake_stairs):
+    from test_benchmarks_support import RaisingStairs
+
+    registry_mod.default_registry().register("fake-raise", RaisingStairs)
+    result = _run(["run", "--track", "stairs", "--pipeline", "fake-raise", "--out", str(tmp_path / "r"), "--no-report"])
+    assert result.exit_code == 0, result.stderr
+    assert "6 records (6 failed)" in result.output
+    records = [json.loads(line) for line in (tmp_path / "r" / "results.jsonl").read_text().splitlines()]
+    assert not any("harness_error" in r for r in records)
