@@ -156,9 +156,12 @@ def plan_run(
 
     episodes = []
     typed: dict[str, Any] = {}
+    group_label = getattr(trk, "group_label", None)  # optional: groups named by the scenario run
     for case in trk.cases(suite):
         scenario = trk.validate_scenario({**case.scenario, **scen})
         typed = {k: scenario[k] for k in scen}
+        if group_label is not None and scen:
+            case = dataclasses.replace(case, group=group_label(case, scenario))
         for s in seeds:
             episodes.append(EpisodePlan(f"{case.name}/s{s}", suite, case, scenario, s, episode_seed(s, case.name)))
     return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()})

@@ -180,3 +180,14 @@ def test_a_pipelines_own_failures_stay_results_and_exit_0(tmp_path, fake_stairs)
     assert "6 records (6 failed)" in result.output
     records = [json.loads(line) for line in (tmp_path / "r" / "results.jsonl").read_text().splitlines()]
     assert not any("harness_error" in r for r in records)
+
+
+def test_stairs_groups_are_labelled_by_the_geometry_that_was_run(tmp_path, fake_stairs):
+    args = ["run", "--track", "stairs", "--out", str(tmp_path / "g"), "--no-report", "--set", "riser_m=0.19", "--set", "tread_m=0.26"]
+    result = _run(args)
+    assert result.exit_code == 0, result.stderr
+    groups = {json.loads(line)["group"] for line in (tmp_path / "g" / "results.jsonl").read_text().splitlines()}
+    assert groups == {"A 0.190/0.260", "B 0.190/0.260", "C 0.190/0.260", "0.190/0.260"}
+    assert "0.162/0.280" not in result.output and "Tab. III" not in result.output  # no paper figure of another staircase
+    plain = _run(["run", "--track", "stairs", "--out", str(tmp_path / "p"), "--no-report", "--set", "tof_noise_m=0"])
+    assert "0.162/0.280" in plain.output and "Tab. III" in plain.output
