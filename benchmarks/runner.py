@@ -143,6 +143,8 @@ def plan_run(
     if len(set(names)) != len(names):
         raise ConfigError("pipeline", ",".join(names), "each pipeline once")
     for name in names:
+        if name not in reg.names():
+            raise UnknownNameError(f"pipeline of track {trk.name!r}", name, reg.names(track=trk.name))
         cls = reg.load(name)
         if getattr(cls, "track", trk.name) != trk.name:
             raise ConfigError("pipeline", name, f"a pipeline of track {trk.name!r} (it serves {cls.track!r})")

@@ -191,3 +191,34 @@ def test_stairs_groups_are_labelled_by_the_geometry_that_was_run(tmp_path, fake_
     assert "0.162/0.280" not in result.output and "Tab. III" not in result.output  # no paper figure of another staircase
     plain = _run(["run", "--track", "stairs", "--out", str(tmp_path / "p"), "--no-report", "--set", "tof_noise_m=0"])
     assert "0.162/0.280" in plain.output and "Tab. III" in plain.output
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--track", "stairs", "--pipeline", "rtls", "--set", "rtls.queue_q=inf"], "rtls.queue_q"),
+        (["--track", "stairs", "--pipeline", "rtls", "--set", "rtls.queue_q=nan"], "rtls.queue_q"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.every_k=inf"], "every_k"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.tsdf=abc"], "tsdf.<field>"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.tsdf.nope=1"], "tsdf.nope"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.tsdf.voxel_size_m.x=1"], "tsdf.voxel_size_m.x"),
+        (["--track", "stairs", "--seeds", "20000"], "10000"),  # the seed list was printed whole (129 KB)
+        (["--track", "stairs", "--set", "riser_m=" + "9" * 5000], "riser_m"),
+        (["--track", "stairs", "--pipeline", "x" * 5000], "rtls-htvr"),
+        (["--track", "stairs", "--set", "nosing=1"], "nosing_m"),  # of many names, the closest first
+    ],
+)
+def test_bad_pipeline_and_scenario_values_are_one_short_line_at_plan_time(tmp_path, args, expected):
+    out = tmp_path / "run"
+    result = _run(["run", *args, "--out", str(out)])
+    assert result.exit_code == 2
+    line = _one_error_line(result)
+    assert expected in line and len(line) < 400, line
+    assert not out.exists()
+
+
+def test_unknown_names_list_the_closest_first_and_a_count():
+    from exobench.core import UnknownNameError
+
+    err = str(UnknownNameError("case", "risr_m", [f"case{i:03d}" for i in range(209)] + ["riser_m"]))
+    assert len(err) < 300 and "valid: riser_m, case000" in err and "(210 in all)" in err
