@@ -11,6 +11,7 @@ exit status 1 and the first reasons on stderr, after its table and report are wr
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -57,6 +58,63 @@ def _default_out(suite: str) -> str:
     return f"runs/{suite}-{datetime.datetime.now().strftime('%Y%m%d-%H%M%S')}"
 
 
+def _first_existing(option: str, path: Path, start: Path) -> Path:
+    """The nearest existing folder at or above ``start``; ConfigError if a file is in the way."""
+    from exobench.core.errors import ConfigError
+
+    for p in (start, *start.parents):
+        if p.exists():
+            if not p.is_dir():
+                raise ConfigError(option, str(path), f"a path with no file in the way ({p} is a file)")
+            return p
+    return Path.cwd()  # a relative path whose first part does not exist
+
+
+def _check_writable(option: str, path: Path, folder: Path) -> None:
+    from exobench.core.errors import ConfigError
+
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ConfigError(option, str(path), f"a path in a folder you can write to ({folder} is not writable)")
+
+
+def check_out_dir(option: str, path: str, *, existing: bool | None = None) -> None:
+    """Refuse, before anything runs, a folder that cannot be created or written: an empty path,
+    a file at or above it, an unwritable folder. ``existing`` True: it must be an existing folder
+    (resume); False: it must not exist yet (record); None: either."""
+    from exobench.core.errors import ConfigError
+
+    if not str(path).strip():
+        raise ConfigError(option, path, "a folder path (not empty)")
+    target = Path(path)
+    if existing is False and target.exists():
+        raise ConfigError(option, path, "a path that does not exist yet")
+    if existing and not target.is_dir():
+        raise ConfigError(option, path, "an existing run folder")
+    _check_writable(option, target, _first_existing(option, target, target))
+
+
+def check_out_file(option: str, path: str) -> None:
+    """Refuse, before anything runs, a file that cannot be written (see :func:`check_out_dir`)."""
+    from exobench.core.errors import ConfigError
+
+    if not str(path).strip():
+        raise ConfigError(option, path, "a file path (not empty)")
+    target = Path(path)
+    if target.is_dir():
+        raise ConfigError(option, path, "a file path, not a folder")
+    if target.exists() and not os.access(target, os.W_OK):
+        raise ConfigError(option, path, "a file you can write to")
+    _check_writable(option, target, _first_existing(option, target, target.parent))
+
+
+def _rerun_path(rerun_path: str, track: str | None) -> str:
+    """--rerun NAME as given (one track) or as NAME-<track>.rrd (--track all)."""
+    if track is None:
+        return rerun_path
+    p = Path(rerun_path)
+    return str(p.with_name(f"{p.stem}-{track}{p.suffix or '.rrd'}"))
+
+
 def _seeds(seed: int | None, seeds: int | None) -> list[int]:
     from exobench.core.errors import ConfigError
 
@@ -79,9 +137,9 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
-@click.option("--out", type=click.Path(file_okay=False), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
+@click.option("--out", type=click.Path(), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
 @click.option("--resume", is_flag=True, help="Continue the run in --out, skipping finished episodes.")
-@click.option("--rerun", "rerun_path", type=click.Path(dir_okay=False), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
+@click.option("--rerun", "rerun_path", type=click.Path(), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and its plots.")
 def run(
     suite: str | None,
@@ -109,9 +167,15 @@ def run(
         raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
     run_seeds = _seeds(seed, seeds)
     overrides = parse_assignments(assignments)
+    if out is not None:
+        check_out_dir("--out", out, existing=True if resume else None)
     if track != "all":
         plan = plan_run(track, suite, pipelines or None, run_seeds, overrides)
-        errors = _run_plan(plan, out or _default_out(f"{plan.track.name}-{plan.suite}"), jobs, resume, rerun_path, no_report)
+        out = out or _default_out(f"{plan.track.name}-{plan.suite}")
+        check_out_dir("--out", out)
+        if rerun_path is not None:
+            check_out_file("--rerun", rerun_path)
+        errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report)
         _exit_on_harness_errors(errors)
         return
     if pipelines or overrides:
@@ -119,13 +183,13 @@ def run(
     # every plan is validated before anything runs, so a bad suite name writes nothing
     plans = [plan_run(name, suite, None, run_seeds, {}) for name in track_names()]
     root = out or _default_out(f"all-{suite or 'quick'}")
+    check_out_dir("--out", root)
+    for plan in plans if rerun_path is not None else ():
+        check_out_file("--rerun", _rerun_path(rerun_path, plan.track.name))
     errors: list[str] = []
     for plan in plans:
         click.echo(f"\n== track {plan.track.name} / {plan.suite}")
-        rrd = None
-        if rerun_path:
-            p = Path(rerun_path)
-            rrd = str(p.with_name(f"{p.stem}-{plan.track.name}{p.suffix or '.rrd'}"))
+        rrd = _rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None
         errors += _run_plan(plan, str(Path(root) / plan.track.name), jobs, resume, rrd, no_report)
     _exit_on_harness_errors(errors)
 
@@ -282,14 +346,13 @@ def replay(session_dir: str, track: str, pipelines: tuple[str, ...], assignments
 
 
 @cli.command()
-@click.argument("out_dir", type=click.Path(file_okay=False))
+@click.argument("out_dir", type=click.Path())
 @click.option("--track", default="stairs", show_default=True)
 @click.option("--case", "case_name", default=None, help="Start from a named case of the paper suite (A, B, C, ...).")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario parameter.")
 @click.option("--seed", type=int, default=0, show_default=True)
 def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[str, ...], seed: int) -> None:
     """Simulate one episode and write it as a session folder OUT_DIR."""
-    from pathlib import Path
 
     from exobench.core.errors import ConfigError
     from exobench.envs.session import write_session
@@ -303,8 +366,7 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
     scenario = trk.validate_scenario({**base, **check_scenario_overrides(trk, parse_assignments(assignments))})
     if seed < 0:
         raise ConfigError("--seed", seed, "--seed >= 0")
-    if Path(out_dir).exists():
-        raise ConfigError("OUT_DIR", out_dir, "a path that does not exist yet")
+    check_out_dir("OUT_DIR", out_dir, existing=False)
     episode = trk.simulate(scenario, seed)
     path = write_session(episode, out_dir)
     click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed})")

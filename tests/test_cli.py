@@ -222,3 +222,47 @@ def test_unknown_names_list_the_closest_first_and_a_count():
 
     err = str(UnknownNameError("case", "risr_m", [f"case{i:03d}" for i in range(209)] + ["riser_m"]))
     assert len(err) < 300 and "valid: riser_m, case000" in err and "(210 in all)" in err
+
+
+def _a_file(tmp_path):
+    f = tmp_path / "a-file"
+    f.write_text("x")
+    return f
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["run", "--track", "stairs", "--out", "{file}/run"],
+        ["run", "--track", "stairs", "--out", "{file}"],
+        ["run", "--track", "stairs", "--out", ""],
+        ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", "{file}/x.rrd"],
+        ["run", "--out", "{tmp}/run", "--rerun", "{file}/x.rrd"],  # every track
+        ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", "{tmp}"],
+        ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", ""],
+        ["record", "{file}/session"],
+        ["record", ""],
+    ],
+)
+def test_file_system_problems_are_one_line_and_exit_2_before_anything_runs(tmp_path, args, fake_stairs, monkeypatch):
+    f = _a_file(tmp_path)
+    monkeypatch.setattr(FakeTrack, "simulate", lambda *a: pytest.fail("simulated before the paths were checked"))
+    result = _run([a.format(file=f, tmp=tmp_path) for a in args])
+    assert result.exit_code == 2, result.output + result.stderr
+    assert len(_one_error_line(result)) < 300
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"]
+
+
+@pytest.mark.parametrize("args", [["run", "--track", "stairs", "--out", "{ro}/run"], ["record", "{ro}/s"],
+                                  ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", "{ro}/x.rrd"]])  # fmt: skip
+def test_unwritable_folders_are_refused_before_anything_runs(tmp_path, args, fake_stairs, monkeypatch):
+    # root can write anywhere, so the permission answer is simulated: "ro" is not writable
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: Path(p) != ro and real(p, mode, **kw))
+    monkeypatch.setattr(FakeTrack, "simulate", lambda *a: pytest.fail("simulated before the paths were checked"))
+    result = _run([a.format(ro=ro, tmp=tmp_path) for a in args])
+    assert result.exit_code == 2
+    assert "not writable" in _one_error_line(result)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ro"] and not any(ro.iterdir())
