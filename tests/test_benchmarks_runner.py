@@ -167,3 +167,17 @@ def test_plan_hands_each_pipeline_its_dotted_overrides(monkeypatch):
     reg.register("fake.v2", FakeStairs)
     plan_run(FakeTrack(), "quick", ["fake", "fake.v2"], [0], {"fake.v2.filter.band_m": "0.05", "fake.offset_m": "0.01"}, registry=reg)
     assert seen == {"fake": {"offset_m": "0.01"}, "fake.v2": {"filter.band_m": "0.05"}}
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077])
+def test_run_files_get_ordinary_permissions(reg, tmp_path, umask):
+    import os
+
+    old = os.umask(umask)
+    try:
+        out = execute(_plan(reg, pipelines=["fake"]), tmp_path / "run")
+    finally:
+        os.umask(old)
+    for name in (RUN_CONFIG_FILE, RESULTS_FILE):
+        assert (out.out_dir / name).stat().st_mode & 0o777 == 0o666 & ~umask, name
+    assert out.out_dir.stat().st_mode & 0o777 == 0o777 & ~umask
