@@ -11,7 +11,8 @@ Two steps, so that nothing touches the disk until everything is valid:
   soon as it is finished. A pipeline that raises is recorded as failed and the run goes on.
   A failure of the harness itself (the simulation or the scorer raised) is recorded as failed
   too, and its record carries the reason in ``harness_error`` (see :func:`harness_errors`).
-  With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them.
+  With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them. The worker pool
+  (:mod:`.pool`) retries the episode of a worker that died once, then records it as failed.
 
 Episode seeds are derived from the run seed and the case name, so a case keeps its seed when a
 suite grows, and ``--jobs N`` gives the same results as ``--jobs 1``.
@@ -21,12 +22,10 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import multiprocessing
 import os
 import time
 import zlib
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,10 +34,10 @@ import numpy as np
 
 from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.core.pipeline import coerce_like
-from exobench.envs import gl_platform
 
 from .entry_points import load_entry_point
 from .overrides import check_scenario_overrides, split_overrides
+from .pool import run_pool
 from .registry import PipelineRegistry, default_registry
 from .results import (
     RESULTS_FILE,
@@ -238,13 +237,30 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
     else:
         sim_error = ""
     sim_wall = time.perf_counter() - t0
-    harness: dict[str, str] = {}
     if episode is None:
-        metrics = {p.name: track.failed_metrics(None, sim_error) for p in job.pipelines}
-        estimates, walls = {}, {p.name: 0.0 for p in job.pipelines}
-        harness = {p.name: sim_error for p in job.pipelines}
-    else:
-        estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scorer_errors=harness)
+        return _failed_job(job, sim_error, sim_wall)
+    harness: dict[str, str] = {}
+    estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scorer_errors=harness)
+    figure = None
+    if plan.case.figure:
+        try:
+            figure = track.figure_data(episode, estimates)
+        except Exception:  # a figure is a convenience; never lose the episode's scores to it
+            figure = None
+    return plan.key, _records(job, metrics, walls, sim_wall, harness), figure
+
+
+def _failed_job(job: _Job, reason: str, sim_wall: float = 0.0) -> tuple[str, list[dict[str, Any]], None]:
+    """The records of an episode the harness could not run (simulation raised, worker died)."""
+    metrics = {p.name: job.track.failed_metrics(None, reason) for p in job.pipelines}
+    walls = {p.name: 0.0 for p in job.pipelines}
+    return job.plan.key, _records(job, metrics, walls, sim_wall, {p.name: reason for p in job.pipelines}), None
+
+
+def _records(
+    job: _Job, metrics: dict[str, dict[str, Any]], walls: dict[str, float], sim_wall: float, harness: dict[str, str]
+) -> list[dict[str, Any]]:
+    plan, track = job.plan, job.track
     base = {
         "track": track.name,
         "suite": plan.suite,
@@ -268,13 +284,7 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
         }
         for p in job.pipelines
     ]
-    figure = None
-    if plan.case.figure and episode is not None:
-        try:
-            figure = track.figure_data(episode, estimates)
-        except Exception:  # a figure is a convenience; never lose the episode's scores to it
-            figure = None
-    return plan.key, json_safe(records), figure
+    return json_safe(records)
 
 
 # ---------------------------------------------------------------- the run
@@ -360,27 +370,8 @@ def execute(
     return outcome
 
 
-def make_pool(workers: int) -> ProcessPoolExecutor:
-    """Worker processes for episodes. spawn: workers start clean (no inherited threads or GL
-    contexts; results do not depend on it); each chooses the GL platform before importing mujoco."""
-    return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"), initializer=gl_platform.install)
-
-
 def _run_pool(job_list: list[_Job], jobs: int, finish: Callable[..., None]) -> None:
-    pool = make_pool(min(jobs, len(job_list)))
-    pending: set[Future] = set()
-    try:
-        pending = {pool.submit(_run_job, job) for job in job_list}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in sorted(finished, key=lambda f: f.result()[0]):
-                finish(*fut.result())
-    except BaseException:
-        for fut in pending:
-            fut.cancel()
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True)
+    run_pool(job_list, jobs, _run_job, finish, _failed_job)
 
 
 def harness_errors(records: Sequence[Mapping[str, Any]]) -> list[str]:

@@ -59,7 +59,7 @@ def test_gym_render_without_mujoco_gl():
 def test_worker_processes_choose_before_importing_mujoco():
     # the runner's pool: a worker that imports mujoco first has MUJOCO_GL set by then
     script = (
-        "from exobench.benchmarks.runner import make_pool\n"
+        "from exobench.benchmarks.pool import make_pool\n"
         "with make_pool(1) as pool:\n"
         "    print(pool.submit(eval, \"[__import__('mujoco'), __import__('os').environ.get('MUJOCO_GL')][1]\").result())\n"
     )
