@@ -11,7 +11,6 @@ exit status 1 and the first reasons on stderr, after its table and report are wr
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -56,55 +55,6 @@ def _default_out(suite: str) -> str:
     import datetime
 
     return f"runs/{suite}-{datetime.datetime.now().strftime('%Y%m%d-%H%M%S')}"
-
-
-def _first_existing(option: str, path: Path, start: Path) -> Path:
-    """The nearest existing folder at or above ``start``; ConfigError if a file is in the way."""
-    from exobench.core.errors import ConfigError
-
-    for p in (start, *start.parents):
-        if p.exists():
-            if not p.is_dir():
-                raise ConfigError(option, str(path), f"a path with no file in the way ({p} is a file)")
-            return p
-    return Path.cwd()  # a relative path whose first part does not exist
-
-
-def _check_writable(option: str, path: Path, folder: Path) -> None:
-    from exobench.core.errors import ConfigError
-
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ConfigError(option, str(path), f"a path in a folder you can write to ({folder} is not writable)")
-
-
-def check_out_dir(option: str, path: str, *, existing: bool | None = None) -> None:
-    """Refuse, before anything runs, a folder that cannot be created or written: an empty path,
-    a file at or above it, an unwritable folder. ``existing`` True: it must be an existing folder
-    (resume); False: it must not exist yet (record); None: either."""
-    from exobench.core.errors import ConfigError
-
-    if not str(path).strip():
-        raise ConfigError(option, path, "a folder path (not empty)")
-    target = Path(path)
-    if existing is False and target.exists():
-        raise ConfigError(option, path, "a path that does not exist yet")
-    if existing and not target.is_dir():
-        raise ConfigError(option, path, "an existing run folder")
-    _check_writable(option, target, _first_existing(option, target, target))
-
-
-def check_out_file(option: str, path: str) -> None:
-    """Refuse, before anything runs, a file that cannot be written (see :func:`check_out_dir`)."""
-    from exobench.core.errors import ConfigError
-
-    if not str(path).strip():
-        raise ConfigError(option, path, "a file path (not empty)")
-    target = Path(path)
-    if target.is_dir():
-        raise ConfigError(option, path, "a file path, not a folder")
-    if target.exists() and not os.access(target, os.W_OK):
-        raise ConfigError(option, path, "a file you can write to")
-    _check_writable(option, target, _first_existing(option, target, target.parent))
 
 
 def _rerun_path(rerun_path: str, track: str | None) -> str:
@@ -157,6 +107,7 @@ def run(
     """Run SUITE (default: each track's quick suite) of one track or of all, and print the tables."""
     from exobench.core.errors import ConfigError
 
+    from .out_paths import check_out_dir, check_out_file
     from .overrides import parse_assignments
     from .runner import plan_run
     from .tracks import track_names
@@ -357,6 +308,7 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
     from exobench.core.errors import ConfigError
     from exobench.envs.session import write_session
 
+    from .out_paths import check_out_dir
     from .overrides import check_scenario_overrides, parse_assignments
     from .runner import load_case
     from .tracks import get_track
