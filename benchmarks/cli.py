@@ -3,7 +3,9 @@
 Only click is imported at module level so that `exobench --help` answers at once; each
 command imports what it needs. Every :class:`exobench.core.errors.ExobenchError` becomes one
 line on stderr, ``exobench: error: <message>``, and exit status 2; everything is validated
-before an output folder is created, so a refused call leaves nothing behind.
+before an output folder is created, so a refused call leaves nothing behind. A run or replay
+whose simulation or scorer raised (a failure of the benchmark, not of a pipeline) ends with
+exit status 1 and the first reasons on stderr, after its table and report are written.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from typing import Any
 
 import click
 
+EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
@@ -44,12 +47,22 @@ def cli() -> None:
     exobench run paper --track stairs --jobs 2    the staircase paper's protocol
     exobench list                  suites, tracks, pipelines, scenario parameters
     """
+    # before any command imports mujoco: choose the OpenGL platform when MuJoCo is first imported
+    import exobench.envs.gl_platform  # noqa: F401
 
 
 def _default_out(suite: str) -> str:
     import datetime
 
     return f"runs/{suite}-{datetime.datetime.now().strftime('%Y%m%d-%H%M%S')}"
+
+
+def _rerun_path(rerun_path: str, track: str | None) -> str:
+    """--rerun NAME as given (one track) or as NAME-<track>.rrd (--track all)."""
+    if track is None:
+        return rerun_path
+    p = Path(rerun_path)
+    return str(p.with_name(f"{p.stem}-{track}{p.suffix or '.rrd'}"))
 
 
 def _seeds(seed: int | None, seeds: int | None) -> list[int]:
@@ -74,9 +87,9 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
-@click.option("--out", type=click.Path(file_okay=False), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
+@click.option("--out", type=click.Path(), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
 @click.option("--resume", is_flag=True, help="Continue the run in --out, skipping finished episodes.")
-@click.option("--rerun", "rerun_path", type=click.Path(dir_okay=False), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
+@click.option("--rerun", "rerun_path", type=click.Path(), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and its plots.")
 def run(
     suite: str | None,
@@ -94,6 +107,7 @@ def run(
     """Run SUITE (default: each track's quick suite) of one track or of all, and print the tables."""
     from exobench.core.errors import ConfigError
 
+    from .out_paths import check_out_dir, check_out_file
     from .overrides import parse_assignments
     from .runner import plan_run
     from .tracks import track_names
@@ -104,30 +118,50 @@ def run(
         raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
     run_seeds = _seeds(seed, seeds)
     overrides = parse_assignments(assignments)
+    if out is not None:
+        check_out_dir("--out", out, existing=True if resume else None)
     if track != "all":
         plan = plan_run(track, suite, pipelines or None, run_seeds, overrides)
-        _run_plan(plan, out or _default_out(f"{plan.track.name}-{plan.suite}"), jobs, resume, rerun_path, no_report)
+        out = out or _default_out(f"{plan.track.name}-{plan.suite}")
+        check_out_dir("--out", out)
+        if rerun_path is not None:
+            check_out_file("--rerun", rerun_path)
+        errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report)
+        _exit_on_harness_errors(errors)
         return
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
     plans = [plan_run(name, suite, None, run_seeds, {}) for name in track_names()]
     root = out or _default_out(f"all-{suite or 'quick'}")
+    check_out_dir("--out", root)
+    for plan in plans if rerun_path is not None else ():
+        check_out_file("--rerun", _rerun_path(rerun_path, plan.track.name))
+    errors: list[str] = []
     for plan in plans:
         click.echo(f"\n== track {plan.track.name} / {plan.suite}")
-        rrd = None
-        if rerun_path:
-            p = Path(rerun_path)
-            rrd = str(p.with_name(f"{p.stem}-{plan.track.name}{p.suffix or '.rrd'}"))
-        _run_plan(plan, str(Path(root) / plan.track.name), jobs, resume, rrd, no_report)
+        rrd = _rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None
+        errors += _run_plan(plan, str(Path(root) / plan.track.name), jobs, resume, rrd, no_report)
+    _exit_on_harness_errors(errors)
 
 
-def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool) -> None:
-    """Execute one validated plan with a progress bar; print its table and where it went."""
+def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160) -> None:
+    """Exit 1 naming the first failures of the simulation or the scorer (none: return)."""
+    if not errors:
+        return
+    first = "; ".join(e if len(e) <= width else e[: width - 3] + "..." for e in errors[:shown])
+    more = f" (and {len(errors) - shown} more)" if len(errors) > shown else ""
+    click.echo(f"exobench: {len(errors)} records failed in the simulation or the scorer, not in a pipeline: {first}{more}", err=True)
+    sys.exit(EXIT_FAILED)
+
+
+def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool) -> list[str]:
+    """Execute one validated plan with a progress bar; print its table and where it went.
+    Returns the failures of the simulation or the scorer (see :func:`runner.harness_errors`)."""
     from tqdm import tqdm
 
     from .report import summary_text, write_report
-    from .runner import execute, rerun_first_episode
+    from .runner import execute, harness_errors, rerun_first_episode
 
     bar: dict[str, Any] = {}
 
@@ -155,6 +189,7 @@ def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str 
         click.echo(f"report: {write_report(outcome.out_dir)}")
     if rerun_path:
         click.echo(f"rerun recording: {rerun_first_episode(plan, rerun_path)}")
+    return harness_errors(outcome.records)
 
 
 @cli.command("list")
@@ -253,7 +288,8 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
     if not content_checked(meta):
         click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its content is not verified", err=True)
     episode = read_session(session_dir, track=plan.track.name)
-    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines)
+    scorer_errors: dict[str, str] = {}
+    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines, scorer_errors=scorer_errors)
     records = [
         {"episode": "session", "group": "session", "pipeline": p.name, "config": p.config_dict(), "metrics": metrics[p.name], "wall_s": walls[p.name]}
         for p in plan.pipelines
@@ -261,23 +297,24 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
     if as_json:
         for r in records:
             click.echo(json.dumps(json_safe({**r, "session": str(session_dir), "scenario": episode.scenario, "seed": episode.seed})))
-        return
-    click.echo(summary_text(json_safe(records), plan.track, [p.name for p in plan.pipelines]))
+    else:
+        click.echo(summary_text(json_safe(records), plan.track, [p.name for p in plan.pipelines]))
+    _exit_on_harness_errors([f"session {name}: {reason}" for name, reason in scorer_errors.items()])
 
 
 @cli.command()
-@click.argument("out_dir", type=click.Path(file_okay=False))
+@click.argument("out_dir", type=click.Path())
 @click.option("--track", default="stairs", show_default=True)
 @click.option("--case", "case_name", default=None, help="Start from a named case of the paper suite (A, B, C, ...).")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario parameter.")
 @click.option("--seed", type=int, default=0, show_default=True)
 def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[str, ...], seed: int) -> None:
     """Simulate one episode and write it as a session folder OUT_DIR."""
-    from pathlib import Path
 
     from exobench.core.errors import ConfigError
     from exobench.envs.session import write_session
 
+    from .out_paths import check_out_dir
     from .overrides import check_scenario_overrides, parse_assignments
     from .runner import load_case
     from .tracks import get_track
@@ -287,8 +324,7 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
     scenario = trk.validate_scenario({**base, **check_scenario_overrides(trk, parse_assignments(assignments))})
     if seed < 0:
         raise ConfigError("--seed", seed, "--seed >= 0")
-    if Path(out_dir).exists():
-        raise ConfigError("OUT_DIR", out_dir, "a path that does not exist yet")
+    check_out_dir("OUT_DIR", out_dir, existing=False)
     episode = trk.simulate(scenario, seed)
     path = write_session(episode, out_dir, track=trk.name)
     click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed}, track {trk.name})")

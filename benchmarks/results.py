@@ -55,11 +55,19 @@ def json_safe(value: Any) -> Any:
     return str(value)
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_json_atomic(path: Path, obj: Any) -> None:
-    """Write JSON to a temporary sibling, fsync, and rename it over ``path``."""
+    """Write JSON to a temporary sibling, fsync, and rename it over ``path``. The file gets the
+    permissions of an ordinary new file (0666 less the umask), not mkstemp's private 0600."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "w") as f:
             json.dump(json_safe(obj), f, indent=2, allow_nan=False)
             f.write("\n")

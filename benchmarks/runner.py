@@ -9,7 +9,10 @@ Two steps, so that nothing touches the disk until everything is valid:
   in this process or a pool of ``jobs`` processes. Each episode is simulated once and the same
   frames go to every pipeline; its records are appended atomically to ``results.jsonl`` as
   soon as it is finished. A pipeline that raises is recorded as failed and the run goes on.
-  With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them.
+  A failure of the harness itself (the simulation or the scorer raised) is recorded as failed
+  too, and its record carries the reason in ``harness_error`` (see :func:`harness_errors`).
+  With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them. The worker pool
+  (:mod:`.pool`) retries the episode of a worker that died once, then records it as failed.
 
 Episode seeds are derived from the run seed and the case name, so a case keeps its seed when a
 suite grows, and ``--jobs N`` gives the same results as ``--jobs 1``.
@@ -19,12 +22,10 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import multiprocessing
 import os
 import time
 import zlib
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,7 @@ from exobench.core.pipeline import coerce_like
 
 from .entry_points import load_entry_point
 from .overrides import check_scenario_overrides, split_overrides
+from .pool import run_pool
 from .registry import PipelineRegistry, default_registry
 from .results import (
     RESULTS_FILE,
@@ -140,6 +142,8 @@ def plan_run(
     if len(set(names)) != len(names):
         raise ConfigError("pipeline", ",".join(names), "each pipeline once")
     for name in names:
+        if name not in reg.names():
+            raise UnknownNameError(f"pipeline of track {trk.name!r}", name, reg.names(track=trk.name))
         cls = reg.load(name)
         if getattr(cls, "track", trk.name) != trk.name:
             raise ConfigError("pipeline", name, f"a pipeline of track {trk.name!r} (it serves {cls.track!r})")
@@ -153,9 +157,12 @@ def plan_run(
 
     episodes = []
     typed: dict[str, Any] = {}
+    group_label = getattr(trk, "group_label", None)  # optional: groups named by the scenario run
     for case in trk.cases(suite):
         scenario = trk.validate_scenario({**case.scenario, **scen})
         typed = {k: scenario[k] for k in scen}
+        if group_label is not None and scen:
+            case = dataclasses.replace(case, group=group_label(case, scenario))
         for s in seeds:
             episodes.append(EpisodePlan(f"{case.name}/s{s}", suite, case, scenario, s, episode_seed(s, case.name)))
     return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()})
@@ -165,12 +172,19 @@ def plan_run(
 
 
 def run_pipelines(
-    track: Track, episode: Any, pipelines: Sequence[PipelineRun], *, timeline_every_s: float | None = None
+    track: Track,
+    episode: Any,
+    pipelines: Sequence[PipelineRun],
+    *,
+    timeline_every_s: float | None = None,
+    scorer_errors: dict[str, str] | None = None,
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]], dict[str, float], dict[str, list]]:
     """Feed the same frames to each pipeline; estimates, metrics, wall times and online timelines.
 
-    A pipeline that raises is scored with ``track.failed_metrics`` and the error text.
-    With ``timeline_every_s`` the online estimates are kept at most that often (for rerun).
+    A pipeline that raises, or a scorer that raises, is scored with ``track.failed_metrics`` and
+    the error text; a scorer's reasons also go to ``scorer_errors`` (pipeline name -> reason)
+    when it is given. With ``timeline_every_s`` the online estimates are kept at most that often
+    (for rerun).
     """
     estimates: dict[str, Any] = {}
     metrics: dict[str, dict[str, Any]] = {}
@@ -189,10 +203,17 @@ def run_pipelines(
                     timeline.append((float(frame.stamp_s), online))
                     last_t = frame.stamp_s
             est = pipe.finalize()
-            estimates[p.name] = est
-            metrics[p.name] = track.score(episode, est)
         except Exception as e:  # a failing pipeline is a result, not a crash
             metrics[p.name] = track.failed_metrics(episode, f"pipeline raised {type(e).__name__}: {e}")
+        else:
+            estimates[p.name] = est
+            try:
+                metrics[p.name] = track.score(episode, est)
+            except Exception as e:  # a failure of the benchmark, not of the pipeline
+                reason = f"scorer raised {type(e).__name__}: {e}"
+                metrics[p.name] = track.failed_metrics(episode, reason)
+                if scorer_errors is not None:
+                    scorer_errors[p.name] = reason
         walls[p.name] = time.perf_counter() - t0
         timelines[p.name] = timeline
     return estimates, metrics, walls, timelines
@@ -214,13 +235,32 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
     except Exception as e:  # scored as a failure of every pipeline; the run goes on
         episode, sim_error = None, f"simulation raised {type(e).__name__}: {e}"
     else:
-        sim_error = None
+        sim_error = ""
     sim_wall = time.perf_counter() - t0
     if episode is None:
-        metrics = {p.name: track.failed_metrics(None, sim_error) for p in job.pipelines}
-        estimates, walls = {}, {p.name: 0.0 for p in job.pipelines}
-    else:
-        estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines)
+        return _failed_job(job, sim_error, sim_wall)
+    harness: dict[str, str] = {}
+    estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scorer_errors=harness)
+    figure = None
+    if plan.case.figure:
+        try:
+            figure = track.figure_data(episode, estimates)
+        except Exception:  # a figure is a convenience; never lose the episode's scores to it
+            figure = None
+    return plan.key, _records(job, metrics, walls, sim_wall, harness), figure
+
+
+def _failed_job(job: _Job, reason: str, sim_wall: float = 0.0) -> tuple[str, list[dict[str, Any]], None]:
+    """The records of an episode the harness could not run (simulation raised, worker died)."""
+    metrics = {p.name: job.track.failed_metrics(None, reason) for p in job.pipelines}
+    walls = {p.name: 0.0 for p in job.pipelines}
+    return job.plan.key, _records(job, metrics, walls, sim_wall, {p.name: reason for p in job.pipelines}), None
+
+
+def _records(
+    job: _Job, metrics: dict[str, dict[str, Any]], walls: dict[str, float], sim_wall: float, harness: dict[str, str]
+) -> list[dict[str, Any]]:
+    plan, track = job.plan, job.track
     base = {
         "track": track.name,
         "suite": plan.suite,
@@ -240,16 +280,11 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
             "versions": job.versions,
             "wall_s": walls[p.name],
             "sim_wall_s": sim_wall,
+            **({"harness_error": harness[p.name]} if p.name in harness else {}),
         }
         for p in job.pipelines
     ]
-    figure = None
-    if plan.case.figure and episode is not None:
-        try:
-            figure = track.figure_data(episode, estimates)
-        except Exception:  # a figure is a convenience; never lose the episode's scores to it
-            figure = None
-    return plan.key, json_safe(records), figure
+    return json_safe(records)
 
 
 # ---------------------------------------------------------------- the run
@@ -336,21 +371,12 @@ def execute(
 
 
 def _run_pool(job_list: list[_Job], jobs: int, finish: Callable[..., None]) -> None:
-    # spawn: workers start clean (no inherited threads or GL contexts); results do not depend on it
-    pool = ProcessPoolExecutor(max_workers=min(jobs, len(job_list)), mp_context=multiprocessing.get_context("spawn"))
-    pending: set[Future] = set()
-    try:
-        pending = {pool.submit(_run_job, job) for job in job_list}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in sorted(finished, key=lambda f: f.result()[0]):
-                finish(*fut.result())
-    except BaseException:
-        for fut in pending:
-            fut.cancel()
-        pool.shutdown(wait=False, cancel_futures=True)
-        raise
-    pool.shutdown(wait=True)
+    run_pool(job_list, jobs, _run_job, finish, _failed_job)
+
+
+def harness_errors(records: Sequence[Mapping[str, Any]]) -> list[str]:
+    """``"episode pipeline: reason"`` of the records whose simulation or scorer raised."""
+    return [f"{r['episode']} {r['pipeline']}: {r['harness_error']}" for r in records if r.get("harness_error")]
 
 
 def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: float = 0.1) -> Path:

@@ -1,12 +1,28 @@
 """Typed errors of exobench.
 
 Library code raises these; only the command line turns them into a one-line message and a
-non-zero exit. Every error names the field, the value and what would have been allowed.
+non-zero exit. Every error names the field, the value and what would have been allowed, in at
+most a line or two: a long value is cut (:data:`MAX_VALUE_CHARS`), and of many valid names the
+closest to the one given come first and at most :data:`MAX_NAMES_SHOWN` are listed, with a count.
 """
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterable
+
+MAX_VALUE_CHARS = 80
+MAX_NAMES_SHOWN = 10
+
+
+def short_text(text: str, limit: int = MAX_VALUE_CHARS) -> str:
+    """``text`` cut to ``limit`` characters with "..." and its full length when longer."""
+    return text if len(text) <= limit else f"{text[: limit - 3]}... ({len(text)} chars)"
+
+
+def short_repr(value: object, limit: int = MAX_VALUE_CHARS) -> str:
+    """``repr(value)`` cut as :func:`short_text` does."""
+    return short_text(repr(value), limit)
 
 
 class ExobenchError(Exception):
@@ -26,23 +42,31 @@ class ConfigError(ExobenchError, ValueError):
         self.field = field
         self.value = value
         self.allowed = allowed
-        super().__init__(f"{field}={value!r} is invalid; allowed: {allowed}")
+        super().__init__(f"{field}={short_repr(value)} is invalid; allowed: {short_text(str(allowed), 300)}")
 
 
 class UnknownNameError(ExobenchError, KeyError):
     """A name (suite, track, pipeline, parameter, sensor, ...) is not known.
 
-    The message lists the valid names so the user can correct the call.
+    The message lists the valid names so the user can correct the call; of more than
+    :data:`MAX_NAMES_SHOWN`, the closest to ``name`` come first and the list is cut with a count
+    (``valid`` keeps them all).
     """
 
     def __init__(self, kind: str, name: str, valid: Iterable[str]) -> None:
         self.kind = kind
         self.name = name
-        self.valid = tuple(sorted(valid))
+        self.valid = tuple(sorted(str(v) for v in valid))
         super().__init__(name)
 
     def __str__(self) -> str:
-        return f"unknown {self.kind} {self.name!r}; valid: {', '.join(self.valid) or '(none)'}"
+        shown = list(self.valid)
+        if len(shown) > MAX_NAMES_SHOWN:
+            close = difflib.get_close_matches(str(self.name), shown, n=3)
+            shown = (close + [v for v in shown if v not in close])[:MAX_NAMES_SHOWN]
+        listed = ", ".join(short_text(v, 40) for v in shown) or "(none)"
+        more = f", ... ({len(self.valid)} in all)" if len(self.valid) > len(shown) else ""
+        return f"unknown {self.kind} {short_repr(self.name)}; valid: {listed}{more}"
 
 
 class SessionError(ExobenchError):

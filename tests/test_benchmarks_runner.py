@@ -199,3 +199,38 @@ def test_a_line_that_is_not_a_record_between_episodes_is_skipped(reg, tmp_path):
     lines.insert(4, "[1, 2]\n")  # a list instead of a record, between two episodes
     results.write_text("".join(lines))
     assert len(read_records(results)) == 12
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077])
+def test_run_files_get_ordinary_permissions(reg, tmp_path, umask):
+    import os
+
+    old = os.umask(umask)
+    try:
+        out = execute(_plan(reg, pipelines=["fake"]), tmp_path / "run")
+    finally:
+        os.umask(old)
+    for name in (RUN_CONFIG_FILE, RESULTS_FILE):
+        assert (out.out_dir / name).stat().st_mode & 0o777 == 0o666 & ~umask, name
+    assert out.out_dir.stat().st_mode & 0o777 == 0o777 & ~umask
+
+
+class KillingTrack(FakeTrack):
+    """Case B kills the process simulating it (as the OOM killer or a user would)."""
+
+    def simulate(self, scenario, seed):
+        if scenario.get("yaw_deg") == 23.0:
+            import os
+            import signal
+
+            os.kill(os.getpid(), signal.SIGKILL)
+        return super().simulate(scenario, seed)
+
+
+def test_a_killed_worker_is_retried_then_recorded_as_failed_and_the_run_finishes(reg, tmp_path):
+    plan = _plan(reg, track=KillingTrack(), pipelines=["fake"])
+    out = execute(plan, tmp_path / "run", jobs=2)
+    assert sorted(r["episode"] for r in out.records) == sorted(e.key for e in plan.episodes)
+    b = [r for r in out.records if r["case"] == "B"]
+    assert len(b) == 1 and b[0]["metrics"]["failed"] and "died" in b[0]["harness_error"]
+    assert not any(r["metrics"]["failed"] for r in out.records if r["case"] != "B")

@@ -143,3 +143,126 @@ def test_set_hands_a_dotted_pipeline_path_to_the_registry_whole(tmp_path, fake_s
     result = _run(args)
     assert result.exit_code == 0, result.output + result.stderr
     assert seen == {"fake": {"filter.band_m": "0.05", "offset_m": "0.001"}}
+
+
+def test_run_whose_simulation_or_scorer_fails_exits_1_with_the_first_reasons(tmp_path, fake_stairs, monkeypatch):
+    real = FakeTrack.simulate
+
+    def sim(self, scenario, seed):
+        if scenario["riser_m"] != FakeTrack().validate_scenario({})["riser_m"]:
+            raise RuntimeError("sim exploded")
+        return real(self, scenario, seed)
+
+    monkeypatch.setattr(FakeTrack, "simulate", sim)
+    result = _run(["run", "--track", "stairs", "--out", str(tmp_path / "a"), "--no-report", "--set", "riser_m=0.15"])
+    assert result.exit_code == 1, result.output + result.stderr
+    assert "failed / episodes" in result.output  # the table is still printed
+    last = result.stderr.strip().splitlines()[-1]
+    assert "simulation raised RuntimeError: sim exploded" in last and "more" in last and len(last) < 600
+    monkeypatch.setattr(FakeTrack, "simulate", real)
+
+    def score(self, episode, estimate):
+        raise ValueError("scorer exploded")
+
+    monkeypatch.setattr(FakeTrack, "score", score)
+    result = _run(["run", "--track", "stairs", "--out", str(tmp_path / "b"), "--no-report"])
+    assert result.exit_code == 1 and "scorer raised ValueError: scorer exploded" in result.stderr
+    records = [json.loads(line) for line in (tmp_path / "b" / "results.jsonl").read_text().splitlines()]
+    assert all(r["metrics"]["failed"] and "scorer exploded" in r["harness_error"] for r in records)
+
+
+def test_a_pipelines_own_failures_stay_results_and_exit_0(tmp_path, fake_stairs):
+    from test_benchmarks_support import RaisingStairs
+
+    registry_mod.default_registry().register("fake-raise", RaisingStairs)
+    result = _run(["run", "--track", "stairs", "--pipeline", "fake-raise", "--out", str(tmp_path / "r"), "--no-report"])
+    assert result.exit_code == 0, result.stderr
+    assert "6 records (6 failed)" in result.output
+    records = [json.loads(line) for line in (tmp_path / "r" / "results.jsonl").read_text().splitlines()]
+    assert not any("harness_error" in r for r in records)
+
+
+def test_stairs_groups_are_labelled_by_the_geometry_that_was_run(tmp_path, fake_stairs):
+    args = ["run", "--track", "stairs", "--out", str(tmp_path / "g"), "--no-report", "--set", "riser_m=0.19", "--set", "tread_m=0.26"]
+    result = _run(args)
+    assert result.exit_code == 0, result.stderr
+    groups = {json.loads(line)["group"] for line in (tmp_path / "g" / "results.jsonl").read_text().splitlines()}
+    assert groups == {"A 0.190/0.260", "B 0.190/0.260", "C 0.190/0.260", "0.190/0.260"}
+    assert "0.162/0.280" not in result.output and "Tab. III" not in result.output  # no paper figure of another staircase
+    plain = _run(["run", "--track", "stairs", "--out", str(tmp_path / "p"), "--no-report", "--set", "tof_noise_m=0"])
+    assert "0.162/0.280" in plain.output and "Tab. III" in plain.output
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--track", "stairs", "--pipeline", "rtls", "--set", "rtls.queue_q=inf"], "rtls.queue_q"),
+        (["--track", "stairs", "--pipeline", "rtls", "--set", "rtls.queue_q=nan"], "rtls.queue_q"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.every_k=inf"], "every_k"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.tsdf=abc"], "tsdf.<field>"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.tsdf.nope=1"], "tsdf.nope"),
+        (["--track", "locomotion", "--pipeline", "terrain-recon", "--set", "terrain-recon.tsdf.voxel_size_m.x=1"], "tsdf.voxel_size_m.x"),
+        (["--track", "stairs", "--seeds", "20000"], "10000"),  # the seed list was printed whole (129 KB)
+        (["--track", "stairs", "--set", "riser_m=" + "9" * 5000], "riser_m"),
+        (["--track", "stairs", "--pipeline", "x" * 5000], "rtls-htvr"),
+        (["--track", "stairs", "--set", "nosing=1"], "nosing_m"),  # of many names, the closest first
+    ],
+)
+def test_bad_pipeline_and_scenario_values_are_one_short_line_at_plan_time(tmp_path, args, expected):
+    out = tmp_path / "run"
+    result = _run(["run", *args, "--out", str(out)])
+    assert result.exit_code == 2
+    line = _one_error_line(result)
+    assert expected in line and len(line) < 400, line
+    assert not out.exists()
+
+
+def test_unknown_names_list_the_closest_first_and_a_count():
+    from exobench.core import UnknownNameError
+
+    err = str(UnknownNameError("case", "risr_m", [f"case{i:03d}" for i in range(209)] + ["riser_m"]))
+    assert len(err) < 300 and "valid: riser_m, case000" in err and "(210 in all)" in err
+
+
+def _a_file(tmp_path):
+    f = tmp_path / "a-file"
+    f.write_text("x")
+    return f
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["run", "--track", "stairs", "--out", "{file}/run"],
+        ["run", "--track", "stairs", "--out", "{file}"],
+        ["run", "--track", "stairs", "--out", ""],
+        ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", "{file}/x.rrd"],
+        ["run", "--out", "{tmp}/run", "--rerun", "{file}/x.rrd"],  # every track
+        ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", "{tmp}"],
+        ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", ""],
+        ["record", "{file}/session"],
+        ["record", ""],
+    ],
+)
+def test_file_system_problems_are_one_line_and_exit_2_before_anything_runs(tmp_path, args, fake_stairs, monkeypatch):
+    f = _a_file(tmp_path)
+    monkeypatch.setattr(FakeTrack, "simulate", lambda *a: pytest.fail("simulated before the paths were checked"))
+    result = _run([a.format(file=f, tmp=tmp_path) for a in args])
+    assert result.exit_code == 2, result.output + result.stderr
+    assert len(_one_error_line(result)) < 300
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"]
+
+
+@pytest.mark.parametrize("args", [["run", "--track", "stairs", "--out", "{ro}/run"], ["record", "{ro}/s"],
+                                  ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", "{ro}/x.rrd"]])  # fmt: skip
+def test_unwritable_folders_are_refused_before_anything_runs(tmp_path, args, fake_stairs, monkeypatch):
+    # root can write anywhere, so the permission answer is simulated: "ro" is not writable
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: Path(p) != ro and real(p, mode, **kw))
+    monkeypatch.setattr(FakeTrack, "simulate", lambda *a: pytest.fail("simulated before the paths were checked"))
+    result = _run([a.format(ro=ro, tmp=tmp_path) for a in args])
+    assert result.exit_code == 2
+    assert "not writable" in _one_error_line(result)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ro"] and not any(ro.iterdir())

@@ -285,9 +285,10 @@ def test_backend_is_chosen_when_mujoco_gl_is_unset():
 
 def test_render_error_when_no_backend_works():
     script = (
+        "import exobench.envs.gl_platform as gp\n"
+        "gp._probe = lambda backend: False\n"
         "import exobench.envs.sensors.rgbd.render as rr\n"
         "from exobench.core import RenderError\n"
-        "rr._probe = lambda backend: False\n"
         "try:\n"
         "    rr.select_gl_backend()\n"
         "except RenderError as e:\n"

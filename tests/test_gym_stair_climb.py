@@ -237,3 +237,21 @@ def test_reset_options_are_validated():
     with pytest.raises(ConfigError):
         env.reset(options={"riser_m": 0.5})
     env.close()
+
+
+def test_actions_outside_the_box_are_clipped_as_the_error_text_says():
+    # gymnasium's convention for continuous Box actions: clip, do not refuse
+    infos = []
+    for action in ([5.0, 5.0], [1.0, 1.0]):
+        env = StairClimbEnv()
+        env.reset(seed=3)
+        infos.append(env.step(np.array(action, dtype=np.float32))[4])
+        env.close()
+    assert (infos[0]["forward_m"], infos[0]["up_m"]) == (infos[1]["forward_m"], infos[1]["up_m"]) == pytest.approx((0.70, 0.30))
+    env = StairClimbEnv()
+    env.reset(seed=3)
+    for bad in ([np.nan, 0.0], [0.0], [0.0, 0.0, 0.0]):
+        with pytest.raises(ConfigError) as err:
+            env.step(np.array(bad, dtype=np.float32))
+        assert "two finite numbers" in str(err.value) and "clipped" in str(err.value)
+    env.close()

@@ -109,7 +109,10 @@ class StairClimbEnv(gymnasium.Env):
     ``Box(-1, 1, (2,), float32)``, mapped affinely onto the target of the swing foot's sole point
     (the point of the sole below the ankle) relative to the stance foot's sole point, in the
     heading frame (x forward, y left, z up); the lateral offset is fixed at one hip width.
-    :meth:`action_from_target` and :meth:`target_from_action` convert.
+    :meth:`action_from_target` and :meth:`target_from_action` convert. As in gymnasium's
+    continuous control environments (``Pendulum``, ``LunarLander(continuous=True)``), an action
+    outside the box is clipped to it, not refused (``info`` gives the command after clipping);
+    an action that is not two finite numbers raises :class:`~exobench.core.ConfigError`.
 
     | Num | Action                                   | Control Min | Control Max | Unit |
     |-----|------------------------------------------|-------------|-------------|------|
@@ -346,7 +349,7 @@ class StairClimbEnv(gymnasium.Env):
         if self._done:
             raise ExobenchError("the episode has ended; call reset()")
         if np.shape(action) != (2,) or not np.all(np.isfinite(action)):
-            raise ConfigError("action", action, "two finite numbers in [-1, 1]")
+            raise ConfigError("action", action, "two finite numbers (each clipped to [-1, 1])")
         forward, up = self.target_from_action(action)
         exo = self._exo
         stance = self._stance
@@ -413,7 +416,7 @@ class StairClimbEnv(gymnasium.Env):
             try:
                 self._renderer = mujoco.Renderer(self._model, height=h, width=w)
             except Exception as e:  # no GL context: EGL/OSMesa missing or MUJOCO_GL unset
-                raise RenderError(f"cannot render off-screen ({e}); set MUJOCO_GL=egl or osmesa") from e
+                raise RenderError(f"cannot render off-screen ({e}); set MUJOCO_GL=egl or osmesa before mujoco is imported, or leave it unset and let exobench choose") from e
             self._renderer_model = self._model
         d = self._data
         d.qpos[:] = self._motion.sample(self._model, self._t).qpos[0]

@@ -195,6 +195,17 @@ class StairsTrack:
             return base + quiet + heights
         raise UnknownNameError("suite", suite, self.suites)
 
+    def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
+        """The case's group, naming the staircase that is run when ``--set`` changed its riser or
+        tread: "0.162/0.280" becomes "0.190/0.260", "A" becomes "A 0.190/0.260" (so the paper's
+        figures for the case's own staircase are not printed beside it)."""
+        own = (float(case.scenario.get("riser_m", np.nan)), float(case.scenario.get("tread_m", np.nan)))
+        ran = (float(scenario["riser_m"]), float(scenario["tread_m"]))
+        if own == ran:
+            return case.group
+        old, new = f"{own[0]:.3f}/{own[1]:.3f}", f"{ran[0]:.3f}/{ran[1]:.3f}"
+        return case.group.replace(old, new) if old in case.group else f"{case.group} {new}"
+
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         from exobench.envs.scenarios import StairScenario
         from exobench.envs.sim import simulate_stairs

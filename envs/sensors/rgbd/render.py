@@ -1,11 +1,10 @@
 """Off-screen MuJoCo rendering for the RGB-D cameras: GL back-end choice and exact intrinsics.
 
-MuJoCo picks its OpenGL back-end from ``MUJOCO_GL`` once, when ``mujoco`` is first imported.
-:func:`select_gl_backend` therefore runs before that import: when ``MUJOCO_GL`` is unset it probes
-EGL, then OSMesa, each in a short subprocess (a failed GL initialisation cannot be undone in this
-process), and sets ``MUJOCO_GL`` (and ``PYOPENGL_PLATFORM``) to the first that renders. An explicit
-``MUJOCO_GL`` is respected. :func:`make_renderer` raises :class:`RenderError` when no context can
-be made.
+MuJoCo picks its OpenGL back-end from ``MUJOCO_GL`` once, when ``mujoco`` is first imported;
+:mod:`exobench.envs.gl_platform` chooses it (EGL, then OSMesa) just before that import.
+:func:`select_gl_backend` makes the choice now if it has not been made and raises
+:class:`RenderError` when it has to choose and no platform works; :func:`make_renderer` raises
+:class:`RenderError` when no context can be made.
 
 A MuJoCo camera has square pixels and a centred principal point (its ``fovy`` fixes fy). To render
 with any K, :func:`set_intrinsics` overwrites the scene camera's OpenGL frustum after each
@@ -17,36 +16,16 @@ image rows top-down, as :class:`mujoco.Renderer` returns them). The model's came
 from __future__ import annotations
 
 import os
-import subprocess
 import sys
 from typing import TYPE_CHECKING
 
 from exobench.core import RenderError
 
+from ...gl_platform import choose_gl_platform
 from .config import RgbdConfig
 
 if TYPE_CHECKING:
     import mujoco
-
-GL_BACKENDS = ("egl", "osmesa")
-_PROBE = (
-    "import mujoco\n"
-    "m = mujoco.MjModel.from_xml_string('<mujoco><worldbody><geom size=\"1\"/></worldbody></mujoco>')\n"
-    "r = mujoco.Renderer(m, 8, 8)\n"
-    "r.update_scene(mujoco.MjData(m))\n"
-    "r.render()\n"
-    "r.close()\n"
-)
-
-
-def _probe(backend: str) -> bool:
-    env = dict(os.environ, MUJOCO_GL=backend, PYOPENGL_PLATFORM=backend)
-    try:
-        res = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, timeout=120)
-    except (OSError, subprocess.SubprocessError):
-        return False
-    return res.returncode == 0
-
 
 def select_gl_backend() -> str:
     """The GL back-end MuJoCo will use, chosen (EGL, else OSMesa) if ``MUJOCO_GL`` is unset.
@@ -55,14 +34,11 @@ def select_gl_backend() -> str:
     with its default back-end, which cannot be changed any more). Raises :class:`RenderError`
     when it has to choose and neither back-end works.
     """
-    backend = os.environ.get("MUJOCO_GL", "").strip().lower()
-    if backend or "mujoco" in sys.modules:
+    if os.environ.get("MUJOCO_GL", "").strip() or "mujoco" in sys.modules:
+        return choose_gl_platform()
+    backend = choose_gl_platform()
+    if backend:
         return backend
-    for candidate in GL_BACKENDS:
-        if _probe(candidate):
-            os.environ["MUJOCO_GL"] = candidate
-            os.environ.setdefault("PYOPENGL_PLATFORM", candidate)
-            return candidate
     raise RenderError(
         "no off-screen OpenGL back-end works: EGL and OSMesa both failed to render; install "
         "libegl1 (with a GPU or Mesa llvmpipe) or libosmesa6"

@@ -1,0 +1,90 @@
+"""The worker pool of --jobs N: a killed worker's job is retried once, then lost; workers end with their parent."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from exobench.benchmarks.pool import LOST_REASON, run_pool
+
+
+def _work(job):
+    """(key, value); a job "kill:<marker>" kills its worker, once if a marker path is given."""
+    if job.startswith("kill"):
+        marker = job.partition(":")[2]
+        if not marker or not os.path.exists(marker):
+            if marker:
+                Path(marker).write_text("killed once")
+            os.kill(os.getpid(), signal.SIGKILL)
+    return job, f"done {job}"
+
+
+def _lost(job, reason):
+    return job, f"lost: {reason}"
+
+
+def _run(jobs, workers=2):
+    out: dict[str, str] = {}
+    run_pool(jobs, workers, _work, lambda key, value: out.__setitem__(key, value), _lost)
+    return out
+
+
+def test_a_job_that_kills_its_worker_twice_is_lost_and_the_others_finish():
+    jobs = ["a", "b", "kill", "c", "d", "e"]
+    out = _run(jobs)
+    assert out == {**{j: f"done {j}" for j in jobs if j != "kill"}, "kill": f"lost: {LOST_REASON}"}
+
+
+def test_a_job_whose_worker_was_killed_once_is_retried(tmp_path):
+    job = f"kill:{tmp_path / 'marker'}"
+    out = _run(["a", job, "b"])
+    assert out == {"a": "done a", job: f"done {job}", "b": "done b"}
+
+
+
+
+def sleepy(job):  # replaced in the child script; defined so that workers can unpickle it
+    open(os.path.join(os.environ["EXOBENCH_TEST_PID_DIR"], str(os.getpid())), "w").close()
+    time.sleep(120)
+    return job, None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return state not in ("Z", "X")  # a zombie has ended
+
+
+def test_workers_end_when_the_parent_is_killed(tmp_path):
+    script = (
+        "import sys\n"
+        f"sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
+        "from exobench.benchmarks.pool import run_pool\n"
+        "import test_benchmarks_pool as t\n"
+        "if __name__ == '__main__':\n"
+        "    run_pool(['a', 'b'], 2, t.sleepy, print, print)\n"
+    )
+    env = dict(os.environ, EXOBENCH_TEST_PID_DIR=str(tmp_path))
+    parent = subprocess.Popen([sys.executable, "-c", script], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 60
+        while len(list(tmp_path.iterdir())) < 2 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        pids = [int(p.name) for p in tmp_path.iterdir()]
+        assert len(pids) == 2 and all(_alive(p) for p in pids)
+    finally:
+        parent.kill()
+        parent.wait()
+    deadline = time.monotonic() + 5
+    while any(_alive(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    alive = [p for p in pids if _alive(p)]
+    for p in alive:  # do not leave them behind if the test fails
+        os.kill(p, signal.SIGKILL)
+    assert not alive, "workers outlived their parent"
