@@ -1,4 +1,4 @@
-"""envs.scenarios validation and the paper-case placement; envs.sim episodes end to end."""
+"""The stairs scenario (envs.sim.scenarios.stairs): validation, the paper-case placement, episodes end to end."""
 
 import math
 
