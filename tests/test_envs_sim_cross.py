@@ -81,3 +81,42 @@ def test_extra_sensor_presets_extend_the_rig():
         OfficeScenario(extra_sensors="lidar_trunk").rig()
     with pytest.raises(Exception, match="extra sensor preset"):
         OfficeScenario(extra_sensors="sonar")
+
+
+@pytest.fixture(scope="module")
+def course_with_lidar():
+    from exobench.envs.sensors import LidarConfig
+    from exobench.envs.sensors.adapter import MountedSensor
+    from exobench.envs.sim import LocomotionScenario, simulate_locomotion
+
+    sc = LocomotionScenario(width_px=32, height_px=24, rate_hz=5.0, duration_cap_s=2.0)
+    rig = (*sc.rig(), MountedSensor("lidar_trunk", "lidar", LidarConfig(range_noise_m=0.0, resolution_m=0.0)))
+    return sc, simulate_locomotion(sc, 5, rig=rig)
+
+
+def test_course_carries_a_lidar_whose_points_land_on_the_true_surfaces(course_with_lidar):
+    sc, ep = course_with_lidar
+    scans = [f for f in ep.frames if isinstance(f, LidarScan)]
+    assert len(scans) == len(ep.truth.lidar) >= 10
+    assert {"rgbd_head", "imu_head", "odom_head", "lidar_trunk"} <= {f.sensor_id for f in ep.frames}
+    assert "lidar_trunk" in {m.sensor_id for m in ep.calibration.mounts}
+    assert ep.calibration.extra["camera"] == "rgbd_head"
+    kinds = set()
+    for scan, lt in zip(scans, ep.truth.lidar):
+        direct = lt.kind == int(ReturnKind.GENUINE)
+        assert direct.mean() > 0.5
+        p_w = lt.origin_w + lt.dir_w * np.linalg.norm(scan.points_xyz, axis=1)[:, None]
+        assert np.all(np.linalg.norm(p_w[direct] - lt.hit_w[direct], axis=1) < 1e-6)
+        for sid in np.unique(lt.surface_id[direct & (lt.surface_id >= 0)]):
+            s = ep.truth.scene.surface(int(sid))
+            kinds.add(s.kind)
+            sel = direct & (lt.surface_id == sid)
+            assert np.all(np.abs((p_w[sel] - s.point_w) @ s.normal_w) < 1e-3)
+    assert len(kinds) >= 2  # the floor and the course's walls or steps
+
+
+def test_course_lidar_preset_extends_the_default_rig():
+    from exobench.envs.sim import LocomotionScenario
+
+    ids = [s.sensor_id for s in LocomotionScenario(extra_sensors="lidar_trunk").rig()]
+    assert ids[0] == "imu_head" and ids[-1] == "lidar_trunk"
