@@ -343,13 +343,14 @@ def _render_fps(terrain: str, seed: int, repeats: int, segmentation: bool = Fals
     positions and headings."""
     import mujoco
 
-    from exobench.envs.locomotion_sim import LocomotionScenario
-    from exobench.envs.locomotion_world import build_locomotion_world, compose_locomotion
     from exobench.envs.sensors.rgbd import RgbdCamera, RgbdConfig
+    from exobench.envs.sim.compose import compose_rig
+    from exobench.envs.sim.scenarios.course import LocomotionScenario
+    from exobench.envs.sim.scenarios.course_world import build_locomotion_world
 
     sc = LocomotionScenario.from_dict({"terrain": terrain, "width_px": 640, "height_px": 480})
     world, wps = build_locomotion_world(sc)
-    scene = compose_locomotion(world, sc.exo_spec(), "rgbd_head", "imu_head", [])
+    scene = compose_rig(world, sc.exo_spec(), (("imu_head", "rgbd_head"),))
     model = scene.model
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)

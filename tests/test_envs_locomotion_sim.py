@@ -7,11 +7,16 @@ import pytest
 
 from exobench.core import ConfigError, ContactSample, ImuSample, OdometrySample, RgbdFrame, UnknownNameError
 from exobench.core.transforms import invert_T, quat_wxyz_to_matrix
-from exobench.envs.locomotion_sim import PARAMS, LocomotionScenario, plan_locomotion, simulate_locomotion
-from exobench.envs.locomotion_world import step_truths
 from exobench.envs.motion.odometry import drift_odometry
 from exobench.envs.motion.view import GAZE_DOWN_RAD, GazeDown, gaze_looks, view_motion
 from exobench.envs.session import read_session, write_session
+from exobench.envs.sim.scenarios.course import (
+    PARAMS,
+    LocomotionScenario,
+    plan_locomotion,
+    simulate_locomotion,
+)
+from exobench.envs.sim.scenarios.course_world import step_truths
 
 # small images at 10 Hz keep the file fast (rendering costs ~25 ms a frame whatever the size)
 FAST = {"width_px": 64, "height_px": 48, "rate_hz": 10.0}
@@ -297,9 +302,9 @@ def test_walker_regulates_its_last_steps_before_each_transition(terrain):  # ram
     and within APPROACH_RANGE of the nominal step. The walker
     without regulation (approach_steps=0) breaks this: one abrupt step takes the whole
     adjustment."""
-    from exobench.envs.locomotion_sim import PATTERNS, PLAN_TRIES
-    from exobench.envs.locomotion_world import build_locomotion_world, plan_pieces
     from exobench.envs.motion.footholds import APPROACH_RANGE, EDGE_BAND_M
+    from exobench.envs.sim.scenarios.course import PATTERNS, PLAN_TRIES
+    from exobench.envs.sim.scenarios.course_world import build_locomotion_world, plan_pieces
 
     sc = LocomotionScenario(terrain=terrain, approach_m=2.2, slope_deg=15.8)  # the track's level approach
     exo = sc.exo_spec()

@@ -8,8 +8,8 @@ import pytest
 from exobench.core import ConfigError
 from exobench.core.transforms import rot_y, rot_z
 from exobench.envs.motion import GaitError, Route, climb_step, leg_fk, leg_ik, plan_walk, sole_grid_f
-from exobench.envs.scenarios import PAPER_CASES, StairScenario
-from exobench.envs.sim import compiled_staircase
+from exobench.envs.sim import PAPER_CASES, StairScenario
+from exobench.envs.sim.scenarios.stairs import compiled_staircase
 from exobench.envs.terrain import Terrain
 from exobench.models.exo_spec import JOINT_RANGES_RAD, LEG_JOINTS, ExoSpec
 from exobench.models.world_params import CourseParams

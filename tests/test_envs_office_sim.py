@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError, LidarScan, UnknownNameError
-from exobench.envs.office_sim import LIDAR_ID, OfficeScenario, SensorPose, plan_office_walk, simulate_office
+from exobench.envs.sim.pose import RigidPose
+from exobench.envs.sim.scenarios.office import LIDAR_ID, OfficeScenario, plan_office_walk, simulate_office
 
 SHORT = dict(route="corridor", max_distance_m=2.0, lidar_noise_m=0.0, lidar_resolution_m=0.0)
 SEED = 3
@@ -46,7 +47,7 @@ def test_sensor_pose_matches_mujoco_kinematics(run):
     model = scene.model
     site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, LIDAR_ID)
     data = mujoco.MjData(model)
-    pose = SensorPose(model, motion, LIDAR_ID)
+    pose = RigidPose(model, motion, LIDAR_ID)
     for row in ep.truth.trajectory_w[::7]:
         data.qpos[:] = motion.sample(model, row[0]).qpos[0]
         mujoco.mj_kinematics(model, data)
@@ -64,7 +65,7 @@ def test_sensor_pose_matches_mujoco_kinematics(run):
 
 def test_noise_free_points_land_on_their_labelled_surfaces(run):
     sc, scene, motion, ep = run
-    pose = SensorPose(scene.model, motion, LIDAR_ID)
+    pose = RigidPose(scene.model, motion, LIDAR_ID)
     firing_s = sc.lidar_config().pattern.firing_period_s
     truth = ep.truth.scene
     scans = _scans(ep)

@@ -9,7 +9,6 @@ import pytest
 
 from exobench.core import ConfigError, ImuSample, JointState, SceneTruth, ToFReading, TofStatus
 from exobench.envs.motion import climb_step
-from exobench.envs.scenarios import StairScenario
 from exobench.envs.sensors import (
     ContactConfig,
     EncoderConfig,
@@ -23,7 +22,8 @@ from exobench.envs.sensors import (
     sensor_rngs,
     stable_int_key,
 )
-from exobench.envs.sim import compiled_staircase, record
+from exobench.envs.sim import StairScenario, scalar_rig
+from exobench.envs.sim.scenarios.stairs import compiled_staircase, record_climb
 from exobench.models.exo import add_exo
 from exobench.models.exo_spec import LEG_JOINTS, TOF_IDS, ExoSpec
 
@@ -50,12 +50,12 @@ def _by(frames, cls, sid=None):
 @pytest.mark.parametrize("case", ["A", "C"])
 def test_noiseless_tof_range_is_the_distance_to_the_true_plane(case):
     exo, scene, motion = _setup(case)
-    rec = record(scene.model, scene.truth, exo, motion, NOISELESS, seed=0)
+    rec = record_climb(scene, exo, motion, scalar_rig(NOISELESS), 0)
     tofs = _by(rec.frames, ToFReading)
-    assert len(tofs) == len(rec.tof_truth) == 4 * 101
+    assert len(tofs) == len(rec.frame_truth(TOF_IDS)) == 4 * 101
     data = mujoco.MjData(scene.model)
     seen = set()
-    for fr, tt in zip(tofs, rec.tof_truth):
+    for fr, tt in zip(tofs, rec.frame_truth(TOF_IDS)):
         assert (fr.stamp_s, fr.sensor_id) == (tt.stamp_s, tt.sensor_id)
         # the sensor pose, independently from MuJoCo's kinematics at that instant
         data.qpos[:] = motion.sample(scene.model, fr.stamp_s).qpos[0]
@@ -111,15 +111,15 @@ def test_tof_cone_mixes_sub_rays_within_the_field_of_view():
     assert np.allclose(d[0], [0, 0, 1]) and np.degrees(np.arccos(d[:, 2].min())) <= 13.5 + 1e-9
     exo, scene, motion = _setup("A")
     cfg = dataclasses.replace(NOISELESS, tof=ToFConfig(noise_m=0.0, resolution_m=0.0, n_cone_rays=16))
-    rec = record(scene.model, scene.truth, exo, motion, cfg, seed=0)
-    diffs = [abs(f.range_m - t.true_range_m) for f, t in zip(_by(rec.frames, ToFReading), rec.tof_truth) if f.valid]
+    rec = record_climb(scene, exo, motion, scalar_rig(cfg), 0)
+    diffs = [abs(f.range_m - t.true_range_m) for f, t in zip(_by(rec.frames, ToFReading), rec.frame_truth(TOF_IDS)) if f.valid]
     # a flat target seen at an angle: the mixture stays near the central range, edges differ more
     assert np.median(diffs) < 0.03 and max(diffs) > np.median(diffs)
 
 
 def test_imu_reads_gravity_at_rest_and_the_motion_while_moving():
     exo, scene, motion = _setup("B")
-    rec = record(scene.model, scene.truth, exo, motion, NOISELESS, seed=0)
+    rec = record_climb(scene, exo, motion, scalar_rig(NOISELESS), 0)
     imu = _by(rec.frames, ImuSample)
     assert len(imu) == 401
     g = -scene.model.opt.gravity[2]
@@ -162,7 +162,7 @@ def test_imu_noise_follows_the_configured_densities():
 def test_encoders_quantise_and_offset():
     exo, scene, motion = _setup("A")
     cfg = dataclasses.replace(NOISELESS, encoders=EncoderConfig(noise_rad=0.0, resolution_bits=14))
-    rec = record(scene.model, scene.truth, exo, motion, cfg, seed=0)
+    rec = record_climb(scene, exo, motion, scalar_rig(cfg), 0)
     js = _by(rec.frames, JointState)
     assert len(js) == 401 and js[0].names == LEG_JOINTS
     lsb = 2 * np.pi / 2**14
@@ -174,7 +174,7 @@ def test_encoders_quantise_and_offset():
 
 def test_contacts_carry_the_weight_and_release_in_swing():
     exo, scene, motion = _setup("A")
-    rec = record(scene.model, scene.truth, exo, motion, NOISELESS, seed=0)
+    rec = record_climb(scene, exo, motion, scalar_rig(NOISELESS), 0)
     cs = [f for f in rec.frames if f.sensor_id.startswith("contact_")]
     weight = (exo.user_mass_kg + exo.exo_mass_kg) * 9.81
     lift, td = motion.events["liftoff_s"], motion.events["touchdown_s"]
@@ -192,9 +192,9 @@ def test_contacts_carry_the_weight_and_release_in_swing():
 def test_same_seed_same_frames_bit_for_bit_and_different_seed_differs():
     exo, scene, motion = _setup("C")
     cfg = StairScenario(tof_dropout=0.2).sensors_config()
-    a = record(scene.model, scene.truth, exo, motion, cfg, seed=11)
-    b = record(scene.model, scene.truth, exo, motion, cfg, seed=11)
-    c = record(scene.model, scene.truth, exo, motion, cfg, seed=12)
+    a = record_climb(scene, exo, motion, scalar_rig(cfg), 11)
+    b = record_climb(scene, exo, motion, scalar_rig(cfg), 11)
+    c = record_climb(scene, exo, motion, scalar_rig(cfg), 12)
 
     def flat(rec):
         out = []
@@ -214,7 +214,7 @@ def test_same_seed_same_frames_bit_for_bit_and_different_seed_differs():
 def test_latency_shifts_stamps_and_rngs_are_per_sensor():
     exo, scene, motion = _setup("A")
     cfg = dataclasses.replace(NOISELESS, tof=ToFConfig(noise_m=0.0, resolution_m=0.0, latency_s=0.013))
-    rec = record(scene.model, scene.truth, exo, motion, cfg, seed=0)
+    rec = record_climb(scene, exo, motion, scalar_rig(cfg), 0)
     tofs = _by(rec.frames, ToFReading, "tof_r_lat")
     assert tofs[0].stamp_s == pytest.approx(0.013) and tofs[1].stamp_s == pytest.approx(0.033)
     assert stable_int_key("tof_r_lat") == stable_int_key("tof_r_lat") != stable_int_key("tof_r_med")
@@ -245,7 +245,7 @@ def test_sensor_configs_validate(make, field):
 
 def test_every_tof_sensor_and_stream_is_present():
     exo, scene, motion = _setup("B")
-    rec = record(scene.model, scene.truth, exo, motion, SensorsConfig(), seed=0)
+    rec = record_climb(scene, exo, motion, scalar_rig(SensorsConfig()), 0)
     ids = {f.sensor_id for f in rec.frames}
     assert set(TOF_IDS) <= ids and {"imu_trunk", "encoders", "contact_l_heel", "contact_r_toe"} <= ids
 

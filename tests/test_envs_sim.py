@@ -1,4 +1,4 @@
-"""envs.scenarios validation and the paper-case placement; envs.sim episodes end to end."""
+"""The stairs scenario (envs.sim.scenarios.stairs): validation, the paper-case placement, episodes end to end."""
 
 import math
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError, Episode, ImuSample, JointState, ToFReading, UnknownNameError
-from exobench.envs.scenarios import PAPER_CASES, PARAMS, StairScenario, staircase_params_for_case
-from exobench.envs.sim import SENSOR_ORDER, simulate_stairs
+from exobench.envs.sim import simulate_stairs
+from exobench.envs.sim.scenarios.stairs import PAPER_CASES, PARAMS, StairScenario, staircase_params_for_case
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.worlds import build_staircase
 
@@ -17,7 +17,8 @@ def test_params_table_matches_the_dataclass_defaults():
     for name, spec in PARAMS.items():
         assert getattr(sc, name) == spec.default
         assert spec.unit is not None and spec.doc
-    assert set(PARAMS) == set(sc.as_dict())
+    assert set(PARAMS) == set(sc.as_dict()) | {"extra_sensors"}  # left out of records while empty
+    assert StairScenario(extra_sensors="lidar_trunk").as_dict()["extra_sensors"] == "lidar_trunk"
 
 
 def test_from_dict_converts_strings_and_names_bad_fields():
@@ -67,7 +68,7 @@ def test_episode_frames_truth_and_calibration(episode_a):
     ep = episode_a
     stamps = [f.stamp_s for f in ep.frames]
     assert stamps == sorted(stamps)
-    rank = {s: i for i, s in enumerate(SENSOR_ORDER)}
+    rank = {s.sensor_id: i for i, s in enumerate(StairScenario().rig())}
     for a, b in zip(ep.frames, ep.frames[1:]):  # ties broken by the fixed sensor order
         if a.stamp_s == b.stamp_s:
             assert rank[a.sensor_id] < rank[b.sensor_id]

@@ -5,7 +5,7 @@ import pytest
 
 from exobench.core import ConfigError
 from exobench.envs.motion import Route, plan_walk
-from exobench.envs.office_sim import OfficeScenario, plan_office_walk, route_waypoints
+from exobench.envs.sim.scenarios.office import OfficeScenario, plan_office_walk, route_waypoints
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.office import office_route
 from exobench.models.worlds import build_level

@@ -195,7 +195,7 @@ def expected(est: LocomotionEstimate, strikes, segs):
     """(prediction, true mode of the next step) for each prediction with a footprint: after
     strike n-1 (strike_index n) the next foot lands at strikes[n], coming from its own last
     footprint strikes[n-2] (the mode of a step is the swinging foot's change of terrain, as in
-    the track's truth, envs/locomotion_world.step_truths)."""
+    the track's truth, envs/sim/scenarios/course_world.step_truths)."""
     out = []
     for p in est.predictions:
         n = p.strike_index

@@ -240,9 +240,9 @@ def test_algorithm_equals_the_reference_on_point_streams(htvr):
 
 @functools.cache
 def _simulated_frames():
-    from exobench.envs import scenarios, sim
+    from exobench.envs import sim
     # the paper's case B (23 deg yaw, close to the stairs)
-    scenario = scenarios.StairScenario.from_dict({"yaw_deg": 23.0, "distance_m": 0.27})
+    scenario = sim.StairScenario.from_dict({"yaw_deg": 23.0, "distance_m": 0.27})
     ep = sim.simulate_stairs(scenario, seed=1)
     return tuple(ep.frames), ep.calibration
 

@@ -21,8 +21,8 @@ from exobench.core import (
     ToFReading,
     TofStatus,
 )
-from exobench.envs.office_sim import OfficeScenario, simulate_office
 from exobench.envs.session import iter_frames, read_meta, read_session, write_session
+from exobench.envs.sim.scenarios.office import OfficeScenario, simulate_office
 
 
 def _same(a, b) -> bool:

@@ -1,6 +1,6 @@
 """Office walks as the LiDAR tracks (lidar-filter, odometry, loop-closure) share them.
 
-- Scenario parameters: :func:`office_params` (the :data:`exobench.envs.office_sim.PARAMS` table
+- Scenario parameters: :func:`office_params` (the :data:`exobench.envs.sim.scenarios.office.PARAMS` table
   as :class:`ParamInfo` rows, plus a track's own extra rows), :func:`validate_office_scenario`
   (typed values; the track's extra keys validated by the same ``ParamSpec`` rules),
   :func:`simulate_office_episode` (drops the extra keys, runs ``simulate_office``) and
@@ -36,7 +36,7 @@ GENUINE, GLASS, GHOST = 0, 1, 2
 
 def office_params(extra: Mapping[str, Any] | None = None) -> list[ParamInfo]:
     """Rows of the office scenario table, then ``extra`` (name -> ``ParamSpec``) of a track."""
-    from exobench.envs.office_sim import PARAMS
+    from exobench.envs.sim.scenarios.office import PARAMS
 
     return param_infos({**PARAMS, **dict(extra or {})})
 
@@ -46,7 +46,7 @@ def validate_office_scenario(values: Mapping[str, Any], extra: Mapping[str, Any]
 
     Unknown names raise :class:`UnknownNameError`; bad values ``ConfigError``.
     """
-    from exobench.envs.office_sim import PARAMS, OfficeScenario
+    from exobench.envs.sim.scenarios.office import PARAMS, OfficeScenario
     from exobench.models.world_params import ParamSpec
 
     extra = dict(extra or {})
@@ -75,7 +75,7 @@ def _check_extra(name: str, raw: Any, spec: Any) -> Any:
 
 def simulate_office_episode(scenario: Mapping[str, Any], seed: int, extra: Mapping[str, Any] | None = None) -> Episode:
     """``simulate_office`` on the office part of a validated scenario (``extra`` keys dropped)."""
-    from exobench.envs.office_sim import OfficeScenario, simulate_office
+    from exobench.envs.sim.scenarios.office import OfficeScenario, simulate_office
 
     office = {k: v for k, v in scenario.items() if k not in dict(extra or {})}
     return simulate_office(OfficeScenario.from_dict(office), seed)

@@ -42,9 +42,9 @@ from ..motion import (
     sole_grid_f,
     still_segment,
 )
-from ..scenarios import PARAMS as SCENARIO_PARAMS
-from ..scenarios import staircase_params_for_case
 from ..sensors import ToFConfig, ToFSensor
+from ..sim.scenarios.stairs import PARAMS as SCENARIO_PARAMS
+from ..sim.scenarios.stairs import staircase_params_for_case
 from ..terrain import Terrain
 from .stair_footing import Outcome, belief_terrain, judge_swing
 
@@ -85,7 +85,7 @@ class StairClimbEnv(gymnasium.Env):
     risers (the last tread is the top landing), both feet flat, facing world +x; the
     exoskeleton is turned by ``yaw_deg`` counter-clockwise relative to the flight, whose first
     riser is ``distance_m`` ahead of the right toe tip (the staircase paper's protocol,
-    :func:`exobench.envs.scenarios.staircase_params_for_case`). Each step the agent commands
+    :func:`exobench.envs.sim.scenarios.stairs.staircase_params_for_case`). Each step the agent commands
     where the *swing* foot lands; legs alternate (the right foot swings first), so one command
     per tread climbs step-over, and a short command on the ground approaches the stairs. The
     heading stays constant (world +x).
@@ -101,7 +101,7 @@ class StairClimbEnv(gymnasium.Env):
     its toe, stance and target beyond) and keeps ``clearance_m`` over that. The foot goes where
     it is told; only the judge of the touch-down sees the true staircase. The ToF sensors
     (:class:`~exobench.envs.sensors.tof.ToFSensor` with its noise, quantisation, dropout, latency and
-    seeded streams; measurement times ``k / rate_hz`` as in :mod:`exobench.envs.sim`) measure
+    seeded streams; measurement times ``k / rate_hz`` as in :mod:`exobench.envs.sim.recorder`) measure
     during the ``standing_s`` of :meth:`reset` (seeing the ground or the first riser ahead) and
     during every swing and settling.
 
@@ -167,7 +167,7 @@ class StairClimbEnv(gymnasium.Env):
     ``reset`` draws from ``self.np_random`` a riser height, tread depth, staircase yaw, start
     distance (right toe tip to the first riser, perpendicular) and user height uniformly within
     the ranges below (``options`` may fix any of ``riser_m, tread_m, yaw_deg, distance_m,
-    user_height_m``, validated against :data:`exobench.envs.scenarios.PARAMS`), builds and
+    user_height_m``, validated against :data:`exobench.envs.sim.scenarios.stairs.PARAMS`), builds and
     compiles the world (about 20 ms) and simulates ``standing_s`` of standing. The sensor noise
     streams are seeded from ``self.np_random`` too, so ``reset(seed=s)`` and the same actions
     give the same observations and rewards bit for bit.

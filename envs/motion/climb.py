@@ -3,7 +3,7 @@ tread, planned from the true staircase and not updated by perception.
 
 World convention of :func:`climb_step`: the exoskeleton starts at the origin facing +x, both
 feet flat on level ground at z = 0 (ankles below the hips, knees 5 deg flexed [A]). The
-staircase must be built with :func:`exobench.envs.scenarios.staircase_params_for_case`.
+staircase must be built with :func:`exobench.envs.sim.scenarios.stairs.staircase_params_for_case`.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ def climb_step(
     ``truth`` must have its first riser at perpendicular distance ``distance_m`` from the swing
     foot's toe tip and be yawed by ``-yaw_deg`` (the exoskeleton turned by ``yaw_deg``
     counter-clockwise relative to the stairs), as
-    :func:`exobench.envs.scenarios.staircase_params_for_case` builds it. After ``still_s`` of
+    :func:`exobench.envs.sim.scenarios.stairs.staircase_params_for_case` builds it. After ``still_s`` of
     standing, the ``side`` foot lifts off and follows a parabola (flat sole, minimum-jerk
     progress) to the first tread: the footprint is centred on the tread along the walking
     direction (toe 1 cm short of the next riser when the foot is longer than the tread), the

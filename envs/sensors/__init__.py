@@ -11,8 +11,10 @@ rate, latency, noise, dropout, sources) and its model. Each kind's frame type is
 
 Every model draws from its own generators (:func:`sensor_rngs`, keyed by :func:`stable_int_key`
 of the sensor id); frames carry the delivery time (measurement time plus latency) and dropped
-frames are absent (:mod:`.common`). :class:`SensorsConfig` groups the scalar streams a simulator
-mounts together.
+frames are absent (:mod:`.common`). :class:`SensorsConfig` groups the scalar streams mounted
+together. Each kind plugs into the simulation core (:mod:`exobench.envs.sim`) through its
+``adapter`` module (:mod:`.adapter` says what an adapter is; :mod:`.kinds` lists them); the
+camera odometry (:mod:`.odometry`) is a kind too.
 """
 
 from .common import EXO_GROUP, WORLD_GROUP, check_timing, sample_times, sensor_rngs, stable_int_key

@@ -1,6 +1,6 @@
 """The lidar-filter track's spec: ground-aware intensity filtering of office LiDAR scans (seeds/003 4.2.2, 5.2.2).
 
-The office (:mod:`exobench.envs.office_sim`) has glass panes and reflective floors that return
+The office (:mod:`exobench.envs.sim.scenarios.office`) has glass panes and reflective floors that return
 spurious points (the panes' own weak reflections, ghosts seen in mirrors and panes); its
 real floor returns are weak at grazing incidence. Each pipeline (``filter-none``,
 ``filter-threshold``, ``filter-naive-ground``, ``filter-normal-ground`` of the thesis, and our

@@ -1,7 +1,7 @@
 """The locomotion track's spec: locomotion-mode prediction from terrain reconstruction (seeds/002, Sec. III-IV).
 
 A walker with an RGB-D camera (head, chest or thigh), its IMU, insoles and odometry walks a
-course (:mod:`exobench.envs.locomotion_sim`): stairs LG -> SA -> LG -> SD -> LG, ramps
+course (:mod:`exobench.envs.sim.scenarios.course`): stairs LG -> SA -> LG -> SD -> LG, ramps
 LG -> RA -> LG -> RD -> LG, or a stair lane beside a ramp lane. Pipelines predict the mode of each
 next step; :mod:`.metrics` scores the mode in effect at each step's liftoff.
 
@@ -213,12 +213,12 @@ class LocomotionTrack:
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"latency_ms_median", "latency_ms_p95"})
 
     def params(self) -> list[ParamInfo]:
-        from exobench.envs.locomotion_sim import PARAMS
+        from exobench.envs.sim.scenarios.course import PARAMS
 
         return param_infos(PARAMS)
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        from exobench.envs.locomotion_sim import LocomotionScenario
+        from exobench.envs.sim.scenarios.course import LocomotionScenario
 
         return LocomotionScenario.from_dict(dict(values)).as_dict()
 
@@ -232,7 +232,7 @@ class LocomotionTrack:
         raise UnknownNameError("suite", suite, self.suites)
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
-        from exobench.envs.locomotion_sim import LocomotionScenario, simulate_locomotion
+        from exobench.envs.sim.scenarios.course import LocomotionScenario, simulate_locomotion
 
         return simulate_locomotion(LocomotionScenario.from_dict(dict(scenario)), seed)
 

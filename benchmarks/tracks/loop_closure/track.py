@@ -1,7 +1,7 @@
 """The loop-closure track's spec: place recognition with SC++ and Gaussian Scan Context (seeds/003 4.2.3, 5.2.3).
 
 A walker with a trunk LiDAR (VLP-16) and IMU walks the office ``"loop"`` route
-(:mod:`exobench.envs.office_sim`: round the corridor ring and back to the start, then a second
+(:mod:`exobench.envs.sim.scenarios.office`: round the corridor ring and back to the start, then a second
 lap through the meeting room) in offices with glass partitions (panes reflect, ghosts appear
 behind them) and polished floors. Every keyframe of a pipeline is matched against the earlier
 ones; the match is scored against the true LiDAR poses (``EpisodeTruth.trajectory_w``) as the
@@ -92,7 +92,7 @@ SUMMARY_ROWS = [
 
 
 def _scenario_class() -> type:
-    from exobench.envs.office_sim import OfficeScenario
+    from exobench.envs.sim.scenarios.office import OfficeScenario
 
     @dataclasses.dataclass(frozen=True)
     class LoopOfficeScenario(OfficeScenario):
@@ -126,7 +126,7 @@ def _scenario_class() -> type:
 
 def simulate_loop(scenario: Mapping[str, Any], seed: int) -> Episode:
     """One office walk of a validated scenario (the scoring keys dropped)."""
-    from exobench.envs.office_sim import simulate_office
+    from exobench.envs.sim.scenarios.office import simulate_office
 
     values = {k: v for k, v in scenario.items() if k not in SCORING_KEYS}
     episode = simulate_office(_scenario_class()(**values), seed)

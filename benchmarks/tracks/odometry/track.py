@@ -1,6 +1,6 @@
 """The odometry track's spec: LiDAR trajectory estimation on office walks (seeds/003 Sec. 4.2.1, 5.2.1).
 
-A walker with a trunk LiDAR walks an office route (:mod:`exobench.envs.office_sim`); each
+A walker with a trunk LiDAR walks an office route (:mod:`exobench.envs.sim.scenarios.office`); each
 pipeline returns a :class:`TrajectoryEstimate` of the LiDAR, scored by
 :mod:`..lidar_trajectory` against the true LiDAR pose (ATE/RPE as evo, drift per metre, loop
 TE/OE/TVE when the route ends where it started, time per scan).

@@ -164,12 +164,12 @@ class StairsTrack:
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_point_us"})
 
     def params(self) -> list[ParamInfo]:
-        from exobench.envs.scenarios import PARAMS
+        from exobench.envs.sim.scenarios.stairs import PARAMS
 
         return param_infos(PARAMS)
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        from exobench.envs.scenarios import StairScenario
+        from exobench.envs.sim import StairScenario
 
         return dataclasses.asdict(StairScenario.from_dict(dict(values)))
 
@@ -207,8 +207,7 @@ class StairsTrack:
         return case.group.replace(old, new) if old in case.group else f"{case.group} {new}"
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
-        from exobench.envs.scenarios import StairScenario
-        from exobench.envs.sim import simulate_stairs
+        from exobench.envs.sim import StairScenario, simulate_stairs
 
         return simulate_stairs(StairScenario.from_dict(dict(scenario)), seed)
 

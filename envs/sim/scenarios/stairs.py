@@ -1,8 +1,8 @@
-"""Stair-climbing scenarios: the parameters of one episode of the stairs track, validated.
+"""The staircase world: one climbing step of the staircase paper, with every sensor.
 
 :data:`PARAMS` lists every parameter (``name -> ParamSpec(default, low, high, unit, doc)``); the
-command line lists it and sets values from it (``--set riser_m=0.17``), and
-:meth:`StairScenario.from_dict` validates plain or string values against it.
+command line lists it and sets values from it (``--set riser_m=0.17``); :class:`StairScenario` is
+generated from it (:mod:`exobench.envs.sim.scenario`).
 
 Geometry of an episode (the staircase paper, section V-A): the exoskeleton stands at the
 origin facing +x with both feet flat on the ground; the staircase's first riser is at
@@ -11,19 +11,38 @@ foot, and the exoskeleton is turned by ``yaw_deg`` counter-clockwise relative to
 i.e. the staircase is yawed by ``-yaw_deg`` in the world. The paper's cases are
 :data:`PAPER_CASES`: A frontal, L = 0.305 m; B turned +23 deg (the staircase on its right),
 L = 0.27 m; C turned -23 deg, L = 0.49 m.
+
+Default rig (:meth:`StairScenario.rig`): encoders, trunk IMU, insole pads, the four calf ToF
+sensors (ties in that order: state before ranges). Compiled worlds are cached per (staircase,
+body, extra sites), so a batch of episodes compiles each world once.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from functools import lru_cache
 from typing import Any
 
-from exobench.core import ConfigError, UnknownNameError, check_range
-from exobench.models.exo_spec import ExoSpec
-from exobench.models.world_params import ParamSpec, StaircaseParams, from_dict_checked, validate_fields
+import numpy as np
 
-from .sensors import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, ToFConfig
+from exobench.core import ConfigError, Episode, EpisodeTruth, StairTruth, UnknownNameError, check_range
+from exobench.core.transforms import make_T
+from exobench.models.exo_spec import ExoSpec
+from exobench.models.world_params import ParamSpec, StaircaseParams
+
+from ...motion import Motion, climb_step
+from ...sensors import ContactConfig, EncoderConfig, ImuConfig, SensorsConfig, ToFConfig, sample_times
+from ...sensors.adapter import MountedSensor
+from ...terrain import Terrain
+from ..calibration import build_calibration
+from ..compose import attached_sites, compose_rig
+from ..recorder import TRACKED_BODIES, Recording, record
+from ..rig import Rig, scalar_rig, with_presets
+from ..scenario import scenario_base
+
+FOOT_TRACK_RATE_HZ = 100.0
+PENETRATION_RATE_HZ = 1000.0
 
 PARAMS: dict[str, ParamSpec] = {
     "riser_m": ParamSpec(0.162, 0.0, 0.30, "m", "riser height", low_open=True),
@@ -44,6 +63,7 @@ PARAMS: dict[str, ParamSpec] = {
     "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks (BMI055)"),
     "imu_orientation_deg": ParamSpec(0.2, 0.0, 10.0, "deg", "rms error of the IMU's orientation (AHRS)"),
     "encoder_noise_rad": ParamSpec(1e-4, 0.0, 0.05, "rad", "joint encoder white noise, standard deviation"),
+    "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: lidar_trunk, rgbd_head, rgbd_chest, rgbd_thigh, ...)"),
 }
 
 # paper section V-A: case -> (distance_m, yaw_deg)
@@ -54,36 +74,8 @@ PAPER_CASES: dict[str, dict[str, float]] = {
 }
 
 
-@dataclass(frozen=True)
-class StairScenario:
+class StairScenario(scenario_base("StairScenario", "stairs", PARAMS)):  # type: ignore[misc]
     """One stairs-track episode; see :data:`PARAMS` for units, ranges and meaning."""
-
-    riser_m: float = PARAMS["riser_m"].default
-    tread_m: float = PARAMS["tread_m"].default
-    n_steps: int = PARAMS["n_steps"].default
-    nosing_m: float = PARAMS["nosing_m"].default
-    width_m: float = PARAMS["width_m"].default
-    yaw_deg: float = PARAMS["yaw_deg"].default
-    distance_m: float = PARAMS["distance_m"].default
-    user_height_m: float = PARAMS["user_height_m"].default
-    user_mass_kg: float = PARAMS["user_mass_kg"].default
-    duration_s: float = PARAMS["duration_s"].default
-    tof_noise_m: float = PARAMS["tof_noise_m"].default
-    tof_rate_hz: float = PARAMS["tof_rate_hz"].default
-    tof_latency_s: float = PARAMS["tof_latency_s"].default
-    tof_dropout: float = PARAMS["tof_dropout"].default
-    tof_cone_rays: int = PARAMS["tof_cone_rays"].default
-    imu_noise_scale: float = PARAMS["imu_noise_scale"].default
-    imu_orientation_deg: float = PARAMS["imu_orientation_deg"].default
-    encoder_noise_rad: float = PARAMS["encoder_noise_rad"].default
-
-    def __post_init__(self) -> None:
-        validate_fields(self, PARAMS)
-
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> StairScenario:
-        """Validated scenario from plain values (strings are converted); unknown names refused."""
-        return from_dict_checked(cls, "stairs scenario", PARAMS, values)
 
     @classmethod
     def paper_case(cls, case: str, **overrides: Any) -> StairScenario:
@@ -91,9 +83,6 @@ class StairScenario:
         if case not in PAPER_CASES:
             raise UnknownNameError("paper case", case, PAPER_CASES)
         return cls.from_dict({**PAPER_CASES[case], **overrides})
-
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
     def exo_spec(self) -> ExoSpec:
         return ExoSpec(user_height_m=self.user_height_m, user_mass_kg=self.user_mass_kg)
@@ -114,6 +103,10 @@ class StairScenario:
             encoders=EncoderConfig(noise_rad=self.encoder_noise_rad),
             contact=ContactConfig(),
         )  # fmt: skip
+
+    def rig(self) -> Rig:
+        """The default rig (encoders, trunk IMU, insoles, calf ToF) plus ``extra_sensors``."""
+        return with_presets(scalar_rig(self.sensors_config()), self.extra_sensors)
 
 
 def staircase_params_for_case(
@@ -146,3 +139,70 @@ def staircase_params_for_case(
         riser_m=riser, tread_m=tread, n_steps=n_steps, width_m=width_m, nosing_m=nosing_m,
         yaw_deg=-yaw_deg, position_m=(x, toe_y), direction="up",
     )  # fmt: skip
+
+
+@lru_cache(maxsize=16)
+def compiled_staircase(params: StaircaseParams, exo: ExoSpec, sites: tuple[tuple[str, str], ...] = ()) -> Any:
+    """The composed staircase world (``models.worlds.CompiledScene``), compiled once per key."""
+    from exobench.models.worlds import build_staircase
+
+    return compose_rig(build_staircase(params), exo, sites)
+
+
+def plan_climb(scenario: StairScenario, rig: Sequence[MountedSensor] = ()) -> tuple[Any, Motion]:
+    """(compiled staircase scene, climbing-step motion) of a scenario, without sensing.
+
+    Cheap (milliseconds once the world is compiled); raises :class:`ConfigError` naming
+    ``distance_m``/``tread_m`` when the step cannot be made, so scenario grids can be checked.
+    """
+    exo = scenario.exo_spec()
+    scene = compiled_staircase(scenario.staircase_params(exo), exo, attached_sites(rig))
+    motion = climb_step(
+        exo, scene.truth, distance_m=scenario.distance_m, yaw_deg=scenario.yaw_deg, duration_s=scenario.duration_s
+    )
+    return scene, motion
+
+
+def record_climb(scene: Any, exo: ExoSpec, motion: Motion, rig: Sequence[MountedSensor], seed: int) -> Recording:
+    """The rig over a climbing step, with the link tracks of :data:`TRACKED_BODIES`."""
+    return record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+
+
+def simulate_stairs(scenario: StairScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> Episode:
+    """One climbing step of the staircase paper in the scenario's world, with every sensor of
+    ``rig`` (default :meth:`StairScenario.rig`).
+
+    Truth: the estimator frame ``stance_ground`` (world axes, origin on the ground below the
+    left ankle), the ToF truth, the right foot's sole point over time and at touch-down, link
+    poses at 50 Hz, the deepest foot penetration (sole grid every 1 ms) and the lift-off/touch-down
+    events.
+    """
+    rig = tuple(scenario.rig() if rig is None else rig)
+    exo = scenario.exo_spec()
+    scene, motion = plan_climb(scenario, rig)
+    truth = scene.truth
+    rec = record_climb(scene, exo, motion, rig, seed)
+
+    stance = motion.stance_side
+    swing = "r" if stance == "l" else "l"
+    terrain = Terrain(truth)
+    a0 = motion.state(0.0).ankle_w[stance][0]
+    T_world_est = make_T(np.eye(3), np.array([a0[0], a0[1], terrain.height(a0[None, :2])[0]]))
+    t_ft = sample_times(FOOT_TRACK_RATE_HZ, motion.duration_s)
+    foot_track = np.column_stack([t_ft, motion.sole_point_w(swing, t_ft)])
+    t_pen = sample_times(PENETRATION_RATE_HZ, motion.duration_s)
+    tofs = [s.sensor_id for s in rig if s.kind == "tof"]
+    ep_truth = EpisodeTruth(
+        scene=truth,
+        T_world_estimator=T_world_est,
+        stairs=StairTruth(
+            tof=rec.frame_truth(tofs), stance_side=stance, touchdown_w=motion.footsteps[0].sole_w.copy(), foot_track_w=foot_track
+        ),
+        body_tracks=rec.body_tracks,
+        max_penetration_m=motion.max_penetration_m(truth, t_pen),
+        events=dict(motion.events),
+        lidar=tuple(rec.frame_truth([s.sensor_id for s in rig if s.kind == "lidar"])),
+    )
+    cal = build_calibration(exo, rig)
+    return Episode(scenario=scenario.as_dict(), seed=int(seed), calibration=cal, frames=rec.frames, truth=ep_truth)
+

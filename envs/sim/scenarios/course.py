@@ -2,9 +2,9 @@
 on stair, ramp and side-by-side stair/ramp courses.
 
 :class:`LocomotionScenario` holds the parameters (:data:`PARAMS`, validated like
-:mod:`exobench.envs.scenarios`: ``ConfigError(field, value, allowed)``, unknown names refused with
+:mod:`exobench.envs.sim.scenario`: ``ConfigError(field, value, allowed)``, unknown names refused with
 ``UnknownNameError``); :func:`simulate_locomotion` builds the course
-(:mod:`exobench.envs.locomotion_world`), plans a stop-and-go walk along it
+(:mod:`exobench.envs.sim.scenarios.course_world`), plans a stop-and-go walk along it
 (:func:`plan_locomotion`), moves the camera like a walking person's head or chest
 (:mod:`exobench.envs.motion.view`) and records an :class:`~exobench.core.Episode`.
 
@@ -27,7 +27,7 @@ are descended with forefoot landings and the trailing heel up to 40 deg off the 
 need a stance knee of up to 115 deg (see the walk module); on treads shorter than the foot
 (0.148 x height) the toes overhang the nosing on the way down. An unwalkable course raises
 ``ConfigError`` naming ``riser_m`` (stairs) or ``slope_deg`` (ramps) after at most
-``locomotion_world.MAX_PLANS`` planner calls (about 20-60 s).
+``course_world.MAX_PLANS`` planner calls (about 20-60 s).
 
 Walking patterns (SENSORS.md "Walking"): the walker is stop-and-go, so a pattern is a step length
 and a step period = swing + double support (:data:`PATTERNS`): cadence 90 (wander), 110 (walk)
@@ -73,7 +73,7 @@ Frames (time-ordered; ties: IMU, contacts, odometry, camera):
   (``T_camera_body`` = identity).
 
 Truth: ``steps`` (:class:`~exobench.core.truth.StepTruth` per step up to the cap; modes: see
-:func:`~exobench.envs.locomotion_world.step_truths`), ``events`` (``liftoff_s``, ``end_s``,
+:func:`~exobench.envs.sim.scenarios.course_world.step_truths`), ``events`` (``liftoff_s``, ``end_s``,
 ``join_<k>_s`` where the walker stopped, and ``transition_<k>_<from>_<to>_s`` at the heel strike of
 each step k whose mode differs from the previous step's), ``trajectory_w`` (true optical-frame pose
 at each camera measurement time, rows [t, x, y, z, qw, qx, qy, qz]), ``T_world_estimator`` (the
@@ -96,32 +96,29 @@ per wall-second (23 per CPU-second), 640x480 3.5 (11 per CPU-second). A default 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from collections.abc import Sequence
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
-from exobench.core import ConfigError, Episode, EpisodeTruth, Frame, OdometrySample, SensorMount
-from exobench.core.transforms import matrix_to_quat_wxyz
+from exobench.core import ConfigError, Episode, EpisodeTruth
 from exobench.models.exo_spec import ExoSpec
-from exobench.models.world_params import ParamSpec, check_param, from_dict_checked
+from exobench.models.world_params import ParamSpec
 
-from .motion import GaitError, Motion
-from .sensors import (
-    ContactConfig,
-    ContactSensor,
-    ImuConfig,
-    ImuSensor,
-    RgbdCamera,
-    RgbdConfig,
-    SensorsConfig,
-    contact_forces,
-    imu_dynamics,
-    sample_times,
-    sensor_rngs,
-)
-from .terrain import Terrain
+from ...motion import GaitError, Motion
+from ...sensors import ContactConfig, ImuConfig, RgbdConfig, sample_times, sensor_rngs
+from ...sensors.adapter import MountedSensor
+from ...sensors.odometry import OdometryConfig
+from ...terrain import Terrain
+from ..calibration import build_calibration
+from ..compose import CHEST_CAMERA, attached_sites, compose_rig
+from ..hooks import PedestrianHook, ViewHook
+from ..pose import pose_rows
+from ..recorder import record
+from ..rig import Rig, camera_rig, with_presets
+from ..scenario import scenario_base
+from .course_world import step_truths
 
 TERRAINS = ("stairs", "ramp", "parallel")
 MOUNTS = ("head", "chest", "thigh")
@@ -150,8 +147,8 @@ PARAMS: dict[str, ParamSpec] = {
     "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
     "view": ParamSpec("normal", None, None, "", "camera view: normal, or unconventional (large slow pitch/yaw excursions, walls fill the image)", choices=VIEWS),
     "head_pitch_mean_rad": ParamSpec(0.14, -0.3, 0.6, "rad", "mean camera pitch below the horizon of the head mount (paper Fig. 4(b): 0.14)"),
-    "gaze": ParamSpec("transitions", None, None, "", "head mount: transitions, the wearer looks down at each terrain transition about two steps ahead (the pitch keeps head_pitch_mean_rad and head_pitch_std_rad over the episode); random, the pitch ignores the terrain", choices=GAZES),
     "head_pitch_std_rad": ParamSpec(0.26, 0.0, 0.5, "rad", "standard deviation of the head-mount camera pitch (paper: 0.26); the chest sways with a third of it"),
+    "gaze": ParamSpec("transitions", None, None, "", "head mount: transitions, the wearer looks down at each terrain transition about two steps ahead (the pitch keeps head_pitch_mean_rad and head_pitch_std_rad over the episode); random, the pitch ignores the terrain", choices=GAZES),
     "pedestrians": ParamSpec(0, 0, 4, "", "people walking across the view (paper: 2 in the disturbance test)"),
     "width_px": ParamSpec(424, 16, 1280, "px", "image width (D455 424x240 / 640x480 / 848x480)"),
     "height_px": ParamSpec(240, 16, 720, "px", "image height"),
@@ -167,75 +164,24 @@ PARAMS: dict[str, ParamSpec] = {
     "odom_drift_pct": ParamSpec(1.0, 0.0, 20.0, "%", "odometry translation drift, percent of the distance travelled"),
     "odom_yaw_drift_deg_per_m": ParamSpec(0.5, 0.0, 20.0, "deg/m", "odometry heading drift per metre travelled"),
     "duration_cap_s": ParamSpec(60.0, 2.0, 600.0, "s", "the episode is cut after this time (frames and steps)"),
+    "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: lidar_trunk, tof_calves, encoders, ...)"),
 }
 
 
-def _check_fields(obj: Any) -> None:
-    for f in fields(obj):
-        v = getattr(obj, f.name)
-        if f.name == "fx_px" and v is None:
-            continue
-        object.__setattr__(obj, f.name, check_param(f.name, v, PARAMS[f.name]))
-
-
-@dataclass(frozen=True)
-class LocomotionScenario:
+class LocomotionScenario(scenario_base("LocomotionScenario", "locomotion", PARAMS)):  # type: ignore[misc]
     """One locomotion-track episode; see :data:`PARAMS` for units, ranges and meaning."""
 
-    terrain: str = PARAMS["terrain"].default
-    riser_m: float = PARAMS["riser_m"].default
-    tread_m: float = PARAMS["tread_m"].default
-    n_steps: int = PARAMS["n_steps"].default
-    slope_deg: float = PARAMS["slope_deg"].default
-    ramp_length_m: float = PARAMS["ramp_length_m"].default
-    landing_m: float = PARAMS["landing_m"].default
-    approach_m: float = PARAMS["approach_m"].default
-    width_m: float = PARAMS["width_m"].default
-    walls: bool = PARAMS["walls"].default
-    parallel_first: str = PARAMS["parallel_first"].default
-    stops: str = PARAMS["stops"].default
-    mount: str = PARAMS["mount"].default
-    pattern: str = PARAMS["pattern"].default
-    user_height_m: float = PARAMS["user_height_m"].default
-    user_mass_kg: float = PARAMS["user_mass_kg"].default
-    view: str = PARAMS["view"].default
-    head_pitch_mean_rad: float = PARAMS["head_pitch_mean_rad"].default
-    head_pitch_std_rad: float = PARAMS["head_pitch_std_rad"].default
-    gaze: str = PARAMS["gaze"].default
-    pedestrians: int = PARAMS["pedestrians"].default
-    width_px: int = PARAMS["width_px"].default
-    height_px: int = PARAMS["height_px"].default
-    fx_px: float | None = PARAMS["fx_px"].default
-    rate_hz: float = PARAMS["rate_hz"].default
-    latency_s: float = PARAMS["latency_s"].default
-    depth_noise_scale: float = PARAMS["depth_noise_scale"].default
-    min_depth_m: float = PARAMS["min_depth_m"].default
-    max_depth_m: float = PARAMS["max_depth_m"].default
-    frame_dropout: float = PARAMS["frame_dropout"].default
-    imu_rate_hz: float = PARAMS["imu_rate_hz"].default
-    imu_noise_scale: float = PARAMS["imu_noise_scale"].default
-    odom_drift_pct: float = PARAMS["odom_drift_pct"].default
-    odom_yaw_drift_deg_per_m: float = PARAMS["odom_yaw_drift_deg_per_m"].default
-    duration_cap_s: float = PARAMS["duration_cap_s"].default
-
     def __post_init__(self) -> None:
-        _check_fields(self)
+        super().__post_init__()
         if self.min_depth_m >= self.max_depth_m:
             raise ConfigError("min_depth_m", self.min_depth_m, f"less than max_depth_m = {self.max_depth_m}")
 
-    @classmethod
-    def from_dict(cls, values: dict[str, Any]) -> LocomotionScenario:
-        """Validated scenario from plain values (strings are converted); unknown names refused."""
-        values = dict(values)
-        if isinstance(values.get("fx_px"), str) and values["fx_px"].strip().lower() in ("none", "null", ""):
-            values["fx_px"] = None
-        return from_dict_checked(cls, "locomotion scenario", PARAMS, values)
-
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
     def exo_spec(self) -> ExoSpec:
         return ExoSpec(user_height_m=self.user_height_m, user_mass_kg=self.user_mass_kg)
+
+    def rig(self) -> Rig:
+        """The default rig (:func:`default_rig`)."""
+        return default_rig(self)
 
 
 # pattern -> (step length at a 1.75 m user, m; swing, s; double support, s). Cadence = 60 /
@@ -271,7 +217,7 @@ def _world_key(sc: LocomotionScenario) -> tuple:
 
 @lru_cache(maxsize=8)
 def _plan_cached(key: tuple, exo: ExoSpec, pattern: str) -> tuple[Any, tuple, Any, dict[str, float]]:
-    from .locomotion_world import build_locomotion_world, plan_pieces
+    from .course_world import build_locomotion_world, plan_pieces
 
     sc = LocomotionScenario(**dict(zip(_WORLD_FIELDS, key)))
     toe = exo.foot_m - exo.heel_to_ankle_m
@@ -305,12 +251,10 @@ def plan_locomotion(scenario: LocomotionScenario) -> tuple[Any, tuple, Motion, d
 
 
 @lru_cache(maxsize=8)
-def _compiled(key: tuple, exo: ExoSpec, pattern: str, mount: str, ped_heights: tuple[float, ...]) -> Any:
-    from .locomotion_world import compose_locomotion
-
+def _compiled(key: tuple, exo: ExoSpec, pattern: str, sites: tuple[tuple[str, str], ...], chest_rig: bool,
+              ped_heights: tuple[float, ...]) -> Any:  # fmt: skip
     world = _plan_cached(key, exo, pattern)[0]
-    cam_id, imu_id, _ = sensor_ids(mount)
-    return compose_locomotion(world, exo, cam_id, imu_id, list(ped_heights))
+    return compose_rig(world, exo, sites, chest_rig=chest_rig, ped_heights_m=list(ped_heights))
 
 
 def _rgbd_config(sc: LocomotionScenario) -> RgbdConfig:
@@ -325,53 +269,25 @@ def _rgbd_config(sc: LocomotionScenario) -> RgbdConfig:
         raise ConfigError(name, getattr(err, "value", None), getattr(err, "allowed", str(err))) from None
 
 
-def _rows(t: np.ndarray, T: np.ndarray) -> np.ndarray:
-    q = np.array([matrix_to_quat_wxyz(R) for R in T[:, :3, :3]]).reshape(-1, 4)
-    return np.column_stack([t, T[:, :3, 3], q])
+def default_rig(sc: LocomotionScenario) -> Rig:
+    """The camera's IMU, the insoles, the camera's odometry and the camera (ties in that order), plus
+    ``extra_sensors``."""
+    imu, odom, cam = camera_rig(
+        sc.mount, _rgbd_config(sc), ImuConfig(rate_hz=sc.imu_rate_hz, noise_scale=sc.imu_noise_scale),
+        OdometryConfig(rate_hz=sc.rate_hz, drift_pct=sc.odom_drift_pct, yaw_drift_deg_per_m=sc.odom_yaw_drift_deg_per_m),
+    )  # fmt: skip
+    contacts = tuple(MountedSensor(pid, "contact", ContactConfig()) for pid in CONTACT_ORDER)
+    return with_presets((imu, *contacts, odom, cam), sc.extra_sensors)
 
 
-def _joint_addr(model: Any, name: str) -> tuple[int, int]:
-    import mujoco
-
-    j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
-    return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
-
-
-def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
-    """One walk along the scenario's course with the camera, its IMU, insoles and odometry."""
-    import mujoco
-
-    from exobench.models.exo import exo_calibration
+def _view_hook(sc: LocomotionScenario, exo: ExoSpec, motion: Motion, info: dict[str, float], truth: Any, dur: float,
+               seed: int) -> ViewHook:  # fmt: skip
+    """The head or chest camera's view motion (seeded by ``locomotion_view``)."""
     from exobench.models.exo_spec import JOINT_RANGES_RAD
 
-    from .locomotion_world import step_truths
-    from .motion.odometry import drift_odometry
-    from .motion.pedestrians import pedestrian_paths
-    from .motion.view import GAZE_WIDTH_STEPS, GazeDown, gaze_looks, view_motion
+    from ...motion.view import GAZE_WIDTH_STEPS, GazeDown, gaze_looks, view_motion
 
-    sc = scenario
-    exo = sc.exo_spec()
-    world, wps, motion, info = plan_locomotion(sc)
-    truth_scene = world.truth
-    dur = float(min(motion.duration_s, sc.duration_cap_s))
-    cam_id, imu_id, odom_id = sensor_ids(sc.mount)
     view_rng = sensor_rngs(seed, "locomotion_view")[0]
-    ped_rng = sensor_rngs(seed, "locomotion_pedestrians")[0]
-    odom_rng = sensor_rngs(seed, odom_id)[0]
-
-    # pedestrians around the walker (seeded), then the compiled scene with their bodies
-    def walker_xy(t: float) -> np.ndarray:
-        return motion.state(t, solve_legs=False).pelvis_w[0, :2]
-
-    def walker_heading(t: float) -> float:
-        return float(motion.state(t, solve_legs=False).yaw[0])
-
-    peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, 0.5 * sc.width_m, dur, ped_rng)
-    scene = _compiled(_world_key(sc), exo, sc.pattern, sc.mount, tuple(p.height_m for p in peds))
-    model = scene.model
-    terrain = Terrain(truth_scene)
-
-    # camera view motion on the neck (head) or the chest rig
     mount_pitch = np.radians(0.5 * exo.camera_pitch_deg if sc.mount == "head" else exo.camera_pitch_deg)
 
     def trunk_pitch(t: np.ndarray) -> np.ndarray:
@@ -379,88 +295,43 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
 
     gaze = None
     if sc.gaze == "transitions":
-        all_steps = step_truths(motion, truth_scene, exo)
+        all_steps = step_truths(motion, truth, exo)
         period = float(info["swing_s"] + info["double_support_s"])
         looks = gaze_looks([s.mode for s in all_steps], [s.liftoff_s for s in all_steps])
         gaze = GazeDown(looks, GAZE_WIDTH_STEPS * period, dur)
     view = view_motion(sc.mount, sc.view, sc.head_pitch_mean_rad, sc.head_pitch_std_rad, float(mount_pitch),
                        trunk_pitch, {k: JOINT_RANGES_RAD[k] for k in ("neck_pitch", "neck_yaw")}, dur, view_rng,
                        gaze)  # fmt: skip
-    extra_adr = {name: _joint_addr(model, name) for name in view.joints}
+    return ViewHook(view)
 
-    def state_at(t: np.ndarray) -> Any:
-        smp = motion.sample(model, t)
-        for name, (q, qd, qdd) in view.derivatives(t).items():
-            qa, va = extra_adr[name]
-            smp.qpos[:, qa], smp.qvel[:, va], smp.qacc[:, va] = q, qd, qdd
-        return smp
 
-    # IMU on the camera body: full dynamics at its instants
-    imu_cfg = ImuConfig(rate_hz=sc.imu_rate_hz, noise_scale=sc.imu_noise_scale)
-    imu = ImuSensor(imu_id, imu_cfg, model, seed)
-    t_imu = sample_times(imu_cfg.rate_hz, dur)
-    smp = state_at(t_imu)
-    data = mujoco.MjData(model)
-    for k, tk in enumerate(t_imu):
-        imu_dynamics(model, data, smp.qpos[k], smp.qvel[k], smp.qacc[k])
-        imu.observe(model, data, float(tk))
+def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> Episode:
+    """One walk along the scenario's course with every sensor of ``rig`` (default: the camera of
+    ``mount``, its IMU, insoles and odometry, :func:`default_rig`)."""
+    from ...motion.pedestrians import pedestrian_paths
 
-    # RGB-D frames with pedestrians placed; truth of the camera pose and pedestrian pixels
-    cfg = _rgbd_config(sc)
-    t_cam = sample_times(cfg.rate_hz, dur)
-    smp = state_at(t_cam)
-    ped_xy = [p.xy(t_cam) for p in peds]
-    ped_z = [np.nan_to_num(terrain.height(xy), nan=0.0) for xy in ped_xy]
-    ped_mocap = [int(model.body_mocapid[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"ped{k}")]) for k in range(len(peds))]
-    ped_geoms = [
-        {mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, f"ped{k}_{g}") for g in ("body", "head")} for k in range(len(peds))
-    ]
-    rgbd_frames: list[Frame] = []
-    T_cam = np.zeros((len(t_cam), 4, 4))
-    ped_pixels = np.zeros((len(t_cam), len(peds)))
-    with RgbdCamera(cam_id, cfg, model, seed) as cam:
-        for k, tk in enumerate(t_cam):
-            data.qpos[:] = smp.qpos[k]
-            for i, p in enumerate(peds):
-                data.mocap_pos[ped_mocap[i]] = [ped_xy[i][k, 0], ped_xy[i][k, 1], ped_z[i][k]]
-                data.mocap_quat[ped_mocap[i]] = [np.cos(0.5 * p.yaw), 0.0, 0.0, np.sin(0.5 * p.yaw)]
-            mujoco.mj_kinematics(model, data)
-            mujoco.mj_camlight(model, data)
-            frame, tr = cam.capture(model, data, float(tk))
-            T_cam[k] = tr["T_world_sensor"]
-            for i, gs in enumerate(ped_geoms):
-                ped_pixels[k, i] = float(np.isin(tr["geom_id"], list(gs)).mean())
-            if frame is not None:
-                rgbd_frames.append(frame)
+    sc = scenario
+    rig = tuple(default_rig(sc) if rig is None else rig)
+    exo = sc.exo_spec()
+    world, wps, motion, info = plan_locomotion(sc)
+    truth_scene = world.truth
+    dur = float(min(motion.duration_s, sc.duration_cap_s))
+    cam_id = sensor_ids(sc.mount)[0]
+    ped_rng = sensor_rngs(seed, "locomotion_pedestrians")[0]
 
-    # odometry: the true optical frame with drift, at the camera instants
-    T_world_odom, T_odom_cam, v_odom, dist = drift_odometry(t_cam, T_cam, sc.odom_drift_pct, sc.odom_yaw_drift_deg_per_m, odom_rng)
-    odom_frames = [OdometrySample(float(t_cam[k]), odom_id, T_odom_cam[k].copy(), v_odom[k].copy()) for k in range(len(t_cam))]
+    def walker_xy(t: float) -> np.ndarray:
+        return motion.state(t, solve_legs=False).pelvis_w[0, :2]
 
-    # insole contacts (as in exobench.envs.office_sim)
-    con_cfg = ContactConfig()
-    t_con = sample_times(con_cfg.rate_hz, dur)
-    st = motion.state(t_con)
-    rv = _joint_addr(model, "root")[1]
-    acc_z = motion.sample(model, t_con).qacc[:, rv + 2]
-    pads = {}
-    for pid in CONTACT_ORDER:
-        _, T = exo.contact_mount(pid)
-        pads[pid] = st.sole_points_w(pid.split("_")[1], T[:3, 3][None, :])[:, 0]
-    g = float(-model.opt.gravity[2])
-    forces = contact_forces(terrain, pads, st.ankle_w, st.pelvis_w, acc_z, exo.user_mass_kg + exo.exo_mass_kg,
-                            con_cfg.contact_tol_m, g)  # fmt: skip
-    streams: dict[str, list[Frame]] = {sid: [] for sid in (imu_id, *CONTACT_ORDER, odom_id, cam_id)}
-    streams[imu_id] = list(imu.frames())
-    for pid in CONTACT_ORDER:
-        streams[pid] = list(ContactSensor(pid, con_cfg, seed).frames(t_con, forces[pid]))
-    streams[odom_id] = odom_frames
-    streams[cam_id] = rgbd_frames
-    order = tuple(streams)
-    rank = {sid: i for i, sid in enumerate(order)}
-    merged = [(f.stamp_s, rank[f.sensor_id], f) for sid in order for f in streams[sid]]
-    merged.sort(key=lambda x: (x[0], x[1]))
-    frames = tuple(f for _, _, f in merged)
+    def walker_heading(t: float) -> float:
+        return float(motion.state(t, solve_legs=False).yaw[0])
+
+    peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, 0.5 * sc.width_m, dur, ped_rng)
+    chest = any(s.sensor_id == CHEST_CAMERA for s in rig)
+    scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds))
+    model = scene.model
+    ped_hook = PedestrianHook(peds, Terrain(truth_scene))
+    hooks = (_view_hook(sc, exo, motion, info, truth_scene, dur, seed), ped_hook)
+    rec = record(model, truth_scene, exo, motion, rig, seed, duration_s=dur, hooks=hooks, watch_geoms=ped_hook.geom_groups(model))
 
     # truth
     steps = tuple(s for s in step_truths(motion, truth_scene, exo) if s.heel_strike_s <= dur + 1e-9)
@@ -470,57 +341,52 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int) -> Episode:
         if s.mode != prev:
             events[f"transition_{s.index}_{prev}_{s.mode}_s"] = s.heel_strike_s
         prev = s.mode
-    z_opt = T_cam[:, :3, 2]
-    pitch = np.arcsin(np.clip(-z_opt[:, 2], -1.0, 1.0))
-    tracks = {cam_id: _rows(t_cam, T_cam)}
-    extra: dict[str, Any] = {
-        "camera_T_world": T_cam,
-        "camera_pitch_rad": pitch,
-        "camera_stamps_s": t_cam,
-        "distance_travelled_m": dist,
-        "odom_T_world": T_world_odom,
-        "pedestrian_tracks": np.array(
-            [np.column_stack([t_cam, ped_xy[i], np.full(len(t_cam), p.yaw), ped_z[i]]) for i, p in enumerate(peds)]
-        ).reshape(len(peds), len(t_cam), 5),
-        "pedestrian_height_m": np.array([p.height_m for p in peds]),
-        "pedestrian_pixel_fraction": ped_pixels,
-        "pedestrian_geom_names": [[f"ped{k}_body", f"ped{k}_head"] for k in range(len(peds))],
-        "route_waypoints_xy": np.asarray(wps, dtype=float),
-        "pattern": dict(info),
-        "walk_duration_s": float(motion.duration_s),
-    }
+    extra: dict[str, Any] = {}
+    tracks: dict[str, np.ndarray] = {}
+    trajectory = np.zeros((0, 8))
+    T_world_est = np.eye(4)
+    if cam_id in rec.outputs:
+        cam = rec.outputs[cam_id].truth
+        t_cam, T_cam = cam["t_s"], cam["T_world_sensor"]
+        ped_xy, ped_z = ped_hook.positions(t_cam)
+        z_opt = T_cam[:, :3, 2]
+        trajectory = pose_rows(t_cam, T_cam)
+        tracks[cam_id] = pose_rows(t_cam, T_cam)
+        extra.update({
+            "camera_T_world": T_cam,
+            "camera_pitch_rad": np.arcsin(np.clip(-z_opt[:, 2], -1.0, 1.0)),
+            "camera_stamps_s": t_cam,
+        })  # fmt: skip
+        odom = [s.sensor_id for s in rig if s.kind == "odometry" and s.attached_to == cam_id]
+        if odom:
+            o = rec.outputs[odom[0]].truth
+            T_world_est = o["T_world_odom"]
+            extra.update({"distance_travelled_m": o["distance_m"], "odom_T_world": o["T_world_odom"]})
+        extra.update({
+            "pedestrian_tracks": np.array(
+                [np.column_stack([t_cam, ped_xy[i], np.full(len(t_cam), p.yaw), ped_z[i]]) for i, p in enumerate(peds)]
+            ).reshape(len(peds), len(t_cam), 5),
+            "pedestrian_height_m": np.array([p.height_m for p in peds]),
+            "pedestrian_pixel_fraction": cam["watch_fraction"],
+            "pedestrian_geom_names": [[f"ped{k}_body", f"ped{k}_head"] for k in range(len(peds))],
+        })  # fmt: skip
+    extra.update({"route_waypoints_xy": np.asarray(wps, dtype=float), "pattern": dict(info),
+                  "walk_duration_s": float(motion.duration_s)})  # fmt: skip
+    lidars = [s.sensor_id for s in rig if s.kind == "lidar"]
+    if lidars:
+        pose_at = rec.context.pose_fn(lidars[0])
+        starts = np.array([f.sweep_start_s for f in rec.outputs[lidars[0]].frames])
+        tracks[lidars[0]] = pose_rows(starts, pose_at(starts)) if len(starts) else np.zeros((0, 8))
     ep_truth = EpisodeTruth(
         scene=truth_scene,
-        T_world_estimator=T_world_odom,
+        T_world_estimator=T_world_est,
         body_tracks=tracks,
         max_penetration_m=motion.max_penetration_m(truth_scene, sample_times(PENETRATION_RATE_HZ, dur)),
         events=events,
-        trajectory_w=_rows(t_cam, T_cam),
+        trajectory_w=trajectory,
         steps=steps,
+        lidar=rec.frame_truth(lidars),
         extra=extra,
     )
-
-    # calibration: the camera, its IMU (same frame) and the odometry convention
-    rgbd_params = {"rate_hz": cfg.rate_hz, "width_px": cfg.width_px, "height_px": cfg.height_px, "fx_px": cfg.fx_px,
-                   "fy_px": cfg.fy_px, "cx_px": cfg.cx_px, "cy_px": cfg.cy_px, "min_depth_m": cfg.min_depth_m,
-                   "max_depth_m": cfg.max_depth_m, "latency_s": cfg.latency_s, "subpixel": cfg.subpixel,
-                   "baseline_m": cfg.baseline_m}  # fmt: skip
-    known = SensorsConfig(imu=imu_cfg, contact=con_cfg).calibration_params()
-    cal = exo_calibration(exo, {"imu": known["imu"], "contact": known["contact"], cam_id: rgbd_params})
-    parent, T_parent_cam = exo.rgbd_mount(cam_id)
-    extra_mounts = (
-        SensorMount(imu_id, "imu", parent, T_parent_cam.copy(), dict(known["imu"])),
-        SensorMount(odom_id, "odometry", parent, T_parent_cam.copy(), {"rate_hz": cfg.rate_hz, "tracks": cam_id}),
-    )
-    cal = replace(cal, mounts=cal.mounts + extra_mounts, extra={
-        **cal.extra,
-        "camera": cam_id,
-        "camera_imu": imu_id,
-        "odometry": {
-            "sensor_id": odom_id, "tracks": cam_id, "T_camera_body": np.eye(4).tolist(),
-            "frame": "gravity-aligned (z up); origin and heading of the camera at the first frame",
-            "rate_hz": cfg.rate_hz,
-        },
-        "T_camera_imu": np.eye(4).tolist(),
-    })  # fmt: skip
-    return Episode(scenario=sc.as_dict(), seed=int(seed), calibration=cal, frames=frames, truth=ep_truth)
+    cal = build_calibration(exo, rig)
+    return Episode(scenario=sc.as_dict(), seed=int(seed), calibration=cal, frames=rec.frames, truth=ep_truth)

@@ -1,5 +1,5 @@
-"""Worlds of the locomotion track: stair, ramp and side-by-side courses, the walker's route, camera
-rigs, pedestrians, and the locomotion mode of every step.
+"""Worlds of the course scenario (the locomotion track): stair, ramp and side-by-side courses, the
+walker's route in pieces, and the locomotion mode of every step.
 
 Courses (seeds/002 section III-B) are :func:`exobench.models.worlds.build_course` profiles along
 +x starting at the origin: ``stairs`` = level, a flight up, a landing, a flight down, level
@@ -16,12 +16,7 @@ Walks are planned in pieces (:func:`plan_pieces`): the walker stops before every
 level ground to stairs or a ramp and restarts from standing; the motions are joined by a short
 settle segment (:func:`join_motions`).
 
-:func:`compose_locomotion` adds the exoskeleton (as :func:`exobench.models.worlds.compose` does)
-plus: an IMU site ``imu_<mount>`` at the camera's optical frame; for the chest mount a camera rig
-body ``chest_rig`` on the pelvis with hinges ``chest_yaw`` (z) and ``chest_pitch`` (y, + looks
-down) carrying the ``rgbd_chest`` camera (moved there from the pelvis, same pose at zero angles);
-and one mocap body ``ped<k>`` per pedestrian (a capsule torso+legs and a sphere head, group 0, so
-the cameras see them).
+The exoskeleton, its camera rig and pedestrians are added by :func:`exobench.envs.sim.compose.compose_rig`.
 
 Step modes (:func:`step_truths`): the mode of a step is that of the terrain under its landing
 footprint relative to where the same foot stood before: on a ramp surface RA if the ramp rises
@@ -44,16 +39,15 @@ from exobench.core.truth import PlanarSurface
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.terrain import WALL_THICKNESS_M
 from exobench.models.world_params import CourseParams
-from exobench.models.worlds import BuiltWorld, CompiledScene, build_course
+from exobench.models.worlds import BuiltWorld, build_course
 
-from .motion import Footstep, GaitError, Motion, Route, Segment, check_feasible, plan_walk
+from ...motion import Footstep, GaitError, Motion, Route, Segment, check_feasible, plan_walk
 
 STAIR_DZ_M = 0.05  # a foot landing this much higher/lower than it stood climbs/descends stairs
 RAMP_MIN_DEG = 2.0  # a surface tilted more than this is a ramp
 LANE_PREFIX = "b_"
 U_TURN_M = 1.2  # the U-turn of the parallel course runs this far beyond the first lane's end
 START_INSET_M = 0.4  # the walk starts / ends this far inside the level ends of a course
-PED_RADIUS_M = 0.2
 JOIN_SETTLE_S = 0.3  # pause between two planned pieces of a walk
 STOP_SHIFTS_M = (0.0, 0.1, 0.2, 0.3)
 MIN_STOP_FLAT_M = 0.6
@@ -133,7 +127,7 @@ def stop_points_x(world: BuiltWorld, toe_m: float, descents: bool = True) -> lis
 
 
 def build_locomotion_world(sc: Any, toe_m: float = 0.2, descents: bool = True) -> tuple[BuiltWorld, tuple]:
-    """(world, route pieces) of a :class:`~exobench.envs.locomotion_sim.LocomotionScenario`.
+    """(world, route pieces) of a :class:`~exobench.envs.sim.scenarios.course.LocomotionScenario`.
 
     The route is a sequence of pieces, each a polyline of ``(x, y)`` waypoints walked from a
     standing start to a standing stop (see :func:`plan_pieces`). With ``sc.stops ==
@@ -188,46 +182,6 @@ def build_locomotion_world(sc: Any, toe_m: float = 0.2, descents: bool = True) -
     R = T_wa[:2, :2]
     pieces = tuple(tuple(tuple(map(float, R @ np.asarray(q))) for q in piece) for piece in local)
     return world, pieces
-
-
-def compose_locomotion(world: BuiltWorld, exo: ExoSpec, mount_id: str, imu_site: str, ped_heights_m: list[float]) -> CompiledScene:
-    """The world with the exoskeleton, the camera IMU site, the chest rig and pedestrians, compiled."""
-    import mujoco
-
-    from exobench.models.exo import R_OPTICAL_MJCAMERA, add_exo
-
-    spec = world.spec.copy()
-    add_exo(spec, exo)
-    start = world.truth.params.get("start_w")
-    pelvis = spec.body("pelvis")
-    R0 = np.asarray(world.T_world_local)[:3, :3]
-    pelvis.pos = [start[0], start[1], start[2] + exo.leg_m]
-    pelvis.quat = list(matrix_to_quat_wxyz(R0))
-    parent, T = exo.rgbd_mount(mount_id)
-    body = spec.body(parent)
-    if mount_id == "rgbd_chest":
-        spec.delete(spec.camera(mount_id))
-        rig = body.add_body(name="chest_rig", pos=list(T[:3, 3]), explicitinertial=True, mass=0.3,
-                            inertia=[1e-4, 1e-4, 1e-4])
-        for jname, axis in (("chest_yaw", [0.0, 0.0, 1.0]), ("chest_pitch", [0.0, 1.0, 0.0])):
-            rig.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis)
-        rig.add_camera(name=mount_id, pos=[0.0, 0.0, 0.0], quat=list(matrix_to_quat_wxyz(T[:3, :3] @ R_OPTICAL_MJCAMERA)),
-                       fovy=58.0)
-        rig.add_site(name=imu_site, pos=[0.0, 0.0, 0.0], quat=list(matrix_to_quat_wxyz(T[:3, :3])), size=[0.005, 0, 0], group=3)
-    else:
-        body.add_site(name=imu_site, pos=list(T[:3, 3]), quat=list(matrix_to_quat_wxyz(T[:3, :3])), size=[0.005, 0, 0], group=3)
-    for k, h in enumerate(ped_heights_m):
-        pb = spec.worldbody.add_body(name=f"ped{k}", mocap=True, pos=[0.0, 0.0, -10.0])
-        r = PED_RADIUS_M
-        head_r = 0.11
-        torso_top = h - 2.0 * head_r
-        pb.add_geom(name=f"ped{k}_body", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[r, 0, 0],
-                    fromto=[0.0, 0.0, r, 0.0, 0.0, torso_top - r], rgba=[0.25, 0.3, 0.55, 1.0], group=0,
-                    contype=0, conaffinity=0)
-        pb.add_geom(name=f"ped{k}_head", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[head_r, 0, 0],
-                    pos=[0.0, 0.0, h - head_r], rgba=[0.85, 0.7, 0.6, 1.0], group=0, contype=0, conaffinity=0)
-    model = spec.compile()
-    return CompiledScene(model=model, truth=world.truth, exo=exo, spec=spec)
 
 
 def step_truths(motion: Any, truth: SceneTruth, exo: ExoSpec) -> tuple[StepTruth, ...]:

@@ -1,0 +1,46 @@
+"""The LiDAR inside the simulation core.
+
+Sweeps start at ``k / rate_hz`` (only sweeps that end within the recording). Each ray is cast
+from the sensor pose at its firing block's time (the recording's exact pose function of a site
+rigid with the pelvis); the legs, head and anything else the beams can hit are frozen at their
+pose in the middle of the sweep, which is the instant the recorder gives the sensor.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..adapter import BaseAdapter, MountedSensor, RecordContext, SensorOutput
+from .model import LidarSensor
+
+
+class LidarAdapter(BaseAdapter):
+    def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
+        super().__init__(sensor, ctx)
+        self.model = LidarSensor(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
+        self.pose_at = ctx.pose_fn(sensor.sensor_id)
+        pat = sensor.config.pattern
+        period = pat.sweep_period_s
+        n = int(np.floor(ctx.duration_s / period + 1e-9))
+        self.starts = [k / pat.rate_hz for k in range(n)]
+        self.mid = {t0 + 0.5 * period: t0 for t0 in self.starts}
+        self.frames: list[Any] = []
+        self.truth: list[Any] = []
+
+    def instants(self) -> np.ndarray:
+        return np.array(sorted(self.mid))
+
+    def observe(self, model: Any, data: Any, t: float) -> None:
+        got = self.model.scan(model, data, self.pose_at, self.mid[t], self.ctx.scene_truth)
+        if got is not None:
+            self.frames.append(got[0])
+            self.truth.append(got[1])
+
+    def finish(self) -> SensorOutput:
+        return SensorOutput(self.frames, self.truth)
+
+    @staticmethod
+    def calibration_params(sensor: MountedSensor) -> dict[str, Any]:
+        return sensor.config.calibration_params()

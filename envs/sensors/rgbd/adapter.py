@@ -1,0 +1,80 @@
+"""The RGB-D camera inside the simulation core: renders at every ``k / rate_hz``.
+
+Truth (``SensorOutput.truth``): ``t_s`` measurement times (N,), ``T_world_sensor`` (N, 4, 4) of
+the optical frame at each (lost frames included), ``watch_fraction`` (N, G) share of the image
+covered by each group of the recording's watched geoms (pedestrians).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from ..adapter import BaseAdapter, MountedSensor, RecordContext, SensorOutput
+from ..common import sample_times
+from .model import RgbdCamera
+
+
+class RgbdAdapter(BaseAdapter):
+    def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
+        super().__init__(sensor, ctx)
+        self.t = sample_times(sensor.config.rate_hz, ctx.duration_s)
+        self.T = np.zeros((len(self.t), 4, 4))
+        self.watch = [list(g) for g in ctx.watch_geoms]
+        self.fraction = np.zeros((len(self.t), len(self.watch)))
+        self.k = 0
+        self.frames: list[Any] = []
+        self.camera = RgbdCamera(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
+
+    def instants(self) -> np.ndarray:
+        return self.t
+
+    def observe(self, model: Any, data: Any, t: float) -> None:
+        import mujoco
+
+        mujoco.mj_camlight(model, data)
+        frame, tr = self.camera.capture(model, data, t)
+        k = self.k
+        self.T[k] = tr["T_world_sensor"]
+        for i, gs in enumerate(self.watch):
+            self.fraction[k, i] = float(np.isin(tr["geom_id"], gs).mean())
+        if frame is not None:
+            self.frames.append(frame)
+        self.k += 1
+
+    def finish(self) -> SensorOutput:
+        return SensorOutput(self.frames, None, {"t_s": self.t, "T_world_sensor": self.T, "watch_fraction": self.fraction})
+
+    def close(self) -> None:
+        self.camera.close()
+
+    @staticmethod
+    def calibration_params(sensor: MountedSensor) -> dict[str, Any]:
+        c = sensor.config
+        return {"rate_hz": c.rate_hz, "width_px": c.width_px, "height_px": c.height_px, "fx_px": c.fx_px,
+                "fy_px": c.fy_px, "cx_px": c.cx_px, "cy_px": c.cy_px, "min_depth_m": c.min_depth_m,
+                "max_depth_m": c.max_depth_m, "latency_s": c.latency_s, "subpixel": c.subpixel,
+                "baseline_m": c.baseline_m}  # fmt: skip
+
+    @staticmethod
+    def calibration_extra(sensor: MountedSensor, rig: Sequence[MountedSensor]) -> dict[str, Any]:
+        """The first camera of a rig: ``camera``, its IMU (``camera_imu``, ``T_camera_imu``) and odometry."""
+        if next(s for s in rig if s.kind == "rgbd") is not sensor:
+            return {}
+        cam = sensor.sensor_id
+        imu = [s for s in rig if s.kind == "imu" and s.attached_to == cam]
+        odom = [s for s in rig if s.kind == "odometry" and s.attached_to == cam]
+        out: dict[str, Any] = {"camera": cam}
+        if imu:
+            out["camera_imu"] = imu[0].sensor_id
+        if odom:
+            out["odometry"] = {
+                "sensor_id": odom[0].sensor_id, "tracks": cam, "T_camera_body": np.eye(4).tolist(),
+                "frame": "gravity-aligned (z up); origin and heading of the camera at the first frame",
+                "rate_hz": odom[0].config.rate_hz,
+            }  # fmt: skip
+        if imu:
+            out["T_camera_imu"] = np.eye(4).tolist()
+        return out

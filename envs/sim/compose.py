@@ -1,0 +1,78 @@
+"""A built world with the exoskeleton carrying a rig, compiled.
+
+The device (:func:`exobench.models.exo.add_exo`) has a site per own sensor and a camera per RGB-D
+mount. :func:`compose_rig` adds what a rig needs beyond that: a site for each sensor attached to
+a camera (its IMU, at the optical frame), the chest camera's two-hinge rig (``chest_rig`` on the
+pelvis with ``chest_yaw`` (z) and ``chest_pitch`` (y, + looks down), carrying ``rgbd_chest``,
+same pose at zero angles) when asked, and one mocap body ``ped<k>`` per pedestrian (a capsule
+torso+legs and a sphere head, group 0, so cameras see them). Without any of these it is exactly
+:func:`exobench.models.worlds.compose`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from exobench.core.transforms import matrix_to_quat_wxyz
+from exobench.models.exo_spec import ExoSpec
+from exobench.models.worlds import BuiltWorld, CompiledScene, compose
+
+PED_RADIUS_M = 0.2
+CHEST_CAMERA = "rgbd_chest"
+
+
+def attached_sites(rig: Sequence) -> tuple[tuple[str, str], ...]:
+    """(site, camera) of every rig sensor attached to a camera that needs a site (IMUs)."""
+    return tuple((s.sensor_id, s.attached_to) for s in rig if s.attached_to is not None and s.kind == "imu")
+
+
+def compose_rig(
+    world: BuiltWorld, exo: ExoSpec, sites: Sequence[tuple[str, str]] = (), *, chest_rig: bool = False,
+    ped_heights_m: Sequence[float] = (),
+) -> CompiledScene:  # fmt: skip
+    """The world with the exoskeleton, ``sites`` (site name, camera id), the chest rig and pedestrians."""
+    if not sites and not chest_rig and not ped_heights_m:
+        return compose(world, exo)
+    import mujoco
+
+    from exobench.models.exo import R_OPTICAL_MJCAMERA, add_exo
+
+    spec = world.spec.copy()
+    add_exo(spec, exo)
+    start = world.truth.params.get("start_w")
+    if start is not None:
+        pelvis = spec.body("pelvis")
+        R0 = np.asarray(world.T_world_local)[:3, :3]
+        pelvis.pos = [start[0], start[1], start[2] + exo.leg_m]
+        pelvis.quat = list(matrix_to_quat_wxyz(R0))
+    rig_body = None
+    if chest_rig:
+        parent, T = exo.rgbd_mount(CHEST_CAMERA)
+        spec.delete(spec.camera(CHEST_CAMERA))
+        rig_body = spec.body(parent).add_body(name="chest_rig", pos=list(T[:3, 3]), explicitinertial=True, mass=0.3,
+                                              inertia=[1e-4, 1e-4, 1e-4])  # fmt: skip
+        for jname, axis in (("chest_yaw", [0.0, 0.0, 1.0]), ("chest_pitch", [0.0, 1.0, 0.0])):
+            rig_body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis)
+        rig_body.add_camera(name=CHEST_CAMERA, pos=[0.0, 0.0, 0.0],
+                            quat=list(matrix_to_quat_wxyz(T[:3, :3] @ R_OPTICAL_MJCAMERA)), fovy=58.0)  # fmt: skip
+    for site, camera in sites:
+        parent, T = exo.rgbd_mount(camera)
+        if camera == CHEST_CAMERA and rig_body is not None:
+            rig_body.add_site(name=site, pos=[0.0, 0.0, 0.0], quat=list(matrix_to_quat_wxyz(T[:3, :3])), size=[0.005, 0, 0], group=3)
+        else:
+            spec.body(parent).add_site(name=site, pos=list(T[:3, 3]), quat=list(matrix_to_quat_wxyz(T[:3, :3])),
+                                       size=[0.005, 0, 0], group=3)  # fmt: skip
+    for k, h in enumerate(ped_heights_m):
+        pb = spec.worldbody.add_body(name=f"ped{k}", mocap=True, pos=[0.0, 0.0, -10.0])
+        r = PED_RADIUS_M
+        head_r = 0.11
+        torso_top = h - 2.0 * head_r
+        pb.add_geom(name=f"ped{k}_body", type=mujoco.mjtGeom.mjGEOM_CAPSULE, size=[r, 0, 0],
+                    fromto=[0.0, 0.0, r, 0.0, 0.0, torso_top - r], rgba=[0.25, 0.3, 0.55, 1.0], group=0,
+                    contype=0, conaffinity=0)  # fmt: skip
+        pb.add_geom(name=f"ped{k}_head", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[head_r, 0, 0],
+                    pos=[0.0, 0.0, h - head_r], rgba=[0.85, 0.7, 0.6, 1.0], group=0, contype=0, conaffinity=0)  # fmt: skip
+    model = spec.compile()
+    return CompiledScene(model=model, truth=world.truth, exo=exo, spec=spec)

@@ -1,0 +1,72 @@
+"""Scenario dataclasses generated from their parameter tables.
+
+A scenario's parameters are listed once, in a table ``name -> ParamSpec(default, low, high, unit,
+doc)`` (the command line lists it and sets values from it). :func:`scenario_base` turns the table
+into a frozen dataclass whose fields are the table's rows, in order, with their defaults; values
+are validated on construction (``ConfigError(field, value, allowed)``; a parameter whose default
+is None also takes None; a free string parameter takes any string and is checked by the
+scenario). ``from_dict`` refuses unknown names (``UnknownNameError``) and converts strings;
+``as_dict`` gives the plain values (a scenario may leave out parameters at their neutral default,
+:data:`OMIT_WHEN_EMPTY`, so that records of scenarios without them are unchanged).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from exobench.core import ConfigError
+from exobench.models.world_params import ParamSpec, check_param, from_dict_checked
+
+from .rig import preset_names
+
+OMIT_WHEN_EMPTY = ("extra_sensors",)
+
+
+def _is_free_string(spec: ParamSpec) -> bool:
+    return isinstance(spec.default, str) and not spec.choices
+
+
+def scenario_base(name: str, kind: str, params: dict[str, ParamSpec]) -> type:
+    """A frozen dataclass over ``params`` (see the module docstring); subclass it to add methods."""
+
+    def __post_init__(self: Any) -> None:
+        for f in dataclasses.fields(self):
+            spec = params.get(f.name)
+            if spec is None:
+                continue
+            v = getattr(self, f.name)
+            if v is None and spec.default is None:
+                continue
+            if _is_free_string(spec):
+                if not isinstance(v, str):
+                    raise ConfigError(f.name, v, "a string")
+                if f.name == "extra_sensors":
+                    preset_names(v)
+                continue
+            object.__setattr__(self, f.name, check_param(f.name, v, spec))
+
+    @classmethod  # type: ignore[misc]
+    def from_dict(cls: type, values: dict[str, Any]) -> Any:
+        """Validated scenario from plain values (strings are converted); unknown names refused."""
+        values = dict(values)
+        for k, spec in params.items():
+            v = values.get(k)
+            if spec.default is None and isinstance(v, str) and v.strip().lower() in ("none", "null", ""):
+                values[k] = None
+        return from_dict_checked(cls, f"{kind} scenario", params, values)
+
+    def as_dict(self: Any) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        for k in OMIT_WHEN_EMPTY:
+            if k in d and not d[k]:
+                del d[k]
+        return d
+
+    def _type(spec: ParamSpec) -> Any:
+        return Any if spec.default is None else type(spec.default)
+
+    fields = [(n, _type(s), dataclasses.field(default=s.default)) for n, s in params.items()]
+    ns = {"__post_init__": __post_init__, "from_dict": from_dict, "as_dict": as_dict, "PARAMS": params,
+          "__doc__": f"One {kind} episode; see ``PARAMS`` for units, ranges and meaning."}  # fmt: skip
+    return dataclasses.make_dataclass(name, fields, frozen=True, namespace=ns)

@@ -1,0 +1,212 @@
+"""The office world: a stop-and-go walk along an office route with a trunk LiDAR, IMU, encoders
+and insoles (the LiDAR tracks).
+
+:class:`OfficeScenario` is generated from :data:`PARAMS`; :func:`simulate_office` builds the
+office (:func:`exobench.models.office.build_office`), plans a walk along the office route
+(:func:`exobench.envs.motion.plan_walk`) cut to ``max_distance_m``, and records the rig
+(:meth:`OfficeScenario.rig`: encoders, trunk IMU, insoles, ``lidar_trunk``; ties in that order;
+``extra_sensors`` or the ``rig`` argument add an RGB-D camera or other sensors). LiDAR sweeps:
+see :mod:`exobench.envs.sensors.lidar.adapter` (sensor pose exact, rigid with the pelvis; the
+legs and head frozen at mid-sweep).
+
+Truth: one ``LidarTruth`` per scan (``EpisodeTruth.lidar``; compacted to labels with
+``lidar_truth="labels"``), the sensor pose at each scan start (``trajectory_w``), link tracks at
+50 Hz (plus the ``lidar_trunk`` pose) and the deepest foot penetration; ``T_world_estimator`` is
+the LiDAR pose at t = 0. A camera on the rig adds its optical-frame poses
+(``body_tracks[<camera>]``, ``extra["camera_T_world"]``, ``extra["camera_stamps_s"]``).
+
+Route handling: the office routes turn by 90 and 180 degrees at corners and doors; the planner
+tracks its progress monotonically along the polyline (the loop passes corridors twice) and walks
+up to every corner sharper than 45 deg and turns there on the spot, ``max_turn_deg`` per step.
+Waypoints closer than :data:`MIN_SEGMENT_M` to the previous kept one are dropped, and the
+polyline is cut at ``max_distance_m``. The walker starts facing the first segment; a closed route
+(the whole ``"loop"``, not cut) ends with a turn on the spot to that heading, so the final pose
+equals the start pose (up to the feet's placement, a few cm) as the thesis' TE / OE / TVE
+protocol assumes (seeds/003 section 5.2.2).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
+from exobench.models.exo_spec import ExoSpec
+from exobench.models.world_params import ParamSpec
+
+from ...motion import Motion, Route, plan_walk
+from ...sensors import (
+    ContactConfig,
+    EncoderConfig,
+    ImuConfig,
+    LidarConfig,
+    LidarPattern,
+    SensorsConfig,
+    sample_times,
+)
+from ...sensors.adapter import MountedSensor
+from ..calibration import build_calibration
+from ..compose import attached_sites, compose_rig
+from ..pose import pose_rows
+from ..recorder import TRACK_RATE_HZ, TRACKED_BODIES, record
+from ..rig import LIDAR_TRUNK, Rig, scalar_rig, with_presets
+from ..scenario import scenario_base
+
+LIDAR_ID = LIDAR_TRUNK
+PENETRATION_RATE_HZ = 1000.0
+MIN_SEGMENT_M = 0.3  # shorter route segments are merged into the next one
+LIDAR_PATTERNS = ("vlp16", "vlp32", "ouster64", "livox")
+ROUTES = ("loop", "ring", "corridor")
+LIDAR_TRUTHS = ("full", "labels")
+
+PARAMS: dict[str, ParamSpec] = {
+    "office_seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the office layout"),
+    "n_offices": ParamSpec(3, 1, 24, "", "cellular offices along the north corridor"),
+    "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass (the meeting room's south one first)"),
+    "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished stone (the south corridor first)"),
+    "route": ParamSpec("corridor", None, None, "", "office route walked (loop: every office and two laps, "
+                       "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor)",
+                       choices=ROUTES),
+    "lidar_truth": ParamSpec("full", None, None, "", "per-point LiDAR truth kept: full, or labels only "
+                             "(kind, surface, range; ~8x smaller, for long walks)", choices=LIDAR_TRUTHS),
+    "max_distance_m": ParamSpec(20.0, 0.5, 500.0, "m", "the route is cut after this length (keeps quick runs short)"),
+    "step_length_m": ParamSpec(0.35, 0.1, 0.8, "m", "nominal step length"),
+    "swing_s": ParamSpec(0.8, 0.3, 5.0, "s", "duration of one swing"),
+    "max_turn_deg": ParamSpec(30.0, 5.0, 60.0, "deg", "largest heading change per step (sharper corners are turned on the spot over several steps)"),
+    "lidar": ParamSpec("vlp16", None, None, "", "LiDAR scan pattern", choices=LIDAR_PATTERNS),
+    "lidar_rate_hz": ParamSpec(10.0, 5.0, 20.0, "Hz", "LiDAR sweeps per second"),
+    "lidar_noise_m": ParamSpec(0.015, 0.0, 0.1, "m", "LiDAR range noise, standard deviation"),
+    "lidar_resolution_m": ParamSpec(0.002, 0.0, 0.1, "m", "LiDAR range quantisation (0 = off)"),
+    "user_height_m": ParamSpec(1.75, 1.55, 1.95, "m", "user's standing height (scales every segment)"),
+    "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
+    "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks"),
+    "encoder_noise_rad": ParamSpec(1e-4, 0.0, 0.05, "rad", "joint encoder white noise, standard deviation"),
+    "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: rgbd_thigh, rgbd_head, rgbd_chest, tof_calves, ...)"),
+}
+
+
+class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type: ignore[misc]
+    """One office-walk episode; see :data:`PARAMS` for units, ranges and meaning."""
+
+    def exo_spec(self) -> ExoSpec:
+        return ExoSpec(user_height_m=self.user_height_m, user_mass_kg=self.user_mass_kg)
+
+    def office_params(self) -> object:
+        from exobench.models.office import OfficeParams
+
+        return OfficeParams(seed=self.office_seed, n_offices=self.n_offices, glass_fraction=self.glass_fraction,
+                            polished_fraction=self.polished_fraction)  # fmt: skip
+
+    def lidar_config(self) -> LidarConfig:
+        r = self.lidar_rate_hz
+        pattern = {
+            "vlp16": lambda: LidarPattern.vlp16(r),
+            "vlp32": lambda: LidarPattern.vlp32(r),
+            "ouster64": lambda: LidarPattern.ouster(64, 1024, r),
+            "livox": lambda: LidarPattern.livox_like(rate_hz=r),
+        }[self.lidar]()
+        return LidarConfig(pattern=pattern, range_noise_m=self.lidar_noise_m, resolution_m=self.lidar_resolution_m)
+
+    def rig(self) -> Rig:
+        """Encoders, trunk IMU, insoles and the trunk LiDAR, plus ``extra_sensors``."""
+        cfg = SensorsConfig(imu=ImuConfig(noise_scale=self.imu_noise_scale), encoders=EncoderConfig(noise_rad=self.encoder_noise_rad),
+                            contact=ContactConfig())  # fmt: skip
+        base = (*scalar_rig(cfg, tof=False), MountedSensor(LIDAR_ID, "lidar", self.lidar_config()))
+        return with_presets(base, self.extra_sensors)
+
+
+@lru_cache(maxsize=8)
+def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, str], ...] = ()) -> Any:
+    """The composed office world (``models.worlds.CompiledScene``), compiled once per key."""
+    from exobench.models.office import build_office
+
+    return compose_rig(build_office(params), exo, sites)  # type: ignore[arg-type]
+
+
+def route_waypoints(waypoints: list[tuple[float, float]], max_distance_m: float) -> tuple[tuple[float, float], ...]:
+    """The route's waypoints without stubs shorter than :data:`MIN_SEGMENT_M`, cut at ``max_distance_m``."""
+    pts = [np.asarray(waypoints[0], dtype=float)]
+    for p in waypoints[1:]:
+        q = np.asarray(p, dtype=float)
+        if np.linalg.norm(q - pts[-1]) >= MIN_SEGMENT_M:
+            pts.append(q)
+    if len(pts) < 2:
+        raise ConfigError("route", waypoints, f"a route with a segment of at least {MIN_SEGMENT_M} m")
+    out, left = [pts[0]], float(max_distance_m)
+    for q in pts[1:]:
+        d = float(np.linalg.norm(q - out[-1]))
+        if d >= left:
+            out.append(out[-1] + (q - out[-1]) * (left / d))
+            break
+        out.append(q)
+        left -= d
+    return tuple((float(p[0]), float(p[1])) for p in out)
+
+
+def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()) -> tuple[Any, Motion]:
+    """(compiled office scene, walking motion) of a scenario, without sensing."""
+    from exobench.models.office import office_route
+
+    exo = scenario.exo_spec()
+    scene = compiled_office(scenario.office_params(), exo, attached_sites(rig))
+    wps = route_waypoints(office_route(scene.truth, scenario.route), scenario.max_distance_m)
+    pts = np.asarray(wps)
+    length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+    d0 = pts[1] - pts[0]
+    start_yaw = float(np.degrees(np.arctan2(d0[1], d0[0])))
+    closed = bool(np.linalg.norm(pts[-1] - pts[0]) < 1e-9)
+    turns = np.arctan2(np.diff(pts, axis=0)[:, 1], np.diff(pts, axis=0)[:, 0])
+    turning_steps = int(np.sum(np.abs((np.diff(turns) + np.pi) % (2 * np.pi) - np.pi)) / np.radians(scenario.max_turn_deg))
+    route = Route(
+        wps, step_length_m=scenario.step_length_m, swing_s=scenario.swing_s, max_turn_deg=scenario.max_turn_deg,
+        start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None,
+        max_steps=min(10000, int(3.0 * length / scenario.step_length_m) + 2 * turning_steps + 100),
+    )  # fmt: skip
+    return scene, plan_walk(exo, scene.truth, route)
+
+
+def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> Episode:
+    """A walk along the scenario's office route with every sensor of ``rig`` (default
+    :meth:`OfficeScenario.rig`; a trunk LiDAR ``lidar_trunk`` is what the LiDAR truth follows)."""
+    rig = tuple(scenario.rig() if rig is None else rig)
+    exo = scenario.exo_spec()
+    scene, motion = plan_office_walk(scenario, rig)
+    model, truth = scene.model, scene.truth
+    dur = motion.duration_s
+    rec = record(model, truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+    body_tracks = dict(rec.body_tracks)
+    t_trk = sample_times(TRACK_RATE_HZ, dur)
+    lidars = [s.sensor_id for s in rig if s.kind == "lidar"]
+    lidar_truth = rec.frame_truth(lidars)
+    if scenario.lidar_truth != "full":
+        lidar_truth = tuple(compact_truth(t) for t in lidar_truth)
+    extra: dict[str, Any] = {}
+    T_world_est = np.eye(4)
+    trajectory = np.zeros((0, 8))
+    if LIDAR_ID in lidars:
+        pose_at = rec.context.pose_fn(LIDAR_ID)
+        body_tracks[LIDAR_ID] = pose_rows(t_trk, pose_at(t_trk))
+        T_world_est = pose_at(np.array([0.0]))[0]
+        starts = np.array([f.sweep_start_s for f in rec.outputs[LIDAR_ID].frames])
+        trajectory = pose_rows(starts, pose_at(starts)) if len(starts) else np.zeros((0, 8))
+    for s in rig:
+        if s.kind == "rgbd":
+            cam = rec.outputs[s.sensor_id].truth
+            body_tracks[s.sensor_id] = pose_rows(cam["t_s"], cam["T_world_sensor"])
+            extra.setdefault("camera_T_world", cam["T_world_sensor"])
+            extra.setdefault("camera_stamps_s", cam["t_s"])
+    ep_truth = EpisodeTruth(
+        scene=truth,
+        T_world_estimator=T_world_est,
+        body_tracks=body_tracks,
+        max_penetration_m=motion.max_penetration_m(truth, sample_times(PENETRATION_RATE_HZ, dur)),
+        events=dict(motion.events),
+        lidar=tuple(lidar_truth),
+        trajectory_w=trajectory,
+        extra=extra,
+    )
+    cal = build_calibration(exo, rig)
+    return Episode(scenario=scenario.as_dict(), seed=int(seed), calibration=cal, frames=rec.frames, truth=ep_truth)
