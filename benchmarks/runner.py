@@ -155,16 +155,18 @@ def plan_run(
     scen = check_scenario_overrides(trk, scen_raw)
     runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n))) for n in names]
 
-    episodes = []
+    # case-major order (each case with every seed); a drawn suite has its own cases per seed
+    planned: list[tuple[int, int, EpisodePlan]] = []
     typed: dict[str, Any] = {}
-    group_label = getattr(trk, "group_label", None)  # optional: groups named by the scenario run
-    for case in trk.cases(suite):
-        scenario = trk.validate_scenario({**case.scenario, **scen})
-        typed = {k: scenario[k] for k in scen}
-        if group_label is not None and scen:
-            case = dataclasses.replace(case, group=group_label(case, scenario))
-        for s in seeds:
-            episodes.append(EpisodePlan(f"{case.name}/s{s}", suite, case, scenario, s, episode_seed(s, case.name)))
+    for j, s in enumerate(seeds):
+        for i, case in enumerate(trk.cases(suite, s)):
+            scenario = trk.validate_scenario({**case.scenario, **scen})
+            typed = {k: scenario[k] for k in scen}
+            case = dataclasses.replace(case, group=trk.group_label(case, scenario))
+            planned.append((i, j, EpisodePlan(f"{case.name}/s{s}", suite, case, scenario, s, episode_seed(s, case.name))))
+    episodes = [e for _, _, e in sorted(planned, key=lambda x: (x[0], x[1]))]
+    if len({e.key for e in episodes}) != len(episodes):
+        raise ConfigError("suite", suite, "cases whose names are unique within each seed")
     return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()})
 
 

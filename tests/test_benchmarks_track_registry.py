@@ -90,7 +90,10 @@ class ToyTrack:
             out[k] = check_range(k, v, TOY_PARAMS[k].low, TOY_PARAMS[k].high)
         return out
 
-    def cases(self, suite: str) -> list[Case]:
+    def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
+        return case.group
+
+    def cases(self, suite: str, run_seed: int = 0) -> list[Case]:
         return [Case("one", "level", {}, figure=True)]
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> ToyEpisode:

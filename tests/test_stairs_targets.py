@@ -78,7 +78,7 @@ UNSEEN = [
 
 @pytest.fixture(scope="module")
 def unseen():
-    from exobench.envs.scenarios import StairScenario
+    from exobench.envs.sim import StairScenario
     from exobench.envs.sim import simulate_stairs
 
     keys = ("riser_m", "tread_m", "yaw_deg", "distance_m", "user_height_m")
@@ -102,3 +102,23 @@ def test_staircases_outside_the_paper_are_read_within_5_percent(unseen, name):
         assert m["riser_error_pct"] < 5.0, (where, m["riser_error_pct"])
         assert m["tread_error_pct"] < 5.0, (where, m["tread_error_pct"])  # NaN (not read) fails too
         assert abs(m["touchdown_error_m"]) < 0.01, where
+
+
+def test_general_suite_is_drawn_from_the_run_seed_within_the_building_codes_range():
+    from exobench.benchmarks.tracks import get_track
+    from exobench.benchmarks.tracks.stairs import general
+
+    track = get_track("stairs")
+    a, b = track.cases("general", 0), track.cases("general", 1)
+    assert len(a) == len(b) == general.GENERAL_EPISODES
+    assert [c.scenario for c in a] == [c.scenario for c in track.cases("general", 0)]  # same seed, same draw
+    assert [c.scenario for c in a] != [c.scenario for c in b]  # another seed, another draw
+    for c in a + b:
+        s = c.scenario
+        assert general.RISER_RANGE_M[0] <= s["riser_m"] <= general.RISER_RANGE_M[1]
+        assert general.TREAD_RANGE_M[0] <= s["tread_m"] <= general.TREAD_RANGE_M[1]
+        assert abs(s["yaw_deg"]) <= 30.0 and 0.25 <= s["distance_m"] <= 0.50
+        assert 1.55 <= s["user_height_m"] <= 1.95 and c.group == "general"
+    # the draw covers the range, not one corner of it
+    risers = [c.scenario["riser_m"] for c in a]
+    assert min(risers) < 0.12 and max(risers) > 0.20

@@ -147,8 +147,16 @@ class Track(Protocol):
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Validated, typed scenario values (raises ConfigError / UnknownNameError)."""
 
-    def cases(self, suite: str) -> list[Case]:
-        """The cases of a suite, deterministic."""
+    def cases(self, suite: str, run_seed: int = 0) -> list[Case]:
+        """The cases of a suite, deterministic. A suite drawn at random (so that nobody tunes
+        on a fixed list, such as the stairs track's ``general``) draws from ``run_seed``; the
+        other suites ignore it."""
+
+    def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
+        """The summary group of a case's records given the scenario that was run (the case's
+        values with the ``--set`` overrides): ``case.group`` unless the overrides change what
+        the group names (e.g. the staircase), so no published figure of another setting is
+        printed beside them."""
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         """Simulate one episode."""

@@ -222,7 +222,10 @@ class LocomotionTrack:
 
         return LocomotionScenario.from_dict(dict(values)).as_dict()
 
-    def cases(self, suite: str) -> list[Case]:
+    def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
+        return case.group
+
+    def cases(self, suite: str, run_seed: int = 0) -> list[Case]:
         if suite == "quick":
             return quick_cases()
         if suite == "paper":

@@ -182,7 +182,10 @@ class LoopClosureTrack:
 
         OfficeParams(seed=values["office_seed"], n_offices=values["n_offices"], **{k: values[k] for k in OFFICE_KEYS})
 
-    def cases(self, suite: str) -> list[Case]:
+    def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
+        return case.group
+
+    def cases(self, suite: str, run_seed: int = 0) -> list[Case]:
         if suite == "quick":
             return [Case("small-loop", "small-loop", dict(QUICK), figure=True)]
         paper = [Case(n, n, dict(v), figure=True) for n, v in PAPER.items()]

@@ -112,7 +112,10 @@ class OdometryTrack:
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
         return validate_office_scenario(values)
 
-    def cases(self, suite: str) -> list[Case]:
+    def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
+        return case.group
+
+    def cases(self, suite: str, run_seed: int = 0) -> list[Case]:
         if suite == "quick":
             return [Case("corridor-4m", "corridor", {"route": "corridor", "max_distance_m": QUICK_M}, figure=True)]
         paper = [Case(name, name, dict(sc), figure=True) for name, sc in PAPER_CASES.items()]

@@ -1,12 +1,15 @@
 """The stairs track's spec: staircase identification from calf ToF rays (seeds/004, Sec. V).
 
-Suites (cases are deterministic; the run seed only drives the sensor noise):
+Suites (cases are deterministic; the run seed drives the sensor noise, and the draws of ``general``):
 
 - ``quick`` (the default run): cases A, B, C and three random poses on the middle staircase.
 - ``paper``: cases A (frontal, L = 0.305 m), B (yaw +23 deg, L = 0.27 m) and C (yaw -23 deg,
   L = 0.49 m) on riser/tread 0.162/0.280 m, then the staircases 0.153/0.294, 0.162/0.280 and
   0.175/0.270 m with 20 random poses each (yaw uniform in +-25 deg, distance of the climbing
   toe from the first riser uniform in 0.25-0.5 m, from a generator seeded with POSE_SEED).
+- ``general``: 60 staircases never seen, drawn from the run seed across the building codes'
+  range (risers 0.10-0.22 m, treads 0.22-0.35 m, yaw within +-30 deg, distance 0.25-0.50 m,
+  users of 1.55-1.95 m; :mod:`.general`).
 - ``full``: the paper grid, the same grid with every sensor noise off, and cases A, B, C for
   users of 1.60 m and 1.90 m.
 
@@ -28,6 +31,7 @@ from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import StaircaseEstimate
 
 from ..spec import Case, ParamInfo, Reference, SummaryRow, param_infos
+from .general import general_cases
 from .metrics import failure_metrics, score_staircase
 from .report import side_view_data
 
@@ -156,7 +160,7 @@ class StairsTrack:
     """Track protocol implementation for staircase identification (see module docstring)."""
 
     name: ClassVar[str] = "stairs"
-    suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "full")
+    suites: ClassVar[tuple[str, ...]] = ("quick", "paper", "general", "full")
     default_suite: ClassVar[str] = "quick"
     streams: ClassVar[tuple[str, ...]] = ("tof", "imu", "joints", "contact")
     estimate_type: ClassVar[type] = StaircaseEstimate
@@ -178,11 +182,13 @@ class StairsTrack:
         names = {p.name for p in self.params()}
         return {k: v for k, v in NOISE_OFF.items() if k in names}
 
-    def cases(self, suite: str) -> list[Case]:
+    def cases(self, suite: str, run_seed: int = 0) -> list[Case]:
         if suite == "quick":
             return _abc() + _staircase_cases(QUICK_POSES, (1,))
         if suite == "paper":
             return _abc() + _staircase_cases(POSES_PER_STAIRCASE)
+        if suite == "general":
+            return list(general_cases(run_seed))
         if suite == "full":
             base = _abc() + _staircase_cases(POSES_PER_STAIRCASE)
             off = self.noise_off()
