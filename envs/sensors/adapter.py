@@ -25,6 +25,29 @@ if TYPE_CHECKING:
 
 
 @dataclass(frozen=True)
+class Mount:
+    """Where a sensor sits on the exoskeleton when the device has no mount of its id: a body of
+    the robot description and the sensor frame's pose in it.
+
+    Attributes:
+        parent: body (URDF link) the sensor is rigidly attached to, e.g. ``"shank_l"``.
+        xyz_m: position of the sensor frame in the parent body's frame, m.
+        quat_wxyz: orientation of the sensor frame in the parent body's frame (unit quaternion).
+    """
+
+    parent: str
+    xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quat_wxyz: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+    def T_parent_sensor(self) -> np.ndarray:
+        """The 4x4 pose of the sensor frame in the parent body's frame."""
+        from exobench.core.transforms import make_T, quat_wxyz_to_matrix
+
+        q = np.asarray(self.quat_wxyz, dtype=float)
+        return make_T(quat_wxyz_to_matrix(q / np.linalg.norm(q)), np.asarray(self.xyz_m, dtype=float))
+
+
+@dataclass(frozen=True)
 class MountedSensor:
     """One sensor of a rig.
 
@@ -35,12 +58,21 @@ class MountedSensor:
         attached_to: None: the device's own mount of ``sensor_id`` (:func:`exobench.models.exo.sensor_mounts`);
             else the id of an RGB-D camera whose optical frame this sensor shares (a camera's IMU
             or odometry; the simulation adds a site ``sensor_id`` there).
+        mount: an explicit :class:`Mount` anywhere on the exoskeleton (the simulation adds a site
+            ``sensor_id`` there, the calibration a mount); None: ``attached_to`` or the device's own.
     """
 
     sensor_id: str
     kind: str
     config: Any
     attached_to: str | None = None
+    mount: Mount | None = None
+
+    def __post_init__(self) -> None:
+        if self.mount is not None and self.attached_to is not None:
+            from exobench.core import ConfigError
+
+            raise ConfigError(f"{self.sensor_id}.mount", self.mount, "either a mount or attached_to, not both")
 
 
 @dataclass

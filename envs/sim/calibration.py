@@ -24,7 +24,10 @@ from ..sensors.kinds import adapter_class
 
 
 def mount_of(exo: ExoSpec, sensor: MountedSensor) -> tuple[str, Any]:
-    """(parent body, T_parent_sensor) of a rig sensor."""
+    """(parent body, T_parent_sensor) of a rig sensor: its explicit mount, the camera it is
+    attached to, or the device's own mount of its id."""
+    if sensor.mount is not None:
+        return sensor.mount.parent, sensor.mount.T_parent_sensor()
     device = {sid: (parent, T) for sid, _, parent, T in sensor_mounts(exo)}
     key = sensor.attached_to or sensor.sensor_id
     if key not in device:
@@ -44,13 +47,13 @@ def build_calibration(exo: ExoSpec, rig: Sequence[MountedSensor]) -> Calibration
             overrides[s.kind] = ad.calibration_params(s)
     for s in rig:
         ad = adapter_class(s.kind)
-        if ad.has_mount and s.sensor_id in device and s.attached_to is None:
+        if ad.has_mount and s.sensor_id in device and s.attached_to is None and s.mount is None:
             overrides[s.sensor_id] = ad.calibration_params(s)
     cal = exo_calibration(exo, overrides)
     extra_mounts = []
     for s in rig:
         ad = adapter_class(s.kind)
-        if ad.has_mount and (s.sensor_id not in device or s.attached_to is not None):
+        if ad.has_mount and (s.sensor_id not in device or s.attached_to is not None or s.mount is not None):
             parent, T = mount_of(exo, s)
             extra_mounts.append(SensorMount(s.sensor_id, s.kind, parent, T.copy(), dict(ad.calibration_params(s))))
     extra = dict(cal.extra)

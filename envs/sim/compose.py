@@ -2,7 +2,7 @@
 
 The device (:func:`exobench.models.exo.add_exo`) has a site per own sensor and a camera per RGB-D
 mount. :func:`compose_rig` adds what a rig needs beyond that: a site for each sensor attached to
-a camera (its IMU, at the optical frame), the chest camera's two-hinge rig (``chest_rig`` on the
+a camera (its IMU, at the optical frame) and for each sensor with an explicit mount, the chest camera's two-hinge rig (``chest_rig`` on the
 pelvis with ``chest_yaw`` (z) and ``chest_pitch`` (y, + looks down), carrying ``rgbd_chest``,
 same pose at zero angles) when asked, and one mocap body ``ped<k>`` per pedestrian (a capsule
 torso+legs and a sphere head, group 0, so cameras see them). Without any of these it is exactly
@@ -19,13 +19,20 @@ from exobench.core.transforms import matrix_to_quat_wxyz
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.worlds import BuiltWorld, CompiledScene, compose
 
+from ..sensors.adapter import Mount
+
 PED_RADIUS_M = 0.2
 CHEST_CAMERA = "rgbd_chest"
 
 
-def attached_sites(rig: Sequence) -> tuple[tuple[str, str], ...]:
-    """(site, camera) of every rig sensor attached to a camera that needs a site (IMUs)."""
-    return tuple((s.sensor_id, s.attached_to) for s in rig if s.attached_to is not None and s.kind == "imu")
+def attached_sites(rig: Sequence) -> tuple[tuple[str, str | Mount], ...]:
+    """(site, anchor) of every rig sensor that needs a site the device lacks: an IMU attached to a
+    camera (anchor: the camera id) and every sensor with an explicit mount (anchor: its :class:`Mount`)."""
+    return tuple(
+        (s.sensor_id, s.mount if s.mount is not None else s.attached_to)
+        for s in rig
+        if s.mount is not None or (s.attached_to is not None and s.kind == "imu")
+    )
 
 
 def compose_rig(
@@ -57,7 +64,12 @@ def compose_rig(
             rig_body.add_joint(name=jname, type=mujoco.mjtJoint.mjJNT_HINGE, axis=axis)
         rig_body.add_camera(name=CHEST_CAMERA, pos=[0.0, 0.0, 0.0],
                             quat=list(matrix_to_quat_wxyz(T[:3, :3] @ R_OPTICAL_MJCAMERA)), fovy=58.0)  # fmt: skip
-    for site, camera in sites:
+    for site, anchor in sites:
+        if isinstance(anchor, Mount):
+            spec.body(anchor.parent).add_site(name=site, pos=list(anchor.xyz_m), quat=list(anchor.quat_wxyz),
+                                              size=[0.005, 0, 0], group=3)  # fmt: skip
+            continue
+        camera = anchor
         parent, T = exo.rgbd_mount(camera)
         if camera == CHEST_CAMERA and rig_body is not None:
             rig_body.add_site(name=site, pos=[0.0, 0.0, 0.0], quat=list(matrix_to_quat_wxyz(T[:3, :3])), size=[0.005, 0, 0], group=3)

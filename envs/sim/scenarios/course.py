@@ -251,7 +251,7 @@ def plan_locomotion(scenario: LocomotionScenario) -> tuple[Any, tuple, Motion, d
 
 
 @lru_cache(maxsize=8)
-def _compiled(key: tuple, exo: ExoSpec, pattern: str, sites: tuple[tuple[str, str], ...], chest_rig: bool,
+def _compiled(key: tuple, exo: ExoSpec, pattern: str, sites: tuple[tuple[str, Any], ...], chest_rig: bool,
               ped_heights: tuple[float, ...]) -> Any:  # fmt: skip
     world = _plan_cached(key, exo, pattern)[0]
     return compose_rig(world, exo, sites, chest_rig=chest_rig, ped_heights_m=list(ped_heights))

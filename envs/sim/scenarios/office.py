@@ -119,7 +119,7 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
 
 
 @lru_cache(maxsize=8)
-def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, str], ...] = ()) -> Any:
+def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = ()) -> Any:
     """The composed office world (``models.worlds.CompiledScene``), compiled once per key."""
     from exobench.models.office import build_office
 

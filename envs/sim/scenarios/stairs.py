@@ -142,7 +142,7 @@ def staircase_params_for_case(
 
 
 @lru_cache(maxsize=16)
-def compiled_staircase(params: StaircaseParams, exo: ExoSpec, sites: tuple[tuple[str, str], ...] = ()) -> Any:
+def compiled_staircase(params: StaircaseParams, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = ()) -> Any:
     """The composed staircase world (``models.worlds.CompiledScene``), compiled once per key."""
     from exobench.models.worlds import build_staircase
 
