@@ -78,8 +78,7 @@ UNSEEN = [
 
 @pytest.fixture(scope="module")
 def unseen():
-    from exobench.envs.sim import StairScenario
-    from exobench.envs.sim import simulate_stairs
+    from exobench.envs.sim import StairScenario, simulate_stairs
 
     keys = ("riser_m", "tread_m", "yaw_deg", "distance_m", "user_height_m")
     return [simulate_stairs(StairScenario.from_dict(dict(zip(keys, v, strict=True))), seed=7 + k) for k, v in enumerate(UNSEEN)]
