@@ -20,6 +20,7 @@ from exobench.core.transforms import matrix_to_quat_wxyz
 from .exo_spec import (
     ANKLE_AXIS,
     CONTACT_IDS,
+    CONTACT_PADS,
     HIP_AXIS,
     JOINT_RANGES_RAD,
     KNEE_AXIS,
@@ -314,6 +315,8 @@ def exo_calibration(exo: ExoSpec, sensor_params: dict[str, dict] | None = None) 
         params = default_sensor_params(kind)
         params.update(overrides.get(kind, {}))
         params.update(overrides.get(sid, {}))
+        if kind == "contact":  # which foot and which pad: pipelines read it here, not from the id
+            params["side"], params["pad"] = CONTACT_PADS[sid]
         out.append(SensorMount(sensor_id=sid, kind=kind, parent_link=parent, T_parent_sensor=T.copy(), params=params))
     extra = {
         "exo": asdict(exo),

@@ -28,6 +28,9 @@ LEG_JOINTS = ("hip_l", "knee_l", "ankle_l", "hip_r", "knee_r", "ankle_r")
 NECK_JOINTS = ("neck_yaw", "neck_pitch")
 TOF_IDS = ("tof_l_med", "tof_l_lat", "tof_r_med", "tof_r_lat")
 CONTACT_IDS = ("contact_l_heel", "contact_l_toe", "contact_r_heel", "contact_r_toe")
+CONTACT_PADS = {"contact_l_heel": ("l", "heel"), "contact_l_toe": ("l", "toe"), "contact_r_heel": ("r", "heel"),
+                "contact_r_toe": ("r", "toe")}  # fmt: skip
+"""Insole pad id -> (foot side, pad): what the calibration says of each pad."""
 RGBD_IDS = ("rgbd_head", "rgbd_chest", "rgbd_thigh_l", "rgbd_thigh_r")
 
 # sagittal joint axes in the child body frame (see the module docstring for the signs)
@@ -232,7 +235,7 @@ class ExoSpec:
 
     def contact_mount(self, sensor_id: str) -> tuple[str, np.ndarray]:
         """Insole pads under heel and toe; foot frame origin at the ankle joint."""
-        _, side, where = sensor_id.split("_")
+        side, where = CONTACT_PADS[sensor_id]
         x = -self.heel_to_ankle_m + 0.04 if where == "heel" else self.foot_m - self.heel_to_ankle_m - 0.04
         return f"foot_{side}", make_T(np.eye(3), np.array([x, 0.0, -self.sole_height_m]))
 

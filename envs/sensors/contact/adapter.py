@@ -6,6 +6,8 @@ from typing import Any
 
 import numpy as np
 
+from exobench.models.exo_spec import CONTACT_PADS
+
 from ..adapter import BaseAdapter, MountedSensor, SensorOutput
 from ..common import sample_times
 from .model import ContactSensor, contact_forces
@@ -34,7 +36,7 @@ class ContactAdapter(BaseAdapter):
         for s in ctx.rig:
             if s.kind == "contact":
                 _, T = exo.contact_mount(s.sensor_id)
-                pads[s.sensor_id] = st.sole_points_w(s.sensor_id.split("_")[1], T[:3, 3][None, :])[:, 0]
+                pads[s.sensor_id] = st.sole_points_w(CONTACT_PADS[s.sensor_id][0], T[:3, 3][None, :])[:, 0]
         g = float(-model.opt.gravity[2])
         forces = contact_forces(
             Terrain(ctx.scene_truth), pads, st.ankle_w, st.pelvis_w, acc_z, exo.user_mass_kg + exo.exo_mass_kg,
