@@ -193,6 +193,8 @@ def pack_truths(truths: tuple[LidarTruth, ...], ray_ids: list[np.ndarray | None]
     origin, direction, hit = cat("origin_w"), cat("dir_w"), cat("hit_w")
     mat_names, mat_index = np.unique(cat("material"), return_inverse=True)
     layout = {f: np.asarray(getattr(truths[0], f)).dtype.str for f in (*TRUTH_INTS, "material")}
+    with np.errstate(invalid="ignore", over="ignore"):
+        hit_pred = origin + rng * direction
     arrays = {
         "layout": np.asarray(json.dumps(layout)),
         "stamp_s": np.array([float(t.stamp_s) for t in truths]),
@@ -207,7 +209,7 @@ def pack_truths(truths: tuple[LidarTruth, ...], ray_ids: list[np.ndarray | None]
         "true_range_m_res": by_last_seen(rng, ids_all, counts, n_ids)[:, 0],
         "signal_res": by_last_seen(sig, ids_all, counts, n_ids)[:, 0],
         "origin_w_xor": by_previous_row(origin),
-        "hit_w_res": residual(hit, origin + rng * direction),
+        "hit_w_res": residual(hit, hit_pred),
     }
     for f in TRUTH_INTS:
         arrays[f] = narrow(cat(f))
