@@ -112,11 +112,15 @@ def test_office_episode_roundtrip_is_bit_exact(office):
         assert _same(v, back.truth.body_tracks[k]), k
     assert ep.truth.stairs is None and back.truth.stairs is None  # an office walk has no climbing step
     assert back.scenario == ep.scenario and back.seed == ep.seed
+    assert read_meta(path)["version"] == 5
+
+
+def test_lidar_lines_reference_per_scan_files(office, tmp_path):
+    """Format 4 (still written with compact=False, and read): one file per scan and per truth."""
+    ep = office[0]
+    path = write_session(ep, tmp_path / "s4", compact=False)
     assert read_meta(path)["version"] == 4
-
-
-def test_lidar_lines_reference_per_scan_files(office):
-    ep, path = office
+    _assert_same_objects(ep.frames, read_session(path).frames, "frames")
     lines = [json.loads(s) for s in (path / "frames.jsonl").read_text().splitlines()]
     assert len(lines) == len(ep.frames)
     stamps = [d["stamp_s"] for d in lines]
@@ -139,33 +143,44 @@ def test_synthetic_rgbd_and_multi_lidar_roundtrip(tmp_path):
     assert _same(ep.truth.trajectory_w, back.truth.trajectory_w)
     assert sorted(os.listdir(tmp_path / "s" / "rgbd")) == ["rgbd_chest", "rgbd_head"]
     assert len(os.listdir(tmp_path / "s" / "rgbd" / "rgbd_head")) == 6
-    assert len(os.listdir(tmp_path / "s" / "lidar" / "lidar_b")) == 6
+    assert sorted(os.listdir(tmp_path / "s" / "lidar")) == ["lidar_a.npz", "lidar_b.npz"]  # one stream per sensor
+    assert sorted(os.listdir(tmp_path / "s" / "truth")) == ["episode.json", "lidar.npz", "tof.jsonl"]
+    write_session(ep, tmp_path / "s4", compact=False)
+    assert len(os.listdir(tmp_path / "s4" / "lidar" / "lidar_b")) == 6
+    _assert_same_objects(ep.truth.lidar, read_session(tmp_path / "s4").truth.lidar, "lidar truth")
     # without truth the frames still replay
     write_session(ep, tmp_path / "bare", include_truth=False)
     assert not (tmp_path / "bare" / "truth").exists()
     _assert_same_objects(ep.frames, list(iter_frames(tmp_path / "bare")), "frames")
 
 
-def test_iter_frames_streams_scan_files(tmp_path):
+@pytest.mark.parametrize("compact", [False, True])
+def test_iter_frames_streams_scan_files(tmp_path, compact):
     ep = _synthetic(np.random.default_rng(2))
-    path = write_session(ep, tmp_path / "s")
+    path = write_session(ep, tmp_path / "s", compact=compact)
     it = iter_frames(path)
     first = next(it)  # the IMU sample at 0.1 s; the scan files are not read yet
     assert isinstance(first, ImuSample)
-    victim = path / "lidar" / "lidar_b" / "000003.npz"
+    victim = path / "lidar" / ("lidar_b.npz" if compact else "lidar_b/000003.npz")
     victim.unlink()
     got = [first]
-    with pytest.raises(SessionError, match="000003.npz"):
+    with pytest.raises(SessionError, match=victim.name):
         for f in it:
             got.append(f)
-    # everything before the missing scan's line was delivered
-    i_missing = [k for k, f in enumerate(ep.frames) if isinstance(f, LidarScan) and f.sensor_id == "lidar_b"][3]
+    # everything before the missing scan's line was delivered (format 5: the sensor's first scan reads the stream)
+    i_missing = [k for k, f in enumerate(ep.frames) if isinstance(f, LidarScan) and f.sensor_id == "lidar_b"][
+        0 if compact else 3
+    ]
     assert len(got) == i_missing
 
 
-@pytest.mark.parametrize("rel", ["lidar/lidar_a/000001.npz", "rgbd/rgbd_chest/000004.npz", "truth/lidar/000002.npz"])
+@pytest.mark.parametrize(
+    "rel", ["lidar/lidar_a/000001.npz", "rgbd/rgbd_chest/000004.npz", "truth/lidar/000002.npz", "lidar/lidar_a.npz",
+            "truth/lidar.npz"],
+)  # fmt: skip
 def test_corrupt_or_missing_binary_files_name_the_file(tmp_path, rel):
-    path = write_session(_synthetic(np.random.default_rng(3)), tmp_path / "s")
+    compact = rel in ("lidar/lidar_a.npz", "truth/lidar.npz")
+    path = write_session(_synthetic(np.random.default_rng(3)), tmp_path / "s", compact=compact)
     target = path / rel
     data = target.read_bytes()
     target.write_bytes(data[: len(data) // 2])  # truncated
@@ -185,7 +200,7 @@ def test_corrupt_or_missing_binary_files_name_the_file(tmp_path, rel):
 
 def test_scan_file_not_matching_its_line_is_refused(tmp_path):
     ep = _synthetic(np.random.default_rng(4))
-    path = write_session(ep, tmp_path / "s")
+    path = write_session(ep, tmp_path / "s", compact=False)
     other = path / "lidar" / "lidar_a" / "000002.npz"  # the empty scan
     os.replace(other, path / "lidar" / "lidar_a" / "000000.npz")
     with pytest.raises(SessionError, match="000000.npz"):
@@ -255,9 +270,9 @@ def test_version_1_session_still_reads(tmp_path):
     assert np.array_equal(ep.truth.stairs.foot_track_w, [[0.0, 0.1, 0.0, 0.0], [0.1, 0.2, 0.0, 0.05]])
     assert ep.truth.stairs.tof[0].true_range_m == 0.41 and ep.truth.events == {"touchdown_s": 0.9}
     assert ep.scenario == {"riser_m": 0.17} and ep.seed == 3
-    # and re-writing it gives a version-4 session with the same content
-    back = read_session(write_session(ep, tmp_path / "v4"))
-    assert read_meta(tmp_path / "v4")["version"] == 4
+    # and re-writing it gives a version-5 session with the same content
+    back = read_session(write_session(ep, tmp_path / "v5"))
+    assert read_meta(tmp_path / "v5")["version"] == 5
     assert np.array_equal(back.truth.stairs.foot_track_w, ep.truth.stairs.foot_track_w)
     _assert_same_objects(ep.frames, back.frames, "frames")
 
@@ -282,7 +297,7 @@ def test_version_2_truth_gives_a_stairs_part_only_to_staircase_episodes(tmp_path
 
 def test_lidar_truth_materials_are_stored_as_indices_into_a_name_table(tmp_path):
     ep = _synthetic(np.random.default_rng(4))
-    path = write_session(ep, tmp_path / "s")
+    path = write_session(ep, tmp_path / "s", compact=False)
     for k, lt in enumerate(ep.truth.lidar):
         with np.load(path / "truth" / "lidar" / f"{k:06d}.npz") as z:
             assert "material" not in z.files
@@ -297,7 +312,7 @@ def test_lidar_truth_materials_are_stored_as_indices_into_a_name_table(tmp_path)
     scan = _scan(rng, 0.7, "lidar_a", n=300)
     lt = replace(_lidar_truth(rng, scan), material=np.array([f"m{i:03d}" for i in range(300)]))
     ep2 = replace(ep, frames=ep.frames + (scan,), truth=replace(ep.truth, lidar=ep.truth.lidar + (lt,)))
-    path2 = write_session(ep2, tmp_path / "s2")
+    path2 = write_session(ep2, tmp_path / "s2", compact=False)
     with np.load(path2 / "truth" / "lidar" / f"{len(ep2.truth.lidar) - 1:06d}.npz") as z:
         assert z["material_index"].dtype == np.uint16
     _assert_same_objects(ep2.truth.lidar, read_session(path2).truth.lidar, "lidar truth")
@@ -307,7 +322,7 @@ def test_lidar_truth_files_with_material_strings_still_read(tmp_path):
     """Sessions written before the name table stored ``material`` as a unicode array (version 3:
     no file hashes, so the files rewritten here are read as they are)."""
     ep = _synthetic(np.random.default_rng(6))
-    path = write_session(ep, tmp_path / "s")
+    path = write_session(ep, tmp_path / "s", compact=False)
     meta = json.loads((path / "meta.json").read_text())
     (path / "meta.json").write_text(json.dumps({**meta, "version": 3}))
     old_fields = ("stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",

@@ -1,21 +1,26 @@
 """Recorded sessions on disk: an episode's frames, calibration and (apart) ground truth.
 
-Layout of a session directory (format ``exobench-session``, version 4)::
+Layout of a session directory (format ``exobench-session``, version 5)::
 
     meta.json                      format, version, exobench version, track, scenario, seed, frame
                                    counts, truth counts, every other file's size and SHA-256
     calibration.json               sensor mounts, encoder joint names, robot description (URDF text)
     frames.jsonl                   every frame, time-ordered, one JSON object per line ("kind" first)
+    lidar/<sensor_id>.npz          every scan of that LiDAR in one compact stream (lidar_pack)
     <kind>/<sensor_id>/<k>.npz     arrays of the k-th frame of that sensor, for kinds with large
-                                   arrays (lidar/, rgbd/; k = 000000, 000001, ...)
+                                   arrays (rgbd/, and LiDAR scans whose dtypes the stream does not
+                                   take; k = 000000, 000001, ...)
     truth/episode.json             scene surfaces, estimator frame, tracks, events, the climbing
                                    step's truth (or null), trajectory_w, number of LiDAR truths
     truth/tof.jsonl                ground truth of each ToF frame, in ToF frame order
-    truth/lidar/<k>.npz            ground truth of the k-th LiDAR scan of the episode (all sensors)
+    truth/lidar.npz                ground truth of every LiDAR scan of the episode, one stream
+                                   (version 4, or truths the stream does not take: truth/lidar/<k>.npz,
+                                   the truth of the k-th LiDAR scan of the episode, all sensors)
     truth/extra.npz                the numpy arrays of ``EpisodeTruth.extra`` (only when it has any)
 
 Modules: :mod:`.codecs` (the one table saying how each frame kind is written and read: a new
 sensor kind is one entry there), :mod:`.store` (lossless JSON values and the .npz files),
+:mod:`.lidar_pack` and :mod:`.packing` (the compact LiDAR streams and their bit-exact residuals),
 :mod:`.calibration`, :mod:`.truth` (the ``truth/`` folder), :mod:`.io` (writing and reading
 directories).
 
@@ -32,7 +37,9 @@ step's fields flat for every episode; version 3 writes them as a ``stairs`` obje
 episode has no climbing step (versions 1 and 2 read them as the stairs part of staircase episodes
 only). Version 4 adds the track, the truth counts and the file hashes to ``meta.json``; a session
 is checked against them (and its frame counts) before it is read, and older versions are read
-without the hash check. Writing always gives version 4.
+without the hash check. Version 5 stores the LiDAR scans of each sensor and the LiDAR truths
+in one compact stream each (about an eighth of version 4's size); ``write_session(...,
+compact=False)`` still writes version 4. Writing gives version 5.
 """
 
 from .calibration import calibration_from_dict, calibration_to_dict

@@ -38,7 +38,8 @@ from exobench.core import (
     TofStatus,
 )
 
-from .store import BinaryStore, dec_array, dec_float, enc_array, enc_float, load_npz
+from .lidar_pack import packable_scan, unpack_scans
+from .store import BinaryStore, dec_array, dec_float, enc_array, enc_float, load_npz, npz_names
 
 LIDAR_FIELDS = ("points_xyz", "intensity", "ring", "time_offset_s")
 RGBD_FIELDS = ("rgb", "depth_m", "K")
@@ -173,13 +174,47 @@ def _lidar_encode(frame: LidarScan, store: BinaryStore | None) -> dict[str, Any]
     n = len(arrays["points_xyz"])
     if arrays["points_xyz"].shape != (n, 3) or any(arrays[f].shape != (n,) for f in LIDAR_FIELDS[1:]):
         raise SessionError(f"LiDAR scan of {frame.sensor_id!r} at {frame.stamp_s} s: array shapes disagree")
+    if store.streams and packable_scan(frame):
+        rel, k = store.add_scan(frame)
+        return {"sweep_start_s": enc_float(frame.sweep_start_s), "n": n, "file": rel, "index": k, "packed": True}
     rel, k = store.put("lidar", frame.sensor_id, arrays)
+    store.log_scan(frame)
     return {"sweep_start_s": enc_float(frame.sweep_start_s), "n": n, "file": rel, "index": k}
+
+
+_STREAMS: dict[tuple[str, int, int], list[dict[str, np.ndarray]]] = {}
+_STREAM_NAMES = (
+    "scan_n", "ray_time_offset_s", "ray_ring", "ray_dir", "ray_id_delta", "range_quantum", "points_res", "intensity",
+)  # fmt: skip
+
+
+def _stream_scan(root: Path, rel: str, k: int) -> dict[str, np.ndarray]:
+    """Scan ``k`` of the LiDAR stream ``root/rel`` (the last few streams read stay decoded)."""
+    path = root / rel
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        raise SessionError(f"{path}: binary file missing") from None
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    if key not in _STREAMS:
+        present = npz_names(root, rel)
+        a = load_npz(root, rel, _STREAM_NAMES + (("range_k",) if "range_k" in present else ("range_m",)))
+        try:
+            scans = unpack_scans(a)
+        except (ValueError, IndexError, KeyError) as e:
+            raise SessionError(f"{path}: corrupt LiDAR stream ({e})") from None
+        while len(_STREAMS) >= 4:
+            _STREAMS.pop(next(iter(_STREAMS)))
+        _STREAMS[key] = scans
+    scans = _STREAMS[key]
+    if not 0 <= k < len(scans):
+        raise SessionError(f"{path}: no scan {k} in a stream of {len(scans)}")
+    return scans[k]
 
 
 def _lidar_decode(d: dict[str, Any], stamp: float, sid: str, root: Path | None) -> LidarScan:
     assert root is not None
-    a = load_npz(root, d["file"], LIDAR_FIELDS)
+    a = _stream_scan(root, d["file"], int(d["index"])) if d.get("packed") else load_npz(root, d["file"], LIDAR_FIELDS)
     n = int(d["n"])
     if a["points_xyz"].shape != (n, 3) or any(a[f].shape != (n,) for f in LIDAR_FIELDS[1:]):
         raise SessionError(

@@ -27,8 +27,8 @@ from .store import BinaryStore, dumps, load_json, plain
 from .truth import read_truth, write_truth
 
 FORMAT = "exobench-session"
-VERSION = 4
-SUPPORTED_VERSIONS = (1, 2, 3, 4)
+VERSION = 5
+SUPPORTED_VERSIONS = (1, 2, 3, 4, 5)
 HASHED_FROM = 4  # the first version whose meta.json lists every file's SHA-256
 _CHUNK = 1 << 20
 
@@ -43,10 +43,17 @@ def file_digest(path: Path) -> dict[str, Any]:
 
 
 def write_session(
-    episode: Episode, path: str | os.PathLike, *, include_truth: bool = True, track: str | None = None
+    episode: Episode,
+    path: str | os.PathLike,
+    *,
+    include_truth: bool = True,
+    track: str | None = None,
+    compact: bool = True,
 ) -> Path:
     """Write ``episode`` as a session directory at ``path`` (which must not exist yet);
-    ``track`` (the track that simulated it) is recorded so a replay on another track is refused."""
+    ``track`` (the track that simulated it) is recorded so a replay on another track is refused.
+    ``compact`` writes format 5 (LiDAR scans and truths in one stream file each, see
+    :mod:`.lidar_pack`); ``compact=False`` writes format 4 (one file per scan and per truth)."""
     from exobench import __version__
 
     final = Path(path)
@@ -56,23 +63,24 @@ def write_session(
     tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
     try:
         counts: dict[str, int] = {}
-        store = BinaryStore(tmp)
+        store = BinaryStore(tmp, streams=compact)
         with open(tmp / "frames.jsonl", "w") as fh:
             for fr in episode.frames:
                 d = frame_to_dict(fr, store)
                 counts[d["kind"]] = counts.get(d["kind"], 0) + 1
                 fh.write(dumps(d) + "\n")
+        ray_ids = store.finish()
         (tmp / "calibration.json").write_text(
             json.dumps(calibration_to_dict(episode.calibration), allow_nan=False)
         )
         if include_truth:
-            write_truth(tmp, episode.truth)
+            write_truth(tmp, episode.truth, ray_ids, stream=compact)
         files = {
             f.relative_to(tmp).as_posix(): file_digest(f) for f in sorted(tmp.rglob("*")) if f.is_file()
         }
         meta = {
             "format": FORMAT,
-            "version": VERSION,
+            "version": VERSION if compact else 4,
             "exobench_version": __version__,
             "track": track,
             "scenario": plain(episode.scenario),

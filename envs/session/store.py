@@ -104,10 +104,11 @@ def _unshuffle(b: np.ndarray, dtype: str, shape: list[int]) -> np.ndarray:
     return np.ascontiguousarray(flat.reshape(shape[::-1]).T) if len(shape) == 2 else flat.reshape(shape)
 
 
-def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write ``arrays`` zip-compressed; float arrays of :data:`_SHUFFLE_MIN` values or more are
-    stored byte-shuffled (listed with dtype and shape in the ``__shuffled__`` entry) and come back
-    with their dtype and every bit by :func:`load_npz`."""
+def save_npz(path: Path, arrays: dict[str, np.ndarray], shuffle: tuple[str, ...] = ()) -> None:
+    """Write ``arrays`` zip-compressed; float arrays of :data:`_SHUFFLE_MIN` values or more, and
+    the arrays named in ``shuffle`` (integer residuals), are stored byte-shuffled (listed with
+    dtype and shape in the ``__shuffled__`` entry) and come back with their dtype and every bit
+    by :func:`load_npz`."""
     out: dict[str, np.ndarray] = {}
     shuffled: dict[str, list[Any]] = {}
     for name, a in arrays.items():
@@ -116,7 +117,9 @@ def save_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
             raise SessionError(
                 f"{path.name}: array {name!r} has dtype object; sessions store plain numpy dtypes only"
             )
-        if a.dtype.kind == "f" and a.ndim in (1, 2) and a.size >= _SHUFFLE_MIN:
+        if a.ndim in (1, 2) and a.size >= _SHUFFLE_MIN and a.dtype.itemsize > 1 and (
+            a.dtype.kind == "f" or (name in shuffle and a.dtype.kind in "iu")
+        ):
             shuffled[name] = [a.dtype.str, list(a.shape)]
             out[name] = _shuffle(a)
         else:
@@ -180,11 +183,39 @@ def check_id(sensor_id: str) -> str:
 
 
 class BinaryStore:
-    """Writes the per-frame .npz files of one session, ``<kind>/<sensor_id>/<k>.npz``, numbered per sensor."""
+    """Writes the binary files of one session: per-frame .npz files, ``<kind>/<sensor_id>/<k>.npz``,
+    numbered per sensor, and (format 5) one LiDAR stream per sensor, ``lidar/<sensor_id>.npz``,
+    written by :meth:`finish` once every scan is in."""
 
-    def __init__(self, root: Path) -> None:
-        self.root = root
+    def __init__(self, root: Path, streams: bool = True) -> None:
+        self.root, self.streams = root, streams  # streams=False: every scan in its own file (format 4)
         self.count: dict[tuple[str, str], int] = {}
+        self.scans: dict[str, list[Any]] = {}
+        self.lidar_log: list[tuple[str, float, int, int | None]] = []  # every scan: sensor, stamp, n, stream index
+
+    def add_scan(self, scan: Any) -> tuple[str, int]:
+        """Queue a LiDAR scan for its sensor's stream; (stream file, index in the stream)."""
+        sid = check_id(scan.sensor_id)
+        queue = self.scans.setdefault(sid, [])
+        queue.append(scan)
+        self.lidar_log.append((sid, float(scan.stamp_s), len(scan.points_xyz), len(queue) - 1))
+        return f"lidar/{sid}.npz", len(queue) - 1
+
+    def log_scan(self, scan: Any) -> None:
+        """Note a scan written in its own file (it has no rays in a stream)."""
+        self.lidar_log.append((scan.sensor_id, float(scan.stamp_s), len(scan.points_xyz), None))
+
+    def finish(self) -> list[tuple[str, float, np.ndarray | None]]:
+        """Write the queued LiDAR streams; the ray ids of every scan's points, in the order the
+        scans came (None for scans in their own files), for the truth stream."""
+        from .lidar_pack import SCAN_SHUFFLED, pack_scans
+
+        ids: dict[str, list[np.ndarray]] = {}
+        for sid, scans in self.scans.items():
+            arrays, ids[sid] = pack_scans(scans)
+            save_npz(self.root / f"lidar/{sid}.npz", arrays, shuffle=SCAN_SHUFFLED)
+        self.scans = {}
+        return [(sid, stamp, None if k is None else ids[sid][k]) for sid, stamp, _, k in self.lidar_log]
 
     def put(self, kind: str, sensor_id: str, arrays: dict[str, np.ndarray]) -> tuple[str, int]:
         key = (kind, check_id(sensor_id))

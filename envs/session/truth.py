@@ -36,6 +36,7 @@ from exobench.core import (
     ToFTruth,
 )
 
+from .lidar_pack import TRUTH_SHUFFLED, TRUTH_STREAM_NAMES, pack_truths, packable_truths, unpack_truths
 from .store import (
     dec_array,
     dec_float,
@@ -49,6 +50,7 @@ from .store import (
     save_npz,
 )
 
+LIDAR_STREAM = "truth/lidar.npz"  # format 5: all LiDAR truths in one file (lidar_pack)
 LIDAR_TRUTH_FIELDS = (
     "stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",
     "via_geom_id", "signal", "origin_w", "dir_w",
@@ -236,15 +238,38 @@ def _stairs_from_dict(d: dict[str, Any], tof: tuple[ToFTruth, ...], scene_kind: 
     )
 
 
-def write_truth(root: Path, t: EpisodeTruth) -> None:
-    """Write ``truth/`` of a session under ``root``."""
+def _truth_rays(t: EpisodeTruth, scans: list[tuple[str, float, np.ndarray | None]] | None) -> list[np.ndarray | None]:
+    """The ray ids of each LiDAR truth's points, from the k-th scan when it is the scan of that
+    truth (same sensor, stamp and point count), else None."""
+    out: list[np.ndarray | None] = []
+    for k, lt in enumerate(t.lidar):
+        s = scans[k] if scans is not None and k < len(scans) else None
+        ok = s is not None and s[2] is not None and s[0] == lt.sensor_id and s[1] == float(lt.stamp_s)
+        out.append(s[2] if ok and len(s[2]) == len(np.asarray(lt.true_range_m)) else None)  # type: ignore[index]
+    return out
+
+
+def write_truth(
+    root: Path, t: EpisodeTruth, scans: list[tuple[str, float, np.ndarray | None]] | None = None, stream: bool = True
+) -> None:
+    """Write ``truth/`` of a session under ``root``; ``scans`` (sensor, stamp, ray id of every
+    point) of the LiDAR scans in episode order let the LiDAR truth stream predict each point from
+    the same ray's last value (:mod:`.lidar_pack`); ``stream=False`` writes one file per truth
+    (format 4)."""
     (root / "truth").mkdir()
-    (root / "truth" / "episode.json").write_text(dumps(truth_to_dict(t)))
+    episode = truth_to_dict(t)
+    stream = stream and packable_truths(t.lidar)
+    if stream:
+        episode["lidar_stream"] = LIDAR_STREAM
+    (root / "truth" / "episode.json").write_text(dumps(episode))
     with open(root / "truth" / "tof.jsonl", "w") as fh:
         for tt in t.stairs.tof if t.stairs is not None else ():
             fh.write(dumps(tof_truth_to_dict(tt)) + "\n")
-    for k, lt in enumerate(t.lidar):
-        save_npz(root / "truth" / "lidar" / f"{k:06d}.npz", lidar_truth_arrays(lt))
+    if stream:
+        save_npz(root / LIDAR_STREAM, pack_truths(t.lidar, _truth_rays(t, scans)), shuffle=TRUTH_SHUFFLED)
+    else:
+        for k, lt in enumerate(t.lidar):
+            save_npz(root / "truth" / "lidar" / f"{k:06d}.npz", lidar_truth_arrays(lt))
     extra_arrays = {str(k): v for k, v in t.extra.items() if isinstance(v, np.ndarray)}
     if extra_arrays:
         save_npz(root / "truth" / "extra.npz", extra_arrays)
@@ -273,9 +298,24 @@ def read_truth(root: Path) -> EpisodeTruth:
         names = tuple(td.get("extra_arrays", ()))
     except (TypeError, ValueError) as e:
         raise SessionError(f"{ep_path}: malformed ({type(e).__name__}: {e})") from None
-    lidar = tuple(read_lidar_truth(root, f"truth/lidar/{k:06d}.npz") for k in range(n_lidar))
+    if td.get("lidar_stream") is not None:
+        lidar = _read_lidar_stream(root, td["lidar_stream"])
+    else:
+        lidar = tuple(read_lidar_truth(root, f"truth/lidar/{k:06d}.npz") for k in range(n_lidar))
     extra_arrays = load_npz(root, "truth/extra.npz", names) if names else {}
     try:
         return truth_from_dict(td, tuple(tof), lidar, extra_arrays)
     except (KeyError, TypeError, ValueError, AttributeError) as e:
         raise SessionError(f"{ep_path}: malformed truth ({type(e).__name__}: {e})") from None
+
+
+def _read_lidar_stream(root: Path, rel: Any) -> tuple[LidarTruth, ...]:
+    names = npz_names(root, rel) if isinstance(rel, str) else []
+    missing = [n for n in TRUTH_STREAM_NAMES if n not in names]
+    if missing:
+        raise SessionError(f"{root / str(rel)}: arrays {missing} missing; present: {sorted(names)}")
+    a = load_npz(root, rel, TRUTH_STREAM_NAMES)
+    try:
+        return tuple(unpack_truths(a))
+    except (ValueError, IndexError, KeyError, TypeError) as e:
+        raise SessionError(f"{root / rel}: corrupt LiDAR truth stream ({type(e).__name__}: {e})") from None
