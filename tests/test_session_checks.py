@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
-from exobench.envs.session import read_meta
+from exobench.envs.session import read_meta, write_session
 
 
 @pytest.fixture(scope="module")
@@ -160,3 +160,19 @@ def test_lidar_truth_hit_points_are_stored_as_a_residual(tmp_path):
                     np.full(n, -1), rng.uniform(size=n), origin, d)  # fmt: skip
     a = lidar_truth_arrays(lt)
     assert "hit_w" not in a and np.count_nonzero(a["hit_w_xor"]) == 3
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077])
+def test_session_folders_get_ordinary_permissions(tmp_path, umask):
+    import os
+    import stat
+
+    from exobench.envs.sim import StairScenario, simulate_stairs
+
+    ep = simulate_stairs(StairScenario.from_dict({}), 0)
+    old = os.umask(umask)
+    try:
+        path = write_session(ep, tmp_path / "s")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o777 & ~umask

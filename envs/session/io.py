@@ -91,6 +91,9 @@ def write_session(
             "files": files,
         }
         (tmp / "meta.json").write_text(json.dumps(meta, indent=1, allow_nan=False))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o777 & ~umask)  # mkdtemp's 0700 is for the name race only
         os.rename(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
