@@ -69,6 +69,29 @@ class UnknownNameError(ExobenchError, KeyError):
         return f"unknown {self.kind} {short_repr(self.name)}; valid: {listed}{more}"
 
 
+class FrameTypeError(ExobenchError, TypeError):
+    """A pipeline was given something that is not a sensor frame.
+
+    Attributes:
+        received: name of the type received, e.g. ``"dict"``.
+        accepted: names of the frame types a pipeline accepts.
+    """
+
+    def __init__(self, received: object, accepted: Iterable[str]) -> None:
+        self.received = type(received).__name__
+        self.accepted = tuple(accepted)
+        super().__init__(f"process() takes a sensor frame, got {self.received}; accepted: {', '.join(self.accepted)}")
+
+
+class PipelineStateError(ExobenchError, RuntimeError):
+    """A pipeline method was called out of order (``process`` or ``finalize`` before ``reset``)."""
+
+    def __init__(self, pipeline: str, method: str, needs: str = "reset()") -> None:
+        self.pipeline = pipeline
+        self.method = method
+        super().__init__(f"{pipeline}: {method} called before {needs}")
+
+
 class SessionError(ExobenchError):
     """A recorded session on disk is missing, malformed or of an unsupported version."""
 

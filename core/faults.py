@@ -95,3 +95,80 @@ def inject_faults(frames: Sequence[Frame], at: tuple[float, float, float] = (0.2
         replaced[k_drop] = None
     out = (replaced.get(i, f) for i, f in enumerate(frames))
     return tuple(f for f in out if f is not None)
+
+
+# the absurd values :func:`absurd` writes (see :mod:`exobench.core.limits` for what is absurd)
+ABSURD_RANGES_M = (1e308, 0.0, 1e6)
+ABSURD_POINT_M = 1e6
+ABSURD_DEPTH_M = 1e6
+ABSURD_VALUE = 1e308
+
+
+def _absurd_scan(f: LidarScan) -> LidarScan:
+    p = np.array(f.points_xyz, dtype=float).reshape(-1, 3)
+    n = len(p)
+    far, origin = np.arange(0, n, 4), np.arange(2, n, 4)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.linalg.norm(p[far], axis=1, keepdims=True)
+        u = np.where(r > 0, p[far] / np.where(r > 0, r, 1.0), np.array([1.0, 0.0, 0.0]))
+    p[far] = ABSURD_POINT_M * u
+    p[origin] = 0.0
+    return replace(f, points_xyz=p)
+
+
+def n_absurd_points(scan: LidarScan) -> int:
+    """How many points :func:`absurd` makes absurd in a scan: every other one (1e6 m, origin)."""
+    return (len(np.asarray(scan.points_xyz).reshape(-1, 3)) + 1) // 2
+
+
+def _absurd_imu(f: ImuSample) -> ImuSample:
+    big = ABSURD_VALUE
+    return replace(f, quat_wxyz=np.full(4, big), gyro_rad_s=np.full(3, big), accel_m_s2=np.full(3, big))
+
+
+def absurd(frame: Frame, variant: int = 0) -> Frame:
+    """The frame with values its sensor cannot have measured (a broken driver or unit error):
+
+    - ToF: status VALID with range ``ABSURD_RANGES_M[variant % 3]`` (1e308, 0 or 1e6 m);
+    - LiDAR: every other point absurd, alternately at 1e6 m along its ray and at the origin
+      (:func:`n_absurd_points` says how many);
+    - RGB-D: depth 1e6 m everywhere; IMU: 1e308 in the quaternion, rate and force;
+    - encoders: 1e308 rad; contact: 1e308 N; odometry: a translation of 1e308 m.
+    """
+    if isinstance(frame, ToFReading):
+        return replace(frame, range_m=ABSURD_RANGES_M[variant % len(ABSURD_RANGES_M)], status=int(TofStatus.VALID))
+    if isinstance(frame, LidarScan):
+        return _absurd_scan(frame)
+    if isinstance(frame, RgbdFrame):
+        return replace(frame, depth_m=np.full_like(frame.depth_m, ABSURD_DEPTH_M))
+    if isinstance(frame, ImuSample):
+        return _absurd_imu(frame)
+    if isinstance(frame, JointState):
+        return replace(frame, position_rad=np.full(np.shape(frame.position_rad), ABSURD_VALUE))
+    if isinstance(frame, ContactSample):
+        return replace(frame, force_n=ABSURD_VALUE)
+    if isinstance(frame, OdometrySample):
+        T = np.array(frame.T_odom_body, dtype=float)
+        T[:3, 3] = ABSURD_VALUE
+        return replace(frame, T_odom_body=T)
+    raise TypeError(f"not an exobench frame: {type(frame).__name__}")
+
+
+def inject_absurd(
+    frames: Sequence[Frame], at: tuple[float, ...] = (0.2, 0.4, 0.6)
+) -> tuple[tuple[Frame, ...], tuple[int, ...]]:
+    """Every sensor stream of ``frames`` with absurd values (:func:`absurd`) in the frames at the
+    fractions ``at`` of its length, the k-th with variant k (a ToF stream gets 1e308, 0 and 1e6);
+    streams of fewer than ``len(at) + 1`` frames are left as they are. Returns the frames (none
+    dropped, order kept) and the indices of the frames made absurd."""
+    by_sensor: dict[str, list[int]] = {}
+    for i, f in enumerate(frames):
+        by_sensor.setdefault(f.sensor_id, []).append(i)
+    replaced: dict[int, Frame] = {}
+    for idx in by_sensor.values():
+        if len(idx) <= len(at):
+            continue
+        for variant, a in enumerate(at):
+            k = idx[min(len(idx) - 1, int(a * len(idx)))]
+            replaced[k] = absurd(frames[k], variant)
+    return tuple(replaced.get(i, f) for i, f in enumerate(frames)), tuple(sorted(replaced))

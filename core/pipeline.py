@@ -8,6 +8,13 @@ the class); it never reads files, owns a viewer or knows the simulator::
     for frame in frames:              # time-ordered
         online = pipe.process(frame)  # estimate so far, or None
     result = pipe.finalize()          # the offline result the harness scores
+
+``process`` first calls :func:`check_frame`, which raises :class:`~.errors.PipelineStateError`
+before ``reset`` and :class:`~.errors.FrameTypeError` for anything that is not a frame (a dict,
+None, a string): every built-in pipeline does, and a third-party pipeline should do the same,
+so that a mistake in the caller is an error and never a silently ignored input. Values inside a
+frame that no sensor can report are not errors: a pipeline skips and counts them (see
+:mod:`exobench.core.limits`).
 """
 
 from __future__ import annotations
@@ -18,8 +25,10 @@ from collections.abc import Mapping
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from .calibration import Calibration
-from .errors import ConfigError, UnknownNameError
-from .frames import Frame
+from .errors import ConfigError, FrameTypeError, PipelineStateError, UnknownNameError
+from .frames import FRAME_TYPES, Frame
+
+_FRAME_CLASSES = tuple(FRAME_TYPES.values())
 
 
 @runtime_checkable
@@ -43,6 +52,16 @@ class Pipeline(Protocol):
 
     def finalize(self) -> Any:
         """Return the final estimate of the episode."""
+
+
+def check_frame(pipeline: object, frame: object, was_reset: bool) -> None:
+    """Refuse a call of ``pipeline.process(frame)`` that cannot be right: before ``reset``
+    (``was_reset`` False) with :class:`PipelineStateError`, and with ``frame`` not one of
+    :data:`~.frames.FRAME_TYPES` with :class:`FrameTypeError`. Call it first in ``process``."""
+    if not was_reset:
+        raise PipelineStateError(getattr(pipeline, "name", "") or type(pipeline).__name__, "process()")
+    if not isinstance(frame, _FRAME_CLASSES):
+        raise FrameTypeError(frame, [c.__name__ for c in _FRAME_CLASSES])
 
 
 def config_from_dict(config_cls: type, values: Mapping[str, Any], *, prefix: str = "") -> Any:

@@ -197,3 +197,24 @@ def test_bad_set_values_exit_2_and_write_nothing(tmp_path, args, expected):
     assert result.exit_code == 2, result.output
     assert expected in result.stderr
     assert not out.exists()
+
+
+def test_nan_points_are_counted_not_scored_as_removed():
+    """A scan's NaN points are neither kept nor removed in the scores; the filter counts them."""
+    from exobench.benchmarks.tracks.lidar_filter.metrics import mask_fractions
+    from exobench.benchmarks.tracks.office_walks import GENUINE, GHOST
+    from exobench.core import Calibration, LidarScan
+    from exobench.perception.lidar_filter import FilterNone
+
+    classes = [np.array([GHOST, GHOST, GENUINE, GENUINE])]
+    ground = [np.zeros(4, dtype=bool)]
+    keep = [np.array([False, True, True, False])]  # the first ghost and the last genuine point are NaN
+    measured = [np.array([False, True, True, False])]
+    m = mask_fractions(classes, ground, keep, measured)
+    assert m["spurious_removed_frac"] == 0.0 and m["genuine_kept_frac"] == 1.0 and m["n_points"] == 2
+    pts = np.array([[np.nan, 0, 0], [2.0, 0, 0], [0, 3.0, 0], [np.nan, np.nan, np.nan]])
+    pipe = FilterNone()
+    pipe.reset(Calibration("<robot/>", "base", (), (), 0.1, 0.25, 0.05))
+    pipe.process(LidarScan(0.1, "lidar", pts, np.full(4, 50, np.uint8), np.zeros(4, int), np.zeros(4), 0.0))
+    est = pipe.finalize()
+    assert est.stats["n_nan_points"] == 2 and est.keep[0].tolist() == [False, True, True, False]

@@ -7,7 +7,12 @@ A pipeline, a track or a gymnasium environment is covered here the moment it is 
   config is valid and saved whole as JSON, it returns the track's ``estimate_type``, the same
   frames give the same scores (timings aside), it survives a frame with no return, one with NaN
   and a dropped frame in every stream (:func:`exobench.core.faults.inject_faults`) and still
-  returns its estimate type with well-formed scores, and it refuses an unknown config key;
+  returns its estimate type with well-formed scores; it survives values no sensor can report
+  (:func:`exobench.core.faults.inject_absurd`: ranges of 1e308, 0 and 1e6 m, LiDAR points at
+  1e6 m and at the origin, depth of 1e6 m, IMU values of 1e308, ...) and counts them (one count
+  per track, :data:`ABSURD_COUNTS`); it refuses something that is not a frame
+  (:class:`FrameTypeError`) and ``process`` before ``reset`` (:class:`PipelineStateError`); and
+  it refuses an unknown config key;
 - every track: its smoke episode carries only its declared streams, every case of every suite
   validates and case names are unique per suite, a failed episode and a bad estimate are scored
   well-formed with the reason, the summary rows and the published references name metrics the
@@ -37,9 +42,10 @@ from exobench.benchmarks.registry import default_registry
 from exobench.benchmarks.results import json_safe
 from exobench.benchmarks.runner import PipelineRun, untimed_metrics
 from exobench.benchmarks.tracks.registry import default_track_registry
-from exobench.core.errors import UnknownNameError
-from exobench.core.faults import inject_faults
-from exobench.core.frames import FRAME_TYPES, frame_kind
+from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownNameError
+from exobench.core.faults import inject_absurd, inject_faults, n_absurd_points
+from exobench.core.frames import FRAME_TYPES, LidarScan, RgbdFrame, ToFReading, frame_kind
+from exobench.perception.stairs.pipeline_base import sensor_flags
 
 # read once, at collection: a registration a test makes later (such as the toy track of
 # test_benchmarks_track_registry.py, which rebuilds the default registries) is not picked up
@@ -174,6 +180,62 @@ def test_pipeline_survives_no_return_nan_and_dropped_frames(name):
     assert not metrics["failed"], f"{name} on faulty frames: {metrics.get('failed_reason')}"
     missing = {r.metric for r in track.summary_rows()} - set(metrics)
     assert not missing, f"{name} on faulty frames: no {sorted(missing)}"
+
+
+def _absurd_lidar_points(absurd_frames: list, estimate: Any) -> int:
+    return sum(n_absurd_points(f) for f in absurd_frames if isinstance(f, LidarScan))
+
+
+# track -> (what the pipeline counts, what it should count given the frames made absurd, the
+# pipeline's default config); a track not listed is only checked to survive
+ABSURD_COUNTS: dict[str, tuple[Any, Any]] = {
+    "stairs": (
+        lambda est: est.stats["n_bad_range"],
+        lambda fs, est, cfg: sum(isinstance(f, ToFReading) and f.sensor_id in sensor_flags(cfg.leg) for f in fs),
+    ),
+    "lidar-filter": (lambda est: est.stats["n_absurd_points"], lambda fs, est, cfg: _absurd_lidar_points(fs, est)),
+    "odometry": (lambda est: est.stats["n_absurd_points"], lambda fs, est, cfg: _absurd_lidar_points(fs, est)),
+    "loop-closure": (lambda est: est.stats["absurd_points"], lambda fs, est, cfg: _absurd_lidar_points(fs, est)),
+    "locomotion": (
+        lambda est: est.stats["n_absurd_depth_frames"],
+        lambda fs, est, cfg: sum(isinstance(f, RgbdFrame) and f.sensor_id == est.stats["rgbd_sensor_id"] for f in fs),
+    ),
+}
+
+
+@pytest.mark.parametrize("name", PIPELINES)
+def test_pipeline_survives_and_counts_absurd_values(name):
+    cls = PIPELINE_REGISTRY.load(name)
+    track = _track(cls.track)
+    episode = smoke_episode(cls.track)
+    frames, made = inject_absurd(episode.frames)
+    assert made, "no stream long enough to make absurd"
+    estimate = _run(name, frames)  # must not raise
+    assert isinstance(estimate, track.estimate_type), f"{name} returned {type(estimate).__name__} on absurd values"
+    metrics = track.score(dataclasses.replace(episode, frames=frames), estimate)
+    _well_formed(metrics, f"{name} on absurd values")
+    if cls.track in ABSURD_COUNTS:
+        counted, expected = ABSURD_COUNTS[cls.track]
+        want = expected([frames[i] for i in made], estimate, cls.Config())
+        assert want > 0, f"{name}: no absurd frame of a stream it reads"
+        assert counted(estimate) == want, f"{name} counted {counted(estimate)} absurd values, {want} injected"
+
+
+@pytest.mark.parametrize("name", PIPELINES)
+def test_pipeline_refuses_what_is_not_a_frame(name):
+    pipe = PIPELINE_REGISTRY.make(name)
+    pipe.reset(smoke_episode(pipe.track).calibration)
+    for bad in ({"stamp_s": 0.0, "sensor_id": "tof_r_lat", "range_m": 0.3}, None, "tof_r_lat"):
+        with pytest.raises(FrameTypeError, match=type(bad).__name__) as err:
+            pipe.process(bad)
+        assert isinstance(err.value, TypeError) and "ToFReading" in str(err.value)
+
+
+@pytest.mark.parametrize("name", PIPELINES)
+def test_pipeline_refuses_process_before_reset(name):
+    pipe = PIPELINE_REGISTRY.make(name)
+    with pytest.raises(PipelineStateError, match="reset"):
+        pipe.process(smoke_episode(pipe.track).frames[0])
 
 
 @pytest.mark.parametrize("name", PIPELINES)

@@ -34,6 +34,9 @@ Output: one :class:`ModePrediction` per processed RGB-D frame; ``finalize`` retu
 time from the frame's arrival in ``process`` to its mode. Faulty input never raises: a malformed
 frame, missing odometry, an all-invalid depth image or a numerical failure keep the state; the
 prediction carries the reason as its status (:data:`~.config.STATUSES`) and ``stats`` counts it.
+Depth pixels beyond what the camera can report (:func:`exobench.core.limits.max_depth_m`) are
+taken as invalid and counted (``n_absurd_depth_frames``, ``n_absurd_depth_pixels``); an odometry
+translation beyond :data:`~exobench.core.limits.FALLBACK_MAX_RANGE_M` counts as bad odometry.
 """
 
 from __future__ import annotations
@@ -50,7 +53,6 @@ from exobench.core import (
     Calibration,
     ConfigError,
     ContactSample,
-    ExobenchError,
     Frame,
     LocomotionEstimate,
     ModePrediction,
@@ -58,6 +60,9 @@ from exobench.core import (
     RgbdFrame,
     UnknownNameError,
 )
+from exobench.core.errors import PipelineStateError
+from exobench.core.limits import FALLBACK_MAX_RANGE_M, absurd_depth, max_depth_m
+from exobench.core.pipeline import check_frame
 from exobench.perception.terrain.footprint import (
     GaitDivider,
     HeelStrike,
@@ -125,6 +130,7 @@ class LocomotionPipeline(ABC):
         else:
             raise UnknownNameError("RGB-D sensor", "(first of the calibration)", [])
         self._rgbd_id = mount.sensor_id
+        self._max_depth_m = max_depth_m(mount)
         self._period_s = 1.0 / float(mount.params["rate_hz"]) if mount.params.get("rate_hz") else None
         suffix = self._rgbd_id[len("rgbd_"):] if self._rgbd_id.startswith("rgbd_") else self._rgbd_id
         odo_info = calibration.extra.get("odometry")
@@ -186,7 +192,7 @@ class LocomotionPipeline(ABC):
             "n_bad_frame", "n_no_depth", "n_no_odometry", "n_no_planes", "n_errors", "n_bad_odometry",
             "n_odometry", "n_contact", "n_heel_strikes", "n_strikes_without_odometry", "n_direction_from_positions",
             "n_current_remembered", "n_initial_contacts", "n_ignored", "n_height_from_odometry", "n_height_from_prior", "n_drop_ahead", "n_ramp_ahead", "n_onto_tread", "n_past_crease",
-            "n_standing_starts", "n_steps_after_start")}
+            "n_standing_starts", "n_steps_after_start", "n_absurd_depth_frames", "n_absurd_depth_pixels")}
         self._stats.update(rgbd_sensor_id=self._rgbd_id, odometry_sensor_id=self._odom_id,
                            odometry_mount=self._odom_mount, errors=[], camera_ahead_m=self._camera_ahead_m, tracked_point=self._tracked,
                            camera_ahead_known=ahead is not None, lookup_m=self._lookup_m)
@@ -195,8 +201,7 @@ class LocomotionPipeline(ABC):
 
     def process(self, frame: Frame) -> ModePrediction | None:
         t0 = time.perf_counter()
-        if not self._ready:
-            raise ExobenchError("process() called before reset()")
+        check_frame(self, frame, self._ready)
         self._stats["n_frames"] += 1
         if isinstance(frame, OdometrySample):
             self._on_odometry(frame)
@@ -210,7 +215,7 @@ class LocomotionPipeline(ABC):
 
     def finalize(self) -> LocomotionEstimate:
         if not self._ready:
-            raise ExobenchError("finalize() called before reset()")
+            raise PipelineStateError(self.name, "finalize()")
         desc = describe_terrain(self._plane_set, self.config.terrain)
         planes = []
         for pid, p in desc.planes.items():
@@ -253,7 +258,7 @@ class LocomotionPipeline(ABC):
             return
         T = _finite_array(frame.T_odom_body, (4, 4))
         v = _finite_array(frame.v_odom_m_s, (3,))
-        if T is None or v is None:
+        if T is None or v is None or not np.all(np.abs(T[:3, 3]) <= FALLBACK_MAX_RANGE_M):
             self._stats["n_bad_odometry"] += 1
             return
         self._stats["n_odometry"] += 1
@@ -304,11 +309,22 @@ class LocomotionPipeline(ABC):
         else:
             self._stats["n_heel_strikes"] += 1
 
+    def _absurd_pixels(self, depth: object) -> int:
+        """How many pixels of a depth image no camera of this mount can report (0 if unreadable)."""
+        try:
+            return int(np.count_nonzero(absurd_depth(np.asarray(depth, dtype=float), self._max_depth_m)))
+        except (TypeError, ValueError):
+            return 0
+
     def _on_rgbd(self, frame: RgbdFrame, t0: float) -> ModePrediction | None:
         st, c = self._stats, self.config
         st["n_rgbd_frames"] += 1
         if not self._in_order(frame):
             return None
+        n_absurd = self._absurd_pixels(frame.depth_m)
+        if n_absurd:
+            st["n_absurd_depth_frames"] += 1
+            st["n_absurd_depth_pixels"] += n_absurd
         stamp = float(frame.stamp_s)
         if self._last_rgbd_s is not None and self._period_s:
             gap = round((stamp - self._last_rgbd_s) / self._period_s)
@@ -331,7 +347,10 @@ class LocomotionPipeline(ABC):
         elif odo is None:
             status = "no_odometry"
         else:
-            depth = np.where(np.isfinite(depth) & (depth > 0), depth, 0.0).astype(np.float32)
+            ok = np.isfinite(depth) & (depth > 0)
+            if n_absurd:
+                ok &= depth <= self._max_depth_m
+            depth = np.where(ok, depth, 0.0).astype(np.float32)
             if not np.any(depth > 0):
                 status = "no_depth"
         if status == "ok":

@@ -18,6 +18,8 @@ Details:
   each with its parameters nested, e.g. ``filter.naive_ground.ground_margin_m``), with
   ``T_footprint_sensor`` from the exoskeleton's kinematics. :func:`run_kiss_icp` takes
   precomputed keep masks instead.
+- Points at a distance the LiDAR cannot report (:class:`exobench.core.limits.RangeLimits`) are
+  dropped as NaN ones and counted (``stats["n_absurd_points"]``).
 - Faults never raise: a scan with fewer than ``min_points`` usable points (empty, all NaN, or
   all removed by the filter) keeps the last pose with status ``"empty_scan"``; a registration
   that raises or returns a non-finite pose keeps the last pose with status ``"failed"`` (and the
@@ -39,6 +41,8 @@ from exobench.core.calibration import Calibration
 from exobench.core.errors import ConfigError, check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
+from exobench.core.limits import RangeLimits, scrub_points
+from exobench.core.pipeline import check_frame
 from exobench.perception.lidar_filter.config import FilterStageConfig
 
 __all__ = ["KissConfig", "KissIcpPipeline", "KissOdometry", "run_kiss_icp"]
@@ -189,8 +193,12 @@ class KissIcpPipeline:
         self._odo = KissOdometry(self.config)
         self._filter: Any = None
         self._lidar: str = self.config.lidar_id
+        self._limits: dict[str, RangeLimits] | None = None  # None until reset
+        self._n_absurd = 0
 
     def reset(self, calibration: Calibration) -> None:
+        self._limits = {m.sensor_id: RangeLimits.of_mount(m) for m in calibration.mounts_of_kind("lidar")}
+        self._n_absurd = 0
         self._odo = KissOdometry(self.config)
         self._lidar = self.config.lidar_id
         self._filter = None
@@ -204,6 +212,7 @@ class KissIcpPipeline:
             self._filter.reset(calibration)
 
     def process(self, frame: Frame) -> TrajectoryEstimate | None:
+        check_frame(self, frame, self._limits is not None)
         if self._filter is not None and not isinstance(frame, LidarScan):
             self._filter.process(frame)
         if not isinstance(frame, LidarScan):
@@ -214,6 +223,10 @@ class KissIcpPipeline:
             return None
         keep = None
         t0 = time.perf_counter()
+        pts, n_absurd = scrub_points(frame.points_xyz, self._limits.get(frame.sensor_id) or RangeLimits())
+        if n_absurd:
+            self._n_absurd += n_absurd
+            frame = dataclasses.replace(frame, points_xyz=pts)
         if self._filter is not None:
             self._filter.process(frame)
             keep = self._filter.last_keep
@@ -223,7 +236,7 @@ class KissIcpPipeline:
         return None
 
     def finalize(self) -> TrajectoryEstimate:
-        extra: dict[str, Any] = {"filter": self.config.filter.kind}
+        extra: dict[str, Any] = {"filter": self.config.filter.kind, "n_absurd_points": self._n_absurd}
         if self._filter is not None:
             f = self._filter.finalize().stats
             extra["filter_stats"] = {k: v for k, v in f.items() if isinstance(v, (int, float, str))}

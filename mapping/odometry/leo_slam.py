@@ -24,7 +24,8 @@ One loop of Algorithm 2 per LiDAR sweep (:meth:`LeoSlamPipeline.process`):
    factor of eq. (4.14) is added and iSAM2 re-optimises; node keyframes, scan poses (kept
    relative to their node) and the map follow the optimised nodes.
 
-Faults never raise: an empty sweep, too few points or NaN points, or failed alignments keep the
+Points at a distance the LiDAR cannot report (:class:`exobench.core.limits.RangeLimits`) are
+dropped as NaN ones and counted (``stats["n_absurd_points"]``). Faults never raise: an empty sweep, too few points or NaN points, or failed alignments keep the
 constant-velocity motion and are reported in ``status`` (``"ok"``, ``"s2s_only"`` when the
 scan-to-submaps alignment failed, ``"lost"`` when both failed, ``"empty_scan"``,
 ``"too_few_points"``, ``"out_of_order"``) and in ``stats``. Poses are given at ``sweep_start_s``;
@@ -38,7 +39,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -48,6 +49,8 @@ from exobench.core.calibration import Calibration
 from exobench.core.errors import check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
+from exobench.core.limits import RangeLimits, scrub_points
+from exobench.core.pipeline import check_frame
 from exobench.core.transforms import transform_points
 from exobench.mapping.odometry.gicp import GicpCloud, GicpConfig, GicpResult, align, single_threaded
 from exobench.mapping.odometry.loop_closure import LoopDetector, LoopDetectorConfig
@@ -181,13 +184,17 @@ class LeoSlamPipeline:
         self._pre = self.config.preprocess_config()
         self._gicp = self.config.gicp_config()
         self.reset(None)
+        self._was_reset = False  # reset(None) above only initialises; a caller must reset
 
     # ------------------------------------------------------------------------------ protocol
 
     def reset(self, calibration: Calibration | None) -> None:
         """Forget everything; the calibration is not needed (poses are of the LiDAR itself)."""
         cfg = self.config
+        self._was_reset = True
         self._sensor_id = cfg.sensor_id
+        lidars = calibration.mounts_of_kind("lidar") if calibration is not None else ()
+        self._limits = {m.sensor_id: RangeLimits.of_mount(m) for m in lidars}
         self._stamps: list[float] = []
         self._times: list[float] = []
         self._status: list[str] = []
@@ -214,11 +221,12 @@ class LeoSlamPipeline:
         self._stats: dict[str, Any] = {
             "n_scans": 0, "n_empty": 0, "n_too_few_points": 0, "n_with_nan": 0, "n_out_of_order": 0,
             "n_s2s_failed": 0, "n_s2map_failed": 0, "n_lost": 0, "n_S2S_failed": 0,
-            "n_loop_candidates": 0, "n_loop_rejected": 0, "n_ignored_frames": 0,
+            "n_loop_candidates": 0, "n_loop_rejected": 0, "n_ignored_frames": 0, "n_absurd_points": 0,
         }
 
     def process(self, frame: Frame) -> None:
         """Consume one frame; LiDAR sweeps are processed, everything else is ignored."""
+        check_frame(self, frame, self._was_reset)
         if not isinstance(frame, LidarScan):
             return None
         if self._sensor_id == "":
@@ -227,6 +235,10 @@ class LeoSlamPipeline:
             self._stats["n_ignored_frames"] += 1
             return None
         t0 = time.perf_counter()
+        pts, n_absurd = scrub_points(frame.points_xyz, self._limits.get(frame.sensor_id) or RangeLimits())
+        if n_absurd:
+            self._stats["n_absurd_points"] += n_absurd
+            frame = replace(frame, points_xyz=pts)
         n_before = len(self._stamps)
         try:
             with single_threaded():  # Open3D single-threaded: deterministic (see gicp.py)
@@ -287,7 +299,9 @@ class LeoSlamPipeline:
             return status
         frames, twist = self._first_scans, self._twist.copy()
         statuses, times, sensor_id = self._status, self._times, self._sensor_id
+        limits, n_absurd = self._limits, self._stats["n_absurd_points"]
         self.reset(None)
+        self._limits, self._stats["n_absurd_points"] = limits, n_absurd
         self._first_scans = None
         self._sensor_id, self._twist, self._times = sensor_id, twist, times
         replayed = [self._process_scan(f) for f in frames]

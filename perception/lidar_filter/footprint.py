@@ -14,6 +14,7 @@ import numpy as np
 
 from exobench.core.calibration import Calibration
 from exobench.core.frames import ContactSample, Frame, ImuSample, JointState
+from exobench.core.limits import JointLimits, imu_absurd
 from exobench.perception.kinematics.tof_kinematics import TofKinematics
 
 __all__ = ["FootprintKinematics", "footprint_from_stance"]
@@ -49,6 +50,8 @@ class FootprintKinematics:
         self._kin = {side: TofKinematics(calibration, side, imu_sensor_id) for side in ("l", "r")}
         self._kin["l"].T_base_sensor(sensor_id)  # unknown mount: UnknownNameError now, not per scan
         self._contact: dict[str, bool] = {}  # pad sensor id -> in contact
+        self._joint_limits = JointLimits(calibration)
+        self.n_bad_state = 0  # encoder or IMU states skipped: not finite or absurd (core.limits)
         self.stance_side: str | None = None
 
     @property
@@ -58,12 +61,17 @@ class FootprintKinematics:
     def update(self, frame: Frame) -> None:
         """Take an encoder state, an IMU orientation of the trunk IMU or an insole contact."""
         if isinstance(frame, JointState):
+            if self._joint_limits.absurd(frame):
+                self.n_bad_state += 1
+                return
             for k in self._kin.values():
                 k.update_joints(frame)
         elif isinstance(frame, ImuSample) and frame.sensor_id == self.imu_sensor_id:
-            if np.all(np.isfinite(np.asarray(frame.quat_wxyz, dtype=float))) and np.linalg.norm(frame.quat_wxyz) > 0:
-                for k in self._kin.values():
-                    k.update_imu(frame)
+            if imu_absurd(frame):
+                self.n_bad_state += 1
+                return
+            for k in self._kin.values():
+                k.update_imu(frame)
         elif isinstance(frame, ContactSample):
             self._contact[frame.sensor_id] = bool(frame.in_contact)
 

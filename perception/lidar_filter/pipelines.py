@@ -30,7 +30,14 @@ of the sweep). Faults never raise; they are counted in ``FilterEstimate.stats``:
 - before both an encoder state and an IMU orientation have arrived, or when the transform is not
   finite, the ground-aware filters fall back to the plain band of eq. (4.15) for that scan
   (``no_kinematics``) -- the conservative choice: nothing outside the band is kept;
-- non-finite points are dropped by the filters (``DROPPED_INVALID``; ``invalid_points``);
+- non-finite points are dropped by the filters (``DROPPED_INVALID``; ``invalid_points``); those
+  the scan itself holds as NaN are counted apart (``n_nan_points``) and scored neither kept nor
+  removed;
+- absurd points (a distance from the sensor outside the mount's range limits, the origin
+  included: :class:`exobench.core.limits.RangeLimits`) are dropped as non-finite ones
+  (``n_absurd_points``);
+- encoder states and IMU samples that are not finite or absurd (:mod:`exobench.core.limits`)
+  are skipped, the previous state kept (``n_bad_state``);
 - the normal filter counts the scans whose normals came from the range image
   (``normals_range_image_scans``) and from the knn fallback (``normals_knn_scans``);
 - the naive and floor filters count the scans whose ground test used the scan's own floor plane
@@ -51,6 +58,8 @@ from exobench.core.calibration import Calibration
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import FilterEstimate
 from exobench.core.frames import ContactSample, Frame, ImuSample, JointState, LidarScan
+from exobench.core.limits import RangeLimits, scrub_points
+from exobench.core.pipeline import check_frame
 
 from .config import (
     FloorGroundConfig,
@@ -117,12 +126,15 @@ class _FilterPipeline:
         self._status: list[str] = []
         self._stance: list[str] = []
         self._stats = {"scans": 0, "empty_scans": 0, "no_kinematics": 0, "all_removed": 0, "invalid_points": 0,
-                       "points": 0, "kept_points": 0, "kept_ground_rescued": 0, "malformed_scans": 0}  # fmt: skip
+                       "points": 0, "kept_points": 0, "kept_ground_rescued": 0, "malformed_scans": 0,
+                       "n_nan_points": 0, "n_absurd_points": 0}  # fmt: skip
+        self._limits: dict[str, RangeLimits] = {}
 
     def reset(self, calibration: Calibration) -> None:
         self._calibration = calibration
         self._kin = {}
         self._reset_state()
+        self._limits = {m.sensor_id: RangeLimits.of_mount(m) for m in calibration.mounts_of_kind("lidar")}
         if not self.uses_footprint:
             return
         ids = [self.config.lidar_id] if self.config.lidar_id else [m.sensor_id for m in calibration.mounts_of_kind("lidar")]
@@ -133,6 +145,7 @@ class _FilterPipeline:
                 self._stats["kinematics_error"] = f"{sid}: {type(e).__name__}: {e}"
 
     def process(self, frame: Frame) -> FilterEstimate | None:
+        check_frame(self, frame, self._calibration is not None)
         if isinstance(frame, LidarScan):
             if self.config.lidar_id and frame.sensor_id != self.config.lidar_id:
                 return None
@@ -152,6 +165,8 @@ class _FilterPipeline:
                 T = kin.T_footprint_sensor()
                 stance = kin.stance_side or ""
         pts = np.asarray(scan.points_xyz, dtype=float).reshape(-1, 3)
+        n_nan = int(np.count_nonzero(~np.all(np.isfinite(pts), axis=1)))
+        pts, n_absurd = scrub_points(pts, self._limits.get(scan.sensor_id) or RangeLimits())
         psi = np.asarray(scan.intensity, dtype=float).reshape(-1)
         if len(psi) != len(pts):  # malformed scan: nothing can be trusted
             res_keep, status, reason = np.zeros(len(pts), dtype=bool), "malformed", None
@@ -181,6 +196,8 @@ class _FilterPipeline:
         if self.uses_footprint and T is None and len(pts):
             st["no_kinematics"] += 1
         st["malformed_scans"] += int(status == "malformed")
+        st["n_nan_points"] += n_nan
+        st["n_absurd_points"] += n_absurd
         self._stamps.append(float(scan.stamp_s))
         self._keep.append(np.asarray(res_keep, dtype=bool))
         self._times.append(dt)
@@ -198,6 +215,7 @@ class _FilterPipeline:
         stats["filter"] = self.filter.name
         stats["status"] = list(self._status)
         if self.uses_footprint:
+            stats["n_bad_state"] = sum(k.n_bad_state for k in self._kin.values())
             stats["T_footprint_sensor"] = np.array(self._T).reshape(-1, 4, 4)
             stats["stance_side"] = list(self._stance)
         return FilterEstimate(

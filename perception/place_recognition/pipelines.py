@@ -65,6 +65,8 @@ from exobench.core.calibration import Calibration
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import PlaceRecognitionEstimate
 from exobench.core.frames import Frame, ImuSample, LidarScan
+from exobench.core.limits import RangeLimits, imu_absurd, scrub_points
+from exobench.core.pipeline import check_frame
 from exobench.core.transforms import quat_wxyz_to_matrix
 
 from .component_gsc import ComponentGaussianScanContext
@@ -96,6 +98,7 @@ class PlaceRecognitionPipeline(ABC):
         if not isinstance(self.config, PlaceRecognitionConfig):
             raise ConfigError(f"{self.name}.config", type(self.config).__name__, "a PlaceRecognitionConfig")
         self._reset_state()
+        self._was_reset = False
 
     @abstractmethod
     def _recognizer(self) -> PlaceRecognizer:
@@ -116,6 +119,8 @@ class PlaceRecognitionPipeline(ABC):
         self._desc_status: Counter[str] = Counter()
         self._match_status: Counter[str] = Counter()
         self._n_nonfinite = 0
+        self._n_absurd = 0
+        self._limits = RangeLimits()
         self._no_imu = 0
         self._bad_intensity = 0
         self._ceiling_cuts: list[float] = []
@@ -127,6 +132,7 @@ class PlaceRecognitionPipeline(ABC):
     def reset(self, calibration: Calibration) -> None:
         """Forget all state; find the LiDAR and IMU mounts."""
         self._reset_state()
+        self._was_reset = True
         lidars = calibration.mounts_of_kind("lidar")
         lidar = None
         if self.config.lidar_id:
@@ -136,6 +142,7 @@ class PlaceRecognitionPipeline(ABC):
         imus = calibration.mounts_of_kind("imu")
         if lidar is not None:
             self._lidar_id = lidar.sensor_id
+            self._limits = RangeLimits.of_mount(lidar)
             rate = float(lidar.params.get("rate_hz", 10.0) or 10.0)
             self._sweep_s = 1.0 / rate if rate > 0 else 0.1
         if lidar is not None and imus:
@@ -148,17 +155,19 @@ class PlaceRecognitionPipeline(ABC):
 
     def process(self, frame: Frame) -> PlaceRecognitionEstimate | None:
         """IMU samples are buffered; every keyframe scan is described and queried."""
+        check_frame(self, frame, self._was_reset)
         if isinstance(frame, ImuSample):
             if not self._imu_id or frame.sensor_id == self._imu_id:
                 q = np.asarray(frame.quat_wxyz, dtype=float)
-                if q.shape == (4,) and np.all(np.isfinite(q)) and np.linalg.norm(q) > 0:
+                if q.shape == (4,) and not imu_absurd(frame):
                     self._imu_t.append(float(frame.stamp_s))
                     self._imu_R.append(quat_wxyz_to_matrix(q / np.linalg.norm(q)))
             return None
         if not isinstance(frame, LidarScan) or (self._lidar_id and frame.sensor_id != self._lidar_id):
             return None
         t0 = time.perf_counter()
-        pts = np.asarray(frame.points_xyz, dtype=float).reshape(-1, 3)
+        pts, n_absurd = scrub_points(np.asarray(frame.points_xyz, dtype=float).reshape(-1, 3), self._limits)
+        self._n_absurd += n_absurd
         inten = np.asarray(frame.intensity, dtype=float).reshape(-1)
         if len(inten) != len(pts):  # a broken intensity channel: the geometry is still usable
             self._bad_intensity += 1
@@ -230,7 +239,8 @@ class PlaceRecognitionPipeline(ABC):
             "invalid_keyframes": sum(v for k, v in self._desc_status.items() if k != "ok"),
             "descriptor_status": dict(self._desc_status),
             "match_status": dict(self._match_status),
-            "nonfinite_points": self._n_nonfinite,
+            "nonfinite_points": self._n_nonfinite - self._n_absurd,
+            "absurd_points": self._n_absurd,
             "no_imu": self._no_imu,
             "bad_intensity_scans": self._bad_intensity,
             "ceiling_found": int(len(cuts)),

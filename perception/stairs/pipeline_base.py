@@ -7,9 +7,11 @@ surfaces S0..S4. Frames of other sensors are ignored. Faulty input never raises;
 in ``stats`` (:class:`exobench.core.frames.StreamStats` plus extras):
 
 - ``n_no_return``: ToF status not VALID; ``n_nan``: VALID status but a non-finite range;
-  ``n_bad_range``: negative range; ``n_without_state``: no encoder or IMU state yet;
-  ``n_bad_state``: an encoder state with non-finite angles or an IMU quaternion that is not
-  finite and about unit (the frame is ignored, the previous state kept);
+  ``n_bad_range``: a finite range the sensor cannot report (not positive, or outside the
+  mount's limits: :class:`exobench.core.limits.RangeLimits`); ``n_without_state``: no encoder or
+  IMU state yet; ``n_bad_state``: an encoder state with non-finite angles or angles beyond the
+  URDF limits, or an IMU sample that is not finite or absurd (:func:`exobench.core.limits.imu_absurd`;
+  the frame is ignored, the previous state kept);
   ``n_out_of_order``: a frame older than the previous one of the same sensor (skipped; a stale
   encoder or IMU state never replaces a newer one); ``n_ignored``: frames of other sensors.
 
@@ -41,9 +43,11 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
-from exobench.core.errors import ConfigError, ExobenchError, check_int, check_range
+from exobench.core.errors import ConfigError, PipelineStateError, check_int, check_range
 from exobench.core.estimates import PlaneEstimate, PointAssignment, StaircaseEstimate
 from exobench.core.frames import Frame, ImuSample, JointState, StreamStats, ToFReading, TofStatus
+from exobench.core.limits import JointLimits, RangeLimits, imu_absurd
+from exobench.core.pipeline import check_frame
 from exobench.perception.kinematics.tof_kinematics import ESTIMATOR_FRAME, TofKinematics
 
 from .readout import orient_normal, riser_height_m, tread_depth_m
@@ -58,16 +62,6 @@ def sensor_flags(leg: str) -> dict[str, str]:
     if leg == "l":
         return {"tof_l_med": "r", "tof_l_lat": "l"}
     raise ConfigError("leg", leg, "'l' or 'r'")
-
-
-def _floats(values: Any) -> list[float]:
-    """A state vector (array or sequence) as a flat list of Python floats.
-
-    Frame checks run on every encoder and IMU frame; plain floats keep them cheap.
-    """
-    if isinstance(values, np.ndarray) and values.dtype == np.float64:
-        return values.ravel().tolist()
-    return np.asarray(values, dtype=float).ravel().tolist()
 
 
 def check_common_config(cfg: Any) -> None:
@@ -94,8 +88,9 @@ class StairsPipeline(ABC):
     def reset(self, calibration: Calibration) -> None:
         cfg = self.config
         self._flags = sensor_flags(cfg.leg)
-        for sid in self._flags:
-            calibration.mount(sid)  # raises UnknownNameError when the calibration lacks it
+        # calibration.mount raises UnknownNameError when the calibration lacks a sensor
+        self._range_limits = {sid: RangeLimits.of_mount(calibration.mount(sid)) for sid in self._flags}
+        self._joint_limits = JointLimits(calibration)
         self._sensor_of_flag = {f: s for s, f in self._flags.items()}
         self._config_dict = asdict(cfg)
         self._kin = TofKinematics(calibration, stance_side=cfg.stance_side, imu_sensor_id=cfg.imu_sensor_id)
@@ -107,8 +102,7 @@ class StairsPipeline(ABC):
         self._reset_estimator()
 
     def process(self, frame: Frame) -> StaircaseEstimate | None:
-        if self._kin is None:
-            raise ExobenchError("process() called before reset()")
+        check_frame(self, frame, self._kin is not None)
         st = self._stats
         st.n_frames += 1
         if isinstance(frame, ToFReading):
@@ -125,7 +119,7 @@ class StairsPipeline(ABC):
 
     def finalize(self) -> StaircaseEstimate:
         if self._kin is None:
-            raise ExobenchError("finalize() called before reset()")
+            raise PipelineStateError(self.name, "finalize()")
         return self._finalize()
 
     # --- frames ---
@@ -139,15 +133,13 @@ class StairsPipeline(ABC):
         return True
 
     def _valid_joints(self, frame: JointState) -> bool:
-        q = _floats(frame.position_rad)
-        if len(q) != len(frame.names) or not all(map(math.isfinite, q)):
+        if self._joint_limits.absurd(frame):
             self._stats.extra["n_bad_state"] += 1
             return False
         return True
 
     def _valid_imu(self, frame: ImuSample) -> bool:
-        q = _floats(frame.quat_wxyz)
-        if len(q) != 4 or not all(map(math.isfinite, q)) or not 0.5 < math.hypot(*q) < 1.5:
+        if imu_absurd(frame):
             self._stats.extra["n_bad_state"] += 1
             return False
         return True
@@ -159,7 +151,7 @@ class StairsPipeline(ABC):
             st.n_no_return += 1
         elif not math.isfinite(r):
             st.n_nan += 1
-        elif r < 0.0:
+        elif self._range_limits[frame.sensor_id].absurd(r):
             st.extra["n_bad_range"] += 1
         elif not self._kin.has_state:
             st.n_without_state += 1

@@ -14,6 +14,10 @@ all scans of the episode:
   is missing or of the wrong length; any makes the estimate fail, fractions NaN);
 - ``time_per_scan_ms``: median compute time per scan.
 
+Points the scan itself holds as NaN (a faulty driver) were never measured: they count neither as
+kept nor as removed, nor in ``n_points``; the pipeline's own counts (``FilterEstimate.stats``,
+e.g. ``n_nan_points`` and ``n_absurd_points``) are reported as ``stat_*``.
+
 Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
 :func:`..lidar_trajectory.score_trajectory` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
 ``odom_tve_{x,y,z}_m``, ``odom_ate_m``, ``odom_rpe_m``, ...).
@@ -50,9 +54,12 @@ def _frac(num: int, den: int) -> float:
     return num / den if den else math.nan
 
 
-def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], keep: Sequence[np.ndarray]) -> dict[str, Any]:
+def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], keep: Sequence[np.ndarray],
+                   measured: Sequence[np.ndarray] | None = None) -> dict[str, Any]:
     """The fractions and counts of the module docstring from per-scan classes, ground flags and
-    keep masks (a mask of the wrong length, or missing, removes every point of its scan)."""
+    keep masks (a mask of the wrong length, or missing, removes every point of its scan).
+    ``measured`` (per scan, per point; None: all) leaves the points that are not, the scan's NaN
+    points, out of every fraction and count."""
     c_all, g_all, k_all = [], [], []
     bad = 0
     for i, (c, g) in enumerate(zip(classes, ground, strict=True)):
@@ -60,9 +67,10 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
         if k is None or len(k) != len(c):
             bad += 1
             k = np.zeros(len(c), dtype=bool)
-        c_all.append(np.asarray(c))
-        g_all.append(np.asarray(g, dtype=bool))
-        k_all.append(k)
+        m = np.ones(len(c), dtype=bool) if measured is None else np.asarray(measured[i], dtype=bool).reshape(-1)
+        c_all.append(np.asarray(c)[m])
+        g_all.append(np.asarray(g, dtype=bool)[m])
+        k_all.append(k[m])
     c = np.concatenate(c_all) if c_all else np.zeros(0, dtype=int)
     g = np.concatenate(g_all) if g_all else np.zeros(0, dtype=bool)
     k = np.concatenate(k_all) if k_all else np.zeros(0, dtype=bool)
@@ -132,11 +140,13 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
         pairs = lidar_pairs(episode)
         if not pairs:
             return failure_metrics(episode, "the episode has no LiDAR scan with point truth")
-        classes, ground = [], []
-        for _, truth in pairs:
+        classes, ground, measured = [], [], []
+        for scan, truth in pairs:
             c, g = point_classes(episode, truth)
             classes.append(c)
             ground.append(g)
+            p = np.asarray(scan.points_xyz, dtype=float).reshape(-1, 3)
+            measured.append(np.all(np.isfinite(p), axis=1) if len(p) == len(c) else np.ones(len(c), dtype=bool))
         masks, unmatched = masks_by_scan(pairs, est)
         bad = sum(m is None or len(m) != len(c) for m, c in zip(masks, classes, strict=True))
         if bad:
@@ -149,7 +159,9 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
             return out
         keep = [m for m in masks if m is not None]
         out: dict[str, Any] = {"failed": False, "failed_reason": ""}
-        out.update(mask_fractions(classes, ground, keep))
+        out.update(mask_fractions(classes, ground, keep, measured))
+        stats = est.stats if isinstance(est.stats, dict) else {}
+        out.update({f"stat_{k}": v for k, v in stats.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
         out["time_per_scan_ms"] = tj.time_per_scan_ms(est.time_per_scan_s)
         if unmatched:
             out["failed_reason"] = f"{unmatched} masks match no scan (ignored)"
