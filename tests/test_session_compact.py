@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from exobench.core import LidarScan, LidarTruth
-from exobench.envs.sim import OfficeScenario, simulate_office
 from exobench.envs.session import read_meta, read_session, write_session
 from exobench.envs.session.lidar_pack import pack_scans, pack_truths, unpack_scans, unpack_truths
 from exobench.envs.session.packing import residual, restore, unzigzag, zigzag
+from exobench.envs.sim import OfficeScenario, simulate_office
 
 
 def _same(a, b) -> bool:
