@@ -185,6 +185,7 @@ class ReturnKind(IntEnum):
     GLASS = 1  # the weak reflection of a glass pane itself
     GHOST = 2  # a surface seen in a mirror / pane, reported along the original ray
     THROUGH_GLASS = 3  # a real surface behind glass, on the straight ray (counts as genuine)
+    NAN = 4  # reported as NaN (a sensor fault, LidarConfig.nan_point_prob); the other fields are the beam's true hit
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,9 +21,18 @@ from exobench.core.episode import Episode
 from exobench.core.estimates import FilterEstimate, TrajectoryEstimate
 
 from .lidar_trajectory import alignment, true_track
-from .office_walks import GENUINE, GHOST, GLASS, lidar_pairs, point_classes, points_world, sweep_start_poses
+from .office_walks import (
+    GENUINE,
+    GHOST,
+    GLASS,
+    NAN_POINT,
+    lidar_pairs,
+    point_classes,
+    points_world,
+    sweep_start_poses,
+)
 
-KIND_RGB = {GENUINE: (170, 170, 170), GLASS: (60, 160, 255), GHOST: (255, 60, 200)}
+KIND_RGB = {GENUINE: (170, 170, 170), GLASS: (60, 160, 255), GHOST: (255, 60, 200), NAN_POINT: (255, 220, 0)}
 SURFACE_RGB = {
     "ground": (130, 130, 130), "ceiling": (200, 200, 220), "wall": (210, 200, 180), "glass": (90, 170, 255),
     "door": (160, 110, 70), "frame": (90, 90, 90), "furniture": (120, 170, 110),
@@ -31,9 +40,9 @@ SURFACE_RGB = {
 
 
 def kind_colors(cls: np.ndarray) -> np.ndarray:
-    """RGB (N, 3) u8 of point classes (genuine grey, glass blue, ghost magenta)."""
-    lut = np.array([KIND_RGB[GENUINE], KIND_RGB[GLASS], KIND_RGB[GHOST]], dtype=np.uint8)
-    return lut[np.clip(np.asarray(cls, dtype=int), 0, 2)]
+    """RGB (N, 3) u8 of point classes (genuine grey, glass blue, ghost magenta, NaN yellow)."""
+    lut = np.array([KIND_RGB[GENUINE], KIND_RGB[GLASS], KIND_RGB[GHOST], KIND_RGB[NAN_POINT]], dtype=np.uint8)
+    return lut[np.clip(np.asarray(cls, dtype=int), 0, 3)]
 
 
 def intensity_colors(intensity: np.ndarray) -> np.ndarray:

@@ -30,8 +30,8 @@ from exobench.core.frames import LidarScan
 from .spec import ParamInfo, param_infos
 
 GROUND_KINDS = ("ground", "tread", "landing", "ramp")  # surfaces a walker stands on (SceneTruth kinds)
-KIND_NAMES = ("genuine", "glass", "ghost")  # class of a point: ReturnKind GENUINE/THROUGH_GLASS, GLASS, GHOST
-GENUINE, GLASS, GHOST = 0, 1, 2
+KIND_NAMES = ("genuine", "glass", "ghost", "nan")  # class of a point: ReturnKind GENUINE/THROUGH_GLASS, GLASS, GHOST, NAN
+GENUINE, GLASS, GHOST, NAN_POINT = 0, 1, 2, 3
 
 
 def office_params(extra: Mapping[str, Any] | None = None) -> list[ParamInfo]:
@@ -90,22 +90,27 @@ def replace_scenario(episode: Episode, extra: Mapping[str, Any]) -> Episode:
 
 
 def lidar_pairs(episode: Episode, sensor_id: str | None = None) -> list[tuple[LidarScan, Any]]:
-    """(scan, LidarTruth) in time order, matched by sensor and stamp (truth is per scan)."""
+    """(scan, LidarTruth) in time order, matched by sensor and stamp (truth is per scan; scans of
+    one stamp, a duplicated scan, take that stamp's truths in order)."""
     scans = [f for f in episode.frames if isinstance(f, LidarScan) and (sensor_id is None or f.sensor_id == sensor_id)]
-    truths = {(t.sensor_id, round(float(t.stamp_s), 9)): t for t in episode.truth.lidar}
+    truths: dict[tuple[str, float], list[Any]] = {}
+    for t in episode.truth.lidar:
+        truths.setdefault((t.sensor_id, round(float(t.stamp_s), 9)), []).append(t)
     out = []
     for s in scans:
-        t = truths.get((s.sensor_id, round(float(s.stamp_s), 9)))
+        same = truths.get((s.sensor_id, round(float(s.stamp_s), 9)))
+        t = same.pop(0) if same else None
         if t is not None and len(t.kind) == len(s.points_xyz):
             out.append((s, t))
     return out
 
 
 def point_classes(episode: Episode, truth: Any) -> tuple[np.ndarray, np.ndarray]:
-    """(class per point: :data:`GENUINE`/:data:`GLASS`/:data:`GHOST`, on a ground surface per point).
+    """(class per point: :data:`GENUINE`/:data:`GLASS`/:data:`GHOST`/:data:`NAN_POINT`, on a ground surface per point).
 
-    ``THROUGH_GLASS`` counts as genuine (a real surface on the straight ray). A point is ground
-    when it is genuine and its true surface's kind is in :data:`GROUND_KINDS`.
+    ``THROUGH_GLASS`` counts as genuine (a real surface on the straight ray); a point the sensor
+    reported as NaN (``ReturnKind.NAN``) is :data:`NAN_POINT`, neither genuine nor spurious. A
+    point is ground when it is genuine and its true surface's kind is in :data:`GROUND_KINDS`.
     """
     from exobench.core import ReturnKind
 
@@ -113,6 +118,7 @@ def point_classes(episode: Episode, truth: Any) -> tuple[np.ndarray, np.ndarray]
     cls = np.full(len(kind), GENUINE, dtype=np.int8)
     cls[kind == ReturnKind.GLASS] = GLASS
     cls[kind == ReturnKind.GHOST] = GHOST
+    cls[kind == ReturnKind.NAN] = NAN_POINT
     ground_ids = np.array([s.surface_id for s in episode.truth.scene.surfaces if s.kind in GROUND_KINDS], dtype=int)
     ground = (cls == GENUINE) & np.isin(np.asarray(truth.surface_id, dtype=int), ground_ids)
     return cls, ground

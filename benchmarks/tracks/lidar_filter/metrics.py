@@ -3,14 +3,15 @@
 Masks are matched to scans by stamp, not by position. Per point the truth (:func:`..office_walks.point_classes`) says genuine (a real surface on the
 straight ray, also through glass), glass (the pane's own weak reflection) or ghost (a surface
 seen in a mirror or pane, reported along the original ray), and whether a genuine point lies on
-a ground surface (SceneTruth kinds ``ground``, ``tread``, ``landing``, ``ramp``). Pooled over
-all scans of the episode:
+a ground surface (SceneTruth kinds ``ground``, ``tread``, ``landing``, ``ramp``). Points the
+sensor reported as NaN (``ReturnKind.NAN``, a sensor fault) are counted (``n_nan``) and left out of
+every fraction, whether the filter keeps or removes them. Pooled over all scans of the episode:
 
 - ``spurious_removed_frac``: glass + ghost points removed / glass + ghost points (NaN if none);
 - ``ground_kept_frac``: genuine ground points kept / genuine ground points;
 - ``glass_removed_frac``, ``ghost_removed_frac``, ``genuine_kept_frac``,
-  ``nonground_kept_frac`` (genuine points off the ground kept), ``kept_frac`` (all points);
-- counts ``n_points``, ``n_glass``, ``n_ghost``, ``n_ground``; ``bad_masks`` (scans whose mask
+  ``nonground_kept_frac`` (genuine points off the ground kept), ``kept_frac`` (all points but NaN);
+- counts ``n_points`` (NaN included), ``n_glass``, ``n_ghost``, ``n_ground``, ``n_nan``; ``bad_masks`` (scans whose mask
   is missing or of the wrong length; any makes the estimate fail, fractions NaN);
 - ``time_per_scan_ms``: median compute time per scan.
 
@@ -35,9 +36,9 @@ from exobench.core.episode import Episode
 from exobench.core.estimates import FilterEstimate
 
 from ... import trajectory as tj
-from ..office_walks import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
+from ..office_walks import GENUINE, GHOST, GLASS, NAN_POINT, lidar_pairs, point_classes
 
-COUNT_KEYS = ("n_points", "n_glass", "n_ghost", "n_ground", "bad_masks")
+COUNT_KEYS = ("n_points", "n_glass", "n_ghost", "n_ground", "n_nan", "bad_masks")
 FRACTION_KEYS = ("spurious_removed_frac", "ground_kept_frac", "glass_removed_frac", "ghost_removed_frac",
                  "genuine_kept_frac", "nonground_kept_frac", "kept_frac")  # fmt: skip
 ODOM_KEYS = ("odom_te_m", "odom_oe_rad", "odom_tve_x_m", "odom_tve_y_m", "odom_tve_z_m", "odom_ate_m", "odom_rpe_m",
@@ -76,6 +77,7 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
     k = np.concatenate(k_all) if k_all else np.zeros(0, dtype=bool)
     spur = (c == GLASS) | (c == GHOST)
     gen = c == GENUINE
+    real = c != NAN_POINT
 
     def n(mask: np.ndarray) -> int:
         return int(np.count_nonzero(mask))
@@ -87,8 +89,9 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
         "ghost_removed_frac": _frac(n((c == GHOST) & ~k), n(c == GHOST)),
         "genuine_kept_frac": _frac(n(gen & k), n(gen)),
         "nonground_kept_frac": _frac(n(gen & ~g & k), n(gen & ~g)),
-        "kept_frac": _frac(n(k), len(k)),
-        "n_points": len(c), "n_glass": n(c == GLASS), "n_ghost": n(c == GHOST), "n_ground": n(g), "bad_masks": bad,
+        "kept_frac": _frac(n(k & real), n(real)),
+        "n_points": len(c), "n_glass": n(c == GLASS), "n_ghost": n(c == GHOST), "n_ground": n(g), "n_nan": n(~real),
+        "bad_masks": bad,
     }  # fmt: skip
 
 

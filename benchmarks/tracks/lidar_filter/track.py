@@ -77,6 +77,7 @@ SUMMARY_ROWS = [
     SummaryRow("n_ghost", "ghost points", digits=0, terminal=False),
     SummaryRow("n_glass", "glass points", digits=0, terminal=False),
     SummaryRow("n_ground", "ground points", digits=0, terminal=False),
+    SummaryRow("n_nan", "NaN points (counted, not scored)", digits=0, terminal=False),
 ]
 
 

@@ -3,7 +3,9 @@
 Sweeps start at ``k / rate_hz`` (only sweeps that end within the recording). Each ray is cast
 from the sensor pose at its firing block's time (the recording's exact pose function of a site
 rigid with the pelvis); the legs, head and anything else the beams can hit are frozen at their
-pose in the middle of the sweep, which is the instant the recorder gives the sensor.
+pose in the middle of the sweep, which is the instant the recorder gives the sensor. The stream's
+delivery faults (:mod:`.faults`) apply to each sweep in turn; the output is in delivery order
+(stamp), its ``truth["sweep_start_s"]`` the true start of each frame's sweep.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from ..adapter import BaseAdapter, MountedSensor, RecordContext, SensorOutput
+from .faults import StreamFaults
 from .model import LidarSensor
 
 
@@ -20,6 +23,7 @@ class LidarAdapter(BaseAdapter):
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
         super().__init__(sensor, ctx)
         self.model = LidarSensor(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
+        self.faults = StreamFaults(sensor.sensor_id, sensor.config, ctx.seed)
         self.pose_at = ctx.pose_fn(sensor.sensor_id)
         pat = sensor.config.pattern
         period = pat.sweep_period_s
@@ -34,12 +38,14 @@ class LidarAdapter(BaseAdapter):
 
     def observe(self, model: Any, data: Any, t: float) -> None:
         got = self.model.scan(model, data, self.pose_at, self.mid[t], self.ctx.scene_truth)
-        if got is not None:
-            self.frames.append(got[0])
-            self.truth.append(got[1])
+        for scan, truth in self.faults.deliver(got):
+            self.frames.append(scan)
+            self.truth.append(truth)
 
     def finish(self) -> SensorOutput:
-        return SensorOutput(self.frames, self.truth)
+        order = sorted(range(len(self.frames)), key=lambda i: self.frames[i].stamp_s)  # stable: duplicates keep their order
+        starts = np.array([self.faults.true_starts[i] for i in order])
+        return SensorOutput([self.frames[i] for i in order], [self.truth[i] for i in order], {"sweep_start_s": starts})
 
     @staticmethod
     def calibration_params(sensor: MountedSensor) -> dict[str, Any]:

@@ -40,6 +40,17 @@ class LidarConfig:
         latency_s: delivery delay after the end of the sweep, s [A: 0].
         dropout_prob: probability a whole sweep is lost [A: 0].
         point_dropout_prob: probability a return is lost [A: 0].
+        nan_point_prob: probability a return is reported as NaN (x, y, z NaN, intensity 0; its
+            truth entry stays, of kind ``ReturnKind.NAN``), [0, 1] [A: 0].
+        duplicate_prob: probability a delivered sweep is delivered twice (a second identical
+            frame, same stamp, same truth), [0, 1] [A: 0].
+        out_of_order_prob: probability a sweep is delivered late, after the next one: its
+            ``stamp_s`` (delivery time) grows by 1.5 sweep periods, its ``sweep_start_s`` stays,
+            [0, 1] [A: 0].
+        time_jump_prob: probability the sensor's clock steps by ``time_jump_s`` at a sweep; the
+            step holds for that sweep and every later one (``stamp_s`` and ``sweep_start_s`` shift,
+            the truth trajectory stays in true time), [0, 1] [A: 0].
+        time_jump_s: size of one clock step, s, [-10, 10] (negative: back in time) [A: 1].
         glass: model glass (transmission, pane reflection, ghosts); off = panes are opaque
             weak reflectors (what most simulators do).
         mirrors: model specular reflection of mirror materials (ghosts); off = opaque.
@@ -73,6 +84,11 @@ class LidarConfig:
     latency_s: float = 0.0
     dropout_prob: float = 0.0
     point_dropout_prob: float = 0.0
+    nan_point_prob: float = 0.0
+    duplicate_prob: float = 0.0
+    out_of_order_prob: float = 0.0
+    time_jump_prob: float = 0.0
+    time_jump_s: float = 1.0
     glass: bool = True
     mirrors: bool = True
     max_interactions: int = 3
@@ -98,6 +114,9 @@ class LidarConfig:
         check_range("lidar.cast_near_m", self.cast_near_m, 0.0, 1e4)
         check_range("lidar.dropout_prob", self.dropout_prob, 0.0, 1.0, high_open=True)
         check_range("lidar.point_dropout_prob", self.point_dropout_prob, 0.0, 1.0, high_open=True)
+        for name in ("nan_point_prob", "duplicate_prob", "out_of_order_prob", "time_jump_prob"):
+            check_range(f"lidar.{name}", getattr(self, name), 0.0, 1.0)
+        check_range("lidar.time_jump_s", self.time_jump_s, -10.0, 10.0)
         for name in ("glass", "mirrors", "zoned_cast"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"lidar.{name}", getattr(self, name), "True or False")

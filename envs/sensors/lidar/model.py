@@ -19,8 +19,11 @@ exoskeleton geoms keep the pose they had in ``data``).
 
 Random streams (``sensor_rngs``): range noise from the noise generator, sweep and point dropout
 from the dropout generator, glass/mirror events from a third generator keyed
-``"<sensor_id>/optics"``. The number of draws per sweep is fixed by the pattern, so what the scene
-contains never shifts the streams.
+``"<sensor_id>/optics"``, NaN points (``nan_point_prob > 0``) from a fourth keyed
+``"<sensor_id>/nan"``. The number of draws per sweep is fixed by the pattern, so what the scene
+contains never shifts the streams. A NaN point is reported with x, y, z NaN and intensity 0; its
+truth entry stays (the beam's true hit) with kind ``ReturnKind.NAN``. The faults of the stream
+(duplicated, late and clock-shifted sweeps) are :mod:`exobench.envs.sensors.lidar.faults`.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from exobench.core import ConfigError, LidarScan, LidarTruth, SceneTruth
+from exobench.core import ConfigError, LidarScan, LidarTruth, ReturnKind, SceneTruth
 
 from ..common import EXO_GROUP, WORLD_GROUP, sensor_rngs
 from .cast import RayCaster
@@ -60,6 +63,7 @@ class LidarSensor:
         self.geom_names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or "" for g in range(ngeom)]
         self.noise_rng, self.drop_rng = sensor_rngs(seed, sensor_id)
         self.optics_rng = sensor_rngs(seed, f"{sensor_id}/optics")[0]
+        self.nan_rng = sensor_rngs(seed, f"{sensor_id}/nan")[0]
         pat = config.pattern
         self._static_rays = pat.rays(0.0) if pat.scan_kind == "spinning" else None
         self._optics_cache: tuple[SceneTruth, GeomOptics] | None = None
@@ -105,6 +109,7 @@ class LidarSensor:
         u_opt = self.optics_rng.random((n, c.max_interactions))
         sweep_lost = self.drop_rng.random() < c.dropout_prob
         u_drop = self.drop_rng.random(n)
+        u_nan = self.nan_rng.random(n) if c.nan_point_prob > 0.0 else None
         if sweep_lost:
             return None
 
@@ -133,11 +138,19 @@ class LidarSensor:
         r_m = np.maximum(r_m, 0.0)
         gk = g[idx]
         stamp = float(sweep_start_s) + pat.sweep_period_s + c.latency_s
+        points = r_m[:, None] * rays.dirs_s[idx]
+        intensity = intensity_byte(level[idx], optics.kind[gk] == RETRO_CODE)
+        kind = beams.kind[idx]
+        if u_nan is not None:
+            bad = u_nan[idx] < c.nan_point_prob
+            points[bad] = np.nan
+            intensity[bad] = 0
+            kind[bad] = ReturnKind.NAN
         scan = LidarScan(
             stamp_s=stamp,
             sensor_id=self.sensor_id,
-            points_xyz=r_m[:, None] * rays.dirs_s[idx],
-            intensity=intensity_byte(level[idx], optics.kind[gk] == RETRO_CODE),
+            points_xyz=points,
+            intensity=intensity,
             ring=rays.channel[idx].astype(np.uint16),
             time_offset_s=rays.time_offset_s[idx].copy(),
             sweep_start_s=float(sweep_start_s),
@@ -151,7 +164,7 @@ class LidarSensor:
             geom_id=gk,
             surface_id=surface,
             material=optics.name[gk],
-            kind=beams.kind[idx],
+            kind=kind,
             via_geom_id=beams.via_geom[idx],
             signal=signal[idx],
             origin_w=origins_w[idx],

@@ -10,7 +10,9 @@ see :mod:`exobench.envs.sensors.lidar.adapter` (sensor pose exact, rigid with th
 legs and head frozen at mid-sweep).
 
 Truth: one ``LidarTruth`` per scan (``EpisodeTruth.lidar``; compacted to labels with
-``lidar_truth="labels"``), the sensor pose at each scan start (``trajectory_w``), link tracks at
+``lidar_truth="labels"``), the sensor pose at each scan's true start (``trajectory_w``; the
+``lidar_*`` faults may shift or repeat the scans' stamps, see
+:mod:`exobench.envs.sensors.lidar.faults`), link tracks at
 50 Hz (plus the ``lidar_trunk`` pose) and the deepest foot penetration; ``T_world_estimator`` is
 the LiDAR pose at t = 0. A camera on the rig adds its optical-frame poses
 (``body_tracks[<camera>]``, ``extra["camera_T_world"]``, ``extra["camera_stamps_s"]``).
@@ -80,6 +82,13 @@ PARAMS: dict[str, ParamSpec] = {
     "lidar_rate_hz": ParamSpec(10.0, 5.0, 20.0, "Hz", "LiDAR sweeps per second"),
     "lidar_noise_m": ParamSpec(0.015, 0.0, 0.1, "m", "LiDAR range noise, standard deviation"),
     "lidar_resolution_m": ParamSpec(0.002, 0.0, 0.1, "m", "LiDAR range quantisation (0 = off)"),
+    "lidar_scan_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a LiDAR sweep is lost"),
+    "lidar_point_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a LiDAR return is lost"),
+    "lidar_nan_points": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR return is reported as NaN (its truth kept, kind NAN)"),
+    "lidar_duplicate_scans": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR sweep is delivered twice (same stamp)"),
+    "lidar_out_of_order": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR sweep is delivered after the next one"),
+    "lidar_time_jump_prob": ParamSpec(0.0, 0.0, 1.0, "", "probability the LiDAR clock steps by lidar_time_jump_s at a sweep (and stays stepped)"),
+    "lidar_time_jump_s": ParamSpec(1.0, -10.0, 10.0, "s", "size of one LiDAR clock step (negative: back in time)"),
     "user_height_m": ParamSpec(1.75, 1.55, 1.95, "m", "user's standing height (scales every segment)"),
     "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
     "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks"),
@@ -108,7 +117,11 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
             "ouster64": lambda: LidarPattern.ouster(64, 1024, r),
             "livox": lambda: LidarPattern.livox_like(rate_hz=r),
         }[self.lidar]()
-        return LidarConfig(pattern=pattern, range_noise_m=self.lidar_noise_m, resolution_m=self.lidar_resolution_m)
+        return LidarConfig(pattern=pattern, range_noise_m=self.lidar_noise_m, resolution_m=self.lidar_resolution_m,
+                           dropout_prob=self.lidar_scan_dropout, point_dropout_prob=self.lidar_point_dropout,
+                           nan_point_prob=self.lidar_nan_points, duplicate_prob=self.lidar_duplicate_scans,
+                           out_of_order_prob=self.lidar_out_of_order, time_jump_prob=self.lidar_time_jump_prob,
+                           time_jump_s=self.lidar_time_jump_s)  # fmt: skip
 
     def rig(self) -> Rig:
         """Encoders, trunk IMU, insoles and the trunk LiDAR, plus ``extra_sensors``."""
@@ -190,7 +203,7 @@ def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSe
         pose_at = rec.context.pose_fn(LIDAR_ID)
         body_tracks[LIDAR_ID] = pose_rows(t_trk, pose_at(t_trk))
         T_world_est = pose_at(np.array([0.0]))[0]
-        starts = np.array([f.sweep_start_s for f in rec.outputs[LIDAR_ID].frames])
+        starts = np.unique(rec.outputs[LIDAR_ID].truth["sweep_start_s"])  # true starts (the stamps may be faulty)
         trajectory = pose_rows(starts, pose_at(starts)) if len(starts) else np.zeros((0, 8))
     for s in rig:
         if s.kind == "rgbd":
