@@ -211,7 +211,8 @@ def test_nan_points_are_counted_not_scored_as_removed():
     keep = [np.array([False, True, True, False])]  # the first ghost and the last genuine point are NaN
     measured = [np.array([False, True, True, False])]
     m = mask_fractions(classes, ground, keep, measured)
-    assert m["spurious_removed_frac"] == 0.0 and m["genuine_kept_frac"] == 1.0 and m["n_points"] == 2
+    assert m["spurious_removed_frac"] == 0.0 and m["genuine_kept_frac"] == 1.0
+    assert m["n_nan"] == 2 and m["n_points"] == 4  # every return counted, the NaN ones apart
     pts = np.array([[np.nan, 0, 0], [2.0, 0, 0], [0, 3.0, 0], [np.nan, np.nan, np.nan]])
     pipe = FilterNone()
     pipe.reset(Calibration("<robot/>", "base", (), (), 0.1, 0.25, 0.05))

@@ -59,8 +59,8 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
                    measured: Sequence[np.ndarray] | None = None) -> dict[str, Any]:
     """The fractions and counts of the module docstring from per-scan classes, ground flags and
     keep masks (a mask of the wrong length, or missing, removes every point of its scan).
-    ``measured`` (per scan, per point; None: all) leaves the points that are not, the scan's NaN
-    points, out of every fraction and count."""
+    ``measured`` (per scan, per point; None: all) marks the points that are not, the scan's NaN
+    points, as NaN points (``n_nan``), which every fraction leaves out."""
     c_all, g_all, k_all = [], [], []
     bad = 0
     for i, (c, g) in enumerate(zip(classes, ground, strict=True)):
@@ -68,10 +68,13 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
         if k is None or len(k) != len(c):
             bad += 1
             k = np.zeros(len(c), dtype=bool)
-        m = np.ones(len(c), dtype=bool) if measured is None else np.asarray(measured[i], dtype=bool).reshape(-1)
-        c_all.append(np.asarray(c)[m])
-        g_all.append(np.asarray(g, dtype=bool)[m])
-        k_all.append(k[m])
+        c, g = np.array(c, copy=True), np.array(g, dtype=bool, copy=True)
+        if measured is not None:  # a point the scan reports as NaN is a NaN point, whatever its truth
+            m = np.asarray(measured[i], dtype=bool).reshape(-1)
+            c[~m], g[~m] = NAN_POINT, False
+        c_all.append(c)
+        g_all.append(g)
+        k_all.append(k)
     c = np.concatenate(c_all) if c_all else np.zeros(0, dtype=int)
     g = np.concatenate(g_all) if g_all else np.zeros(0, dtype=bool)
     k = np.concatenate(k_all) if k_all else np.zeros(0, dtype=bool)
