@@ -146,7 +146,8 @@ def render(rects, T_world_cam, rng, noise_m=0.002):
 
 def calibration(sensor="rgbd_chest"):
     mounts = [SensorMount(sensor, "rgbd", "pelvis", np.eye(4), {"rate_hz": RATE_HZ})]
-    mounts += [SensorMount(f"contact_{s}_{w}", "contact", f"foot_{s}", np.eye(4), {}) for s in "lr" for w in ("heel", "toe")]
+    mounts += [SensorMount(f"contact_{s}_{w}", "contact", f"foot_{s}", np.eye(4), {"side": s, "pad": w})
+               for s in "lr" for w in ("heel", "toe")]
     return Calibration("", "pelvis", (), tuple(mounts), 0.1, 0.26, 0.05)
 
 
@@ -443,7 +444,8 @@ def test_exoskeleton_calibration():
     pipe = TerrainReconstructionPipeline()
     pipe.reset(exo_calibration(ExoSpec()))
     st = pipe.finalize().stats
-    assert (st["rgbd_sensor_id"], st["odometry_sensor_id"], st["odometry_mount"]) == ("rgbd_head", "odom_head", "camera")
+    # the bare device has no odometry mount: any odometry stream is taken (no name is guessed from ids)
+    assert (st["rgbd_sensor_id"], st["odometry_sensor_id"], st["odometry_mount"]) == ("rgbd_head", "*", "camera")
     assert pipe.process(ContactSample(0.0, "contact_l_heel", 300.0, True)) is None
     assert pipe.process(ContactSample(0.0, "contact_l_toe", 300.0, True)) is None
     st = pipe.finalize().stats  # standing at the start is not a heel strike
@@ -631,3 +633,17 @@ def test_tracked_point_and_standing_height_of_the_exoskeleton():
          re.findall(r'<joint name="([^"]+)"[^>]*>.*?<origin xyz="([^"]+)"', cal.robot_urdf, flags=re.S)}
     want = z["neck_yaw"] + z["neck_pitch"] - z["hip_l"] - z["knee_l"] - z["ankle_l"] + cal.sole_height_m
     assert pipe._standing_h == pytest.approx(want, abs=1e-6)
+
+
+def test_insole_pads_are_known_by_their_calibration_not_their_ids():
+    """A pad is used when its mount says its foot and pad; ids carry no meaning."""
+    mounts = (SensorMount("rgbd_chest", "rgbd", "pelvis", np.eye(4), {"rate_hz": RATE_HZ}),
+              SensorMount("insole_a", "contact", "foot_l", np.eye(4), {"side": "l", "pad": "heel"}),
+              SensorMount("insole_b", "contact", "foot_r", np.eye(4), {"side": "r", "pad": "toe"}))  # fmt: skip
+    pipe = TerrainReconstructionPipeline()
+    pipe.reset(Calibration("", "pelvis", (), mounts, 0.1, 0.26, 0.05))
+    pipe.process(ContactSample(0.0, "insole_a", 300.0, True))
+    pipe.process(ContactSample(0.0, "insole_b", 300.0, True))
+    pipe.process(ContactSample(0.0, "contact_l_heel", 300.0, True))  # not a pad of this calibration
+    st = pipe.finalize().stats
+    assert (st["n_contact"], st["n_ignored"]) == (2, 1)

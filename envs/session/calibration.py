@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from exobench.core import Calibration, SensorMount
+from exobench.models.exo_spec import CONTACT_PADS
 
 from .store import dec_array, enc_array, plain
 
@@ -31,11 +32,18 @@ def calibration_to_dict(c: Calibration) -> dict[str, Any]:
     }
 
 
+def _params(m: dict[str, Any]) -> dict[str, Any]:
+    """A mount's parameters; an insole pad of a session recorded before pads said their foot and
+    pad gets them from the device's table (:data:`exobench.models.exo_spec.CONTACT_PADS`)."""
+    params = dict(m["params"])
+    if m["kind"] == "contact" and "side" not in params and m["sensor_id"] in CONTACT_PADS:
+        params["side"], params["pad"] = CONTACT_PADS[m["sensor_id"]]
+    return params
+
+
 def calibration_from_dict(d: dict[str, Any]) -> Calibration:
     mounts = tuple(
-        SensorMount(
-            m["sensor_id"], m["kind"], m["parent_link"], dec_array(m["T_parent_sensor"]), dict(m["params"])
-        )
+        SensorMount(m["sensor_id"], m["kind"], m["parent_link"], dec_array(m["T_parent_sensor"]), _params(m))
         for m in d["mounts"]
     )
     return Calibration(

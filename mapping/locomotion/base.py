@@ -3,10 +3,11 @@
 A subclass only says how a valid depth frame updates the plane set (:meth:`LocomotionPipeline._update_planes`).
 
 Inputs: the :class:`RgbdFrame` of the selected camera (``rgbd_sensor_id``, else the calibration's
-``extra["camera"]``, else its first RGB-D mount); the :class:`OdometrySample` of ``odom_<mount>``
-(``odometry_sensor_id`` overrides, ``"*"`` takes any), assumed to track the camera's optical
-frame unless the calibration mounts the odometry on the camera's parent link; the
-:class:`ContactSample` of the insole pads ``contact_<side>_heel`` / ``contact_<side>_toe``. A foot
+``extra["camera"]``, else its first RGB-D mount); the :class:`OdometrySample` of the odometry
+whose calibration mount ``tracks`` the camera (``odometry_sensor_id`` overrides, ``"*"`` takes
+any), assumed to track the camera's optical frame unless the calibration mounts the odometry on
+the camera's parent link; the :class:`ContactSample` of the insole pads, each of whose mounts
+says its foot (``side``) and pad (``heel`` or ``toe``). A foot
 strike (contact after at least ``min_heel_off_s`` without,
 :class:`~exobench.perception.terrain.footprint.GaitDivider`) records the odometry position and
 velocity. A depth image and a strike take the odometry sample nearest to their measurement time
@@ -101,6 +102,20 @@ def _finite_array(a: Any, shape: tuple[int, ...]) -> np.ndarray | None:
 
 
 
+
+def _odometry_of(calibration: Calibration, camera_id: str) -> str:
+    """The odometry stream that tracks the camera: the odometry mount whose ``tracks`` parameter
+    names it, else the calibration's only odometry mount, else any odometry stream (``"*"``)."""
+    odoms = calibration.mounts_of_kind("odometry")
+    tracking = [m.sensor_id for m in odoms if m.params.get("tracks") == camera_id]
+    if tracking:
+        return tracking[0]
+    if len(odoms) == 1:
+        return odoms[0].sensor_id
+    if odoms:
+        raise ConfigError("odometry_sensor_id", "", f"the odometry tracking {camera_id!r}: one of {[m.sensor_id for m in odoms]}")
+    return "*"
+
 class LocomotionPipeline(ABC):
     """Frame handling, walking information and mode prediction shared by both pipelines; the
     subclasses differ in how a depth frame updates the plane set (:meth:`_update_planes`)."""
@@ -132,11 +147,7 @@ class LocomotionPipeline(ABC):
         self._rgbd_id = mount.sensor_id
         self._max_depth_m = max_depth_m(mount)
         self._period_s = 1.0 / float(mount.params["rate_hz"]) if mount.params.get("rate_hz") else None
-        suffix = self._rgbd_id[len("rgbd_"):] if self._rgbd_id.startswith("rgbd_") else self._rgbd_id
-        odo_info = calibration.extra.get("odometry")
-        odo_named = odo_info.get("sensor_id") if isinstance(odo_info, dict) and odo_info.get("tracks") == mount.sensor_id \
-            else None
-        self._odom_id = c.odometry_sensor_id or (odo_named if isinstance(odo_named, str) else f"odom_{suffix}")
+        self._odom_id = c.odometry_sensor_id or _odometry_of(calibration, mount.sensor_id)
         self._cam_latency_s = _latency(mount.params)
         self._contact_latency_s = {m.sensor_id: _latency(m.params) for m in calibration.mounts_of_kind("contact")}
         # the point whose positions measure the steps: the joint the camera turns about (its
@@ -165,12 +176,11 @@ class LocomotionPipeline(ABC):
                 self._odom_mount = "unrelated_link_assumed_camera"
         self._T_body_track = self._T_body_cam @ T_cam_track
         pads_used = ("heel",) if c.strike_pads == "heel" else ("heel", "toe")
-        heels = {}
-        for m in calibration.mounts_of_kind("contact"):
-            parts = m.sensor_id.split("_")
-            if len(parts) == 3 and parts[2] in pads_used and parts[1] in ("l", "r"):
-                heels[m.sensor_id] = parts[1]
-        self._heels = heels or {f"contact_{side}_{pad}": side for side in ("l", "r") for pad in pads_used}
+        # the pads used and their foot, as the calibration describes each pad
+        self._heels = {
+            m.sensor_id: m.params["side"] for m in calibration.mounts_of_kind("contact")
+            if m.params.get("side") in ("l", "r") and m.params.get("pad") in pads_used
+        }  # fmt: skip
         self._pad_contact: dict[str, bool] = {}  # the last state of each pad used
 
         self._divider = GaitDivider(min_off_s=c.min_heel_off_s)

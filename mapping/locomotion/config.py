@@ -59,7 +59,7 @@ def check_locomotion_config(cfg: Any) -> None:
 @dataclass(frozen=True)
 class LocomotionConfig:
     """``rgbd_sensor_id``: camera used ("" = the calibration's first RGB-D mount).
-    ``odometry_sensor_id``: odometry used ("" = ``odom_<mount>``, "*" = any). ``every_k``:
+    ``odometry_sensor_id``: odometry used ("" = the one whose mount tracks the camera, "*" = any). ``every_k``:
     process every k-th frame of the camera. ``max_odometry_age_s``: the latest odometry
     sample older than this (from a frame or heel strike) counts as missing. ``lead_fraction``,
     ``foot_lead_m``, ``camera_ahead_m`` (None: from the calibration, :func:`tracked_point_neutral`),
