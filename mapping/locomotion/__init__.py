@@ -2,9 +2,10 @@
 
 - :mod:`.config`: the pipelines' configs (stages nested: ``ahc``, ``planes``, ``terrain``,
   ``footprint``, ``tsdf``).
-- :mod:`.base`: frames, heel strikes, footprints and the next step's mode, shared.
+- :mod:`.base`: sensor selection, frames and heel strikes, shared; :mod:`.predict`: the next
+  step's footprint and mode.
 - :mod:`.pipelines`: the pipelines ``terrain-recon`` and ``single-frame``.
-- :mod:`.depth` / :mod:`.body`: depth-image helpers; sensor mounts on the standing device.
+- :mod:`.depth` / :mod:`.body`: depth-image helpers; the calibration's sensor mounts.
 """
 
 from .config import LocomotionConfig, TerrainReconConfig

@@ -1,4 +1,4 @@
-"""What both locomotion pipelines share: frames, heel strikes, footprints and the next step's mode.
+"""What both locomotion pipelines share: sensor selection, frame handling, heel strikes, stats.
 
 A subclass only says how a valid depth frame updates the plane set (:meth:`LocomotionPipeline._update_planes`).
 
@@ -13,22 +13,8 @@ strike (contact after at least ``min_heel_off_s`` without,
 velocity. A depth image and a strike take the odometry sample nearest to their measurement time
 (stamp minus the mount's ``latency_s``), if at most ``max_odometry_age_s`` away.
 
-Footprints (eq. 16-18, :func:`~exobench.perception.terrain.footprint.predict_footprint`): the
-tracked body (``track_point``: the joint the camera turns about, or the camera) at the next
-strike, the step by ``footprint.step_estimate`` (default the median of the last four steps; the
-paper's eq. 17 is ``"eq17"``), the walking direction from the last stride (``direction``). The
-striking foot lands ``lead_fraction`` x its last step + ``foot_lead_m`` - the tracked point's
-offset ahead of the pelvis (``camera_ahead_m``, else from the robot description,
-:func:`~.body.tracked_point_neutral`) ahead of the tracked body. The terrain under a footprint is
-looked up under the midfoot (``lookup``); a level step whose toes (``toe_m``) would be inside a
-riser goes onto the tread above, one whose toes (``crease_toe_m``) would be across a crease goes
-past it. After ``pause_s`` without a strike the walker stands; its next footprint is
-``start_step_fraction`` x the longest recent step ahead of it.
-
-Mode of the next step: :meth:`TerrainDescription.mode_of_step` from the reference footprint
-(``mode_reference``: the swinging foot's own last footprint, or ``"stance"``) to the predicted
-one. The terrain height under a footprint is the plane under it now, else the one measured
-earlier, else one inferred from the body's height, else the standing prior (``standing_drop_m``).
+The footprint and mode of the next step come from :class:`~.predict.StepPredictor`, given the
+strikes so far, the terrain description of the current plane set and the tracked body's position.
 
 Output: one :class:`ModePrediction` per processed RGB-D frame; ``finalize`` returns the
 :class:`LocomotionEstimate` with the final plane set and ``stats``. ``latency_s`` is the wall
@@ -64,32 +50,17 @@ from exobench.core import (
 from exobench.core.errors import PipelineStateError
 from exobench.core.limits import FALLBACK_MAX_RANGE_M, absurd_depth, max_depth_m
 from exobench.core.pipeline import check_frame
-from exobench.perception.terrain.footprint import (
-    GaitDivider,
-    HeelStrike,
-    heading_frame,
-    predict_footprint,
-)
+from exobench.perception.terrain.footprint import GaitDivider
 from exobench.perception.terrain.plane_tracking import PlaneSet
 from exobench.perception.terrain.terrain_description import TerrainDescription, describe_terrain
-from exobench.perception.terrain.terrain_types import plane_height_at
 
-from .body import inverse_se3, tracked_point_neutral
+from .body import inverse_se3, mount_latency_s, odometry_of, tracked_point_neutral
 from .config import STATUSES, LocomotionConfig
 from .depth import decimate
+from .predict import StepPredictor
 
 _NUMERIC_ERRORS = (ValueError, ArithmeticError, np.linalg.LinAlgError)
 ODOM_HISTORY_S = 2.0
-
-
-def _latency(params: dict[str, Any]) -> float:
-    """A mount's delivery latency ``latency_s`` (0 when absent or not a finite number >= 0)."""
-    try:
-        x = float(params.get("latency_s", 0.0))
-    except (TypeError, ValueError):
-        return 0.0
-    return x if math.isfinite(x) and x >= 0.0 else 0.0
-
 
 
 def _finite_array(a: Any, shape: tuple[int, ...]) -> np.ndarray | None:
@@ -101,24 +72,10 @@ def _finite_array(a: Any, shape: tuple[int, ...]) -> np.ndarray | None:
     return out if out.shape == shape and bool(np.all(np.isfinite(out))) else None
 
 
-
-
-def _odometry_of(calibration: Calibration, camera_id: str) -> str:
-    """The odometry stream that tracks the camera: the odometry mount whose ``tracks`` parameter
-    names it, else the calibration's only odometry mount, else any odometry stream (``"*"``)."""
-    odoms = calibration.mounts_of_kind("odometry")
-    tracking = [m.sensor_id for m in odoms if m.params.get("tracks") == camera_id]
-    if tracking:
-        return tracking[0]
-    if len(odoms) == 1:
-        return odoms[0].sensor_id
-    if odoms:
-        raise ConfigError("odometry_sensor_id", "", f"the odometry tracking {camera_id!r}: one of {[m.sensor_id for m in odoms]}")
-    return "*"
-
 class LocomotionPipeline(ABC):
-    """Frame handling, walking information and mode prediction shared by both pipelines; the
-    subclasses differ in how a depth frame updates the plane set (:meth:`_update_planes`)."""
+    """Frame handling and walking information shared by both pipelines, the next step's mode
+    from :class:`~.predict.StepPredictor`; the subclasses differ in how a depth frame updates
+    the plane set (:meth:`_update_planes`)."""
 
     name = ""
     track = "locomotion"
@@ -147,9 +104,9 @@ class LocomotionPipeline(ABC):
         self._rgbd_id = mount.sensor_id
         self._max_depth_m = max_depth_m(mount)
         self._period_s = 1.0 / float(mount.params["rate_hz"]) if mount.params.get("rate_hz") else None
-        self._odom_id = c.odometry_sensor_id or _odometry_of(calibration, mount.sensor_id)
-        self._cam_latency_s = _latency(mount.params)
-        self._contact_latency_s = {m.sensor_id: _latency(m.params) for m in calibration.mounts_of_kind("contact")}
+        self._odom_id = c.odometry_sensor_id or odometry_of(calibration, mount.sensor_id)
+        self._cam_latency_s = mount_latency_s(mount.params)
+        self._contact_latency_s = {m.sensor_id: mount_latency_s(m.params) for m in calibration.mounts_of_kind("contact")}
         # the point whose positions measure the steps: the joint the camera turns about (its
         # parent link's origin: the neck for a head camera, the hip for a thigh one) unless the
         # camera sits on the base link, else the camera
@@ -190,12 +147,6 @@ class LocomotionPipeline(ABC):
         self._last_stamp: dict[str, float] = {}
         self._last_rgbd_s: float | None = None
         self._n_rgbd = 0
-        self._last_mode = ""
-        self._foot_z: dict[int, float] = {}  # terrain z measured under the footprint of strike j (0-based)
-        self._foot_cls: dict[int, str] = {}  # class of the plane of that measurement
-        self._next_z: dict[int, float] = {}  # terrain z predicted under it before strike j
-        self._next_cls: dict[int, str] = {}  # class of that plane
-        self._body_h: dict[int, float] = {}  # tracked body's height above that terrain at strike j
         self._predictions: list[ModePrediction] = []
         self._stats: dict[str, Any] = {k: 0 for k in (
             "n_frames", "n_rgbd_frames", "n_processed", "n_skipped_rate", "n_dropped_frames", "n_out_of_order",
@@ -206,6 +157,7 @@ class LocomotionPipeline(ABC):
         self._stats.update(rgbd_sensor_id=self._rgbd_id, odometry_sensor_id=self._odom_id,
                            odometry_mount=self._odom_mount, errors=[], camera_ahead_m=self._camera_ahead_m, tracked_point=self._tracked,
                            camera_ahead_known=ahead is not None, lookup_m=self._lookup_m)
+        self._predictor = StepPredictor(c, self._stats, self._camera_ahead_m, self._lookup_m, self._standing_h)
         self._reset_map()
         self._ready = True
 
@@ -376,7 +328,8 @@ class LocomotionPipeline(ABC):
         if status != "ok":
             st[f"n_{status}" if status != "error" else "n_errors"] += 1
 
-        mode, footprint, why = self._predict(stamp, None if odo is None else self._track(odo[0]))
+        p_now = None if odo is None else self._track(odo[0])
+        mode, footprint, why = self._predictor.predict(self._divider.strikes, self._terrain, stamp, p_now)
         if status == "ok" and why != "ok":
             status = why
         t1 = time.perf_counter()
@@ -384,129 +337,13 @@ class LocomotionPipeline(ABC):
         self._predictions.append(pred)
         return pred
 
-    # --- walking information and mode ---
+    # --- walking information ---
     def _track(self, T_odom_body: np.ndarray) -> np.ndarray:
         """Position of the tracked point (``track_point``) at the odometry pose ``T_odom_body``."""
         return np.asarray(T_odom_body[:3, :3] @ self._T_body_track[:3, 3] + T_odom_body[:3, 3], dtype=float)
 
-    def _foot_xy(self, strike: HeelStrike, fwd: np.ndarray, H: np.ndarray) -> np.ndarray:
-        """Footprint of the foot that struck at ``strike`` without its ``lead_fraction`` part:
-        ``foot_lead_m`` minus the tracked point's offset ahead of the pelvis, ahead of the tracked body,
-        plus the foot's sideways offset."""
-        c = self.config
-        off = np.asarray(c.footprint.offset_l_m if strike.side == "l" else c.footprint.offset_r_m, dtype=float)
-        return strike.p_world + (c.foot_lead_m - self._camera_ahead_m) * fwd + H @ off
-
-    def _predict(self, stamp_s: float = math.nan, p_now: np.ndarray | None = None) -> tuple[str, np.ndarray, str]:
-        """(mode, predicted footprint (x, y, terrain z or NaN), reason) from the kept state at
-        time ``stamp_s``, the tracked body then at ``p_now`` (None: unknown)."""
-        c = self.config
-        strikes = self._divider.strikes
-        nan3 = np.full(3, np.nan)
-        if len(strikes) < 3:
-            return self._last_mode, nan3, "few_strikes"
-        last, prev = strikes[-1], strikes[-2]
-        v = last.v_world
-        stride = last.p_world - strikes[-3].p_world
-        if c.direction == "stride" and float(np.hypot(stride[0], stride[1])) >= max(c.min_speed_m_s, 1e-6):
-            strikes = [*strikes[:-1], HeelStrike(last.stamp_s, last.side, last.p_world, stride)]
-        elif float(np.hypot(v[0], v[1])) < max(c.min_speed_m_s, 1e-9):
-            d = last.p_world - prev.p_world
-            if float(np.hypot(d[0], d[1])) < 1e-6:
-                return self._last_mode, nan3, "no_direction"
-            self._stats["n_direction_from_positions"] += 1
-            strikes = [*strikes[:-1], HeelStrike(last.stamp_s, last.side, last.p_world, d)]
-        try:
-            pred = predict_footprint(strikes, c.footprint)
-        except ValueError:
-            return self._last_mode, nan3, "no_direction"
-        H = heading_frame(strikes[-1].v_world)
-        fwd = H[:, 0]
-        n_recent = pred.step_sizes_m[-c.footprint.n_recent:]
-        delta_nxt = pred.delta_next_m
-        if strikes[-1].stamp_s - strikes[-2].stamp_s > c.pause_s:
-            # the last step started from standing: its size says nothing about the next one
-            delta_nxt = float(np.max(n_recent))
-            self._stats["n_steps_after_start"] += 1
-        # the striking foot is lead_fraction of its own (the last) step ahead of the body's centre
-        # at its strike; the next foot lands delta_nxt beyond it (eq. 18 from the foot)
-        nxt = pred.footprint_world + (delta_nxt - pred.delta_next_m) * pred.direction_world \
-            + (c.lead_fraction * float(pred.step_sizes_m[-1]) + c.foot_lead_m - self._camera_ahead_m) * fwd
-        if p_now is not None and stamp_s - strikes[-1].stamp_s > c.pause_s:
-            # standing (stop-and-go): the next step starts from the feet together under the body
-            off_nxt = np.asarray(c.footprint.offset_l_m if pred.side == "l" else c.footprint.offset_r_m, dtype=float)
-            nxt = p_now + c.start_step_fraction * float(np.max(n_recent)) * fwd + H @ off_nxt
-            self._stats["n_standing_starts"] += 1
-        n = len(self._divider.strikes)
-        cur = self._foot_xy(strikes[-1], fwd, H) + c.lead_fraction * float(pred.step_sizes_m[-1]) * fwd
-        # the reference footprint: the swinging foot's last one (its strike before the last), or
-        # the stance foot's (the last strike), see Config.mode_reference
-        j_ref = n - 2 if c.mode_reference == "swing" else n - 1
-        ref = cur if j_ref == n - 1 else self._foot_xy(strikes[-2], fwd, H) \
-            + c.lead_fraction * float(pred.step_sizes_m[-2]) * fwd
-        # the terrain is looked up where the foot rests, its middle: lookup_m ahead of the ankle
-        look = self._lookup_m * fwd
-        cur, ref, nxt = cur + look, ref + look, nxt + look
-        toe_m, crease_toe_m = c.toe_m - self._lookup_m, c.crease_toe_m - self._lookup_m
+    def _terrain(self) -> TerrainDescription:
+        """The terrain description of the plane set now (cached until the planes change)."""
         if self._description is None:
-            self._description = describe_terrain(self._plane_set, c.terrain)
-        desc = self._description
-        # terrain height under the current foot while it is in view, kept for later (a foot's
-        # height is remembered by its strike index), and the body's height above it
-        cur_id = desc.plane_under(cur[:2])
-        if cur_id is not None:
-            self._foot_z[n - 1] = plane_height_at(desc.planes[cur_id], cur)
-            self._foot_cls[n - 1] = desc.plane_classes[cur_id]
-            self._body_h[n - 1] = float(strikes[-1].p_world[2]) - self._foot_z[n - 1]
-        remembered = self._foot_z.get(j_ref)
-        if remembered is None and len(self._body_h) >= 2:
-            # never seen: the body's height at its strike minus its usual height above the feet
-            remembered = float(self._divider.strikes[j_ref].p_world[2]) - float(np.median(list(self._body_h.values())))
-            self._stats["n_height_from_odometry"] += 1
-        ref_cls = self._foot_cls.get(j_ref, self._next_cls.get(j_ref))
-        if remembered is None:
-            remembered = self._next_z.get(j_ref)  # predicted under it before it struck
-        if remembered is None and self._standing_h is not None and c.standing_drop_m is not None:
-            # nothing measured yet (the first steps of a head camera that has not seen its feet'
-            # ground): the body's height at the strike minus its height standing, less the drop
-            # of walking
-            remembered = float(self._divider.strikes[j_ref].p_world[2]) - (self._standing_h - c.standing_drop_m)
-            self._stats["n_height_from_prior"] += 1
-        if remembered is None and j_ref != n - 1:  # unknown: the stance foot's, as a last resort
-            remembered = self._foot_z.get(n - 1, self._next_z.get(n - 1))
-            ref_cls = self._foot_cls.get(n - 1, self._next_cls.get(n - 1))
-            if remembered is None and cur_id is not None:
-                remembered = plane_height_at(desc.planes[cur_id], cur)
-        if toe_m > 0.0 and remembered is not None:  # lookup_m >= 0: also c.toe_m > 0
-            onto = desc.tread_above(nxt[:2], fwd[:2], remembered, toe_m)
-            if onto is not None:  # the toes would be in a riser: the foot goes onto the tread
-                nxt = np.array([onto[0], onto[1], nxt[2]])
-                self._stats["n_onto_tread"] += 1
-        if crease_toe_m > 0.0:
-            onto = desc.crease_ahead(nxt[:2], fwd[:2], crease_toe_m)
-            if onto is not None:  # the toes would be across a crease: the foot goes past it
-                nxt = np.array([onto[0], onto[1], nxt[2]])
-                self._stats["n_past_crease"] += 1
-        dec = desc.mode_of_step(ref[:2], nxt[:2], remembered, ref_cls)
-        if dec.current_plane_id is not None:
-            self._foot_z[j_ref] = plane_height_at(desc.planes[dec.current_plane_id], ref)
-            self._foot_cls[j_ref] = desc.plane_classes[dec.current_plane_id]
-        elif remembered is not None:
-            self._stats["n_current_remembered"] += 1
-        z = float("nan")
-        if dec.next_plane_id is not None:
-            z = plane_height_at(desc.planes[dec.next_plane_id], nxt)
-            self._next_z[n] = z
-            self._next_cls[n] = desc.plane_classes[dec.next_plane_id]
-        elif dec.reason in ("drop_ahead", "ramp_ahead"):
-            self._stats[f"n_{dec.reason}"] += 1
-        for d in (self._foot_z, self._foot_cls, self._next_z, self._next_cls):
-            for j in [j for j in d if j < n - 3]:
-                del d[j]
-        for j in [j for j in self._body_h if j < n - 9]:
-            del self._body_h[j]
-        footprint = np.array([nxt[0] - look[0], nxt[1] - look[1], z])  # the sole point under the ankle
-        if dec.mode == "":
-            return self._last_mode, footprint, dec.reason
-        self._last_mode = dec.mode
-        return dec.mode, footprint, "ok" if dec.reason in ("current_remembered", "drop_ahead", "ramp_ahead") else dec.reason
+            self._description = describe_terrain(self._plane_set, self.config.terrain)
+        return self._description

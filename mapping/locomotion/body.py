@@ -1,14 +1,20 @@
-"""Where a sensor mount sits on the standing device, from the robot description in the calibration."""
+"""The calibration's sensor mounts as the locomotion pipelines read them.
+
+Which odometry stream tracks the camera (:func:`odometry_of`), a mount's delivery latency
+(:func:`mount_latency_s`) and where a mount sits on the standing device, from the robot
+description (:func:`tracked_point_neutral`).
+"""
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
-from exobench.core import Calibration
+from exobench.core import Calibration, ConfigError
 
-__all__ = ["inverse_se3", "tracked_point_neutral"]
+__all__ = ["inverse_se3", "mount_latency_s", "odometry_of", "tracked_point_neutral"]
 
 
 def inverse_se3(T: np.ndarray) -> np.ndarray:
@@ -18,6 +24,29 @@ def inverse_se3(T: np.ndarray) -> np.ndarray:
     out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
     return out
 
+
+
+def mount_latency_s(params: dict[str, Any]) -> float:
+    """A mount's delivery latency ``latency_s`` (0 when absent or not a finite number >= 0)."""
+    try:
+        x = float(params.get("latency_s", 0.0))
+    except (TypeError, ValueError):
+        return 0.0
+    return x if math.isfinite(x) and x >= 0.0 else 0.0
+
+
+def odometry_of(calibration: Calibration, camera_id: str) -> str:
+    """The odometry stream that tracks the camera: the odometry mount whose ``tracks`` parameter
+    names it, else the calibration's only odometry mount, else any odometry stream (``"*"``)."""
+    odoms = calibration.mounts_of_kind("odometry")
+    tracking = [m.sensor_id for m in odoms if m.params.get("tracks") == camera_id]
+    if tracking:
+        return tracking[0]
+    if len(odoms) == 1:
+        return odoms[0].sensor_id
+    if odoms:
+        raise ConfigError("odometry_sensor_id", "", f"the odometry tracking {camera_id!r}: one of {[m.sensor_id for m in odoms]}")
+    return "*"
 
 
 def tracked_point_neutral(calibration: Calibration, sensor_id: str, *, link_origin: bool = False) -> tuple[float, float] | None:

@@ -6,7 +6,7 @@ ray-cast smoothed depth image (cast at 1/``raycast_downsample`` of the input res
 interpolated back to it, :func:`~.depth.upsample_depth`), AHC plane extraction on it
 (:mod:`exobench.perception.terrain.plane_extraction`), the plane set update by IoU (eq. 23) with
 the voxels seen in the smoothed image as the scope, the terrain description (II-F) and the mode
-of the next step at the footprint predicted by eq. 16-18 (II-D; :mod:`.base`).
+of the next step at the footprint predicted by eq. 16-18 (II-D; :mod:`.predict`).
 ``single-frame`` (:class:`SingleFramePipeline`), the ablation baseline: AHC on the raw depth of
 the current frame only, a fresh plane set each frame, no TSDF; same footprint and mode logic.
 
