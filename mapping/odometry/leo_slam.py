@@ -20,7 +20,7 @@ One loop of Algorithm 2 per LiDAR sweep (:meth:`LeoSlamPipeline.process`):
    (eq. 4.11-4.12, :mod:`exobench.mapping.odometry.loop_closure`); a detected loop is verified by GICP
    of the set ``S_c`` (the current node and the ``v`` before it) against ``S_l`` (the loop node
    and ``v`` nodes on either side), starting from the current relative pose (which carries
-   ``d_l`` of eq. 4.11). If it converges the current node is corrected (eq. 4.13), the loop
+   ``d_l`` of eq. 4.11; :func:`~exobench.mapping.odometry.loop_closure.verify_loop`). If it converges the current node is corrected (eq. 4.13), the loop
    factor of eq. (4.14) is added and iSAM2 re-optimises; node keyframes, scan poses (kept
    relative to their node) and the map follow the optimised nodes.
 
@@ -39,23 +39,23 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any, ClassVar
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from exobench.core.calibration import Calibration
-from exobench.core.errors import check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
 from exobench.core.limits import RangeLimits, scrub_points
 from exobench.core.pipeline import check_frame
 from exobench.core.transforms import transform_points
-from exobench.mapping.odometry.gicp import GicpCloud, GicpConfig, GicpResult, align, single_threaded
-from exobench.mapping.odometry.loop_closure import LoopDetector, LoopDetectorConfig
+from exobench.mapping.odometry.gicp import GicpCloud, align, single_threaded
+from exobench.mapping.odometry.leo_config import LeoSlamConfig
+from exobench.mapping.odometry.loop_closure import LoopDetector, verify_loop
 from exobench.mapping.odometry.pose_graph import PoseGraph, PoseGraphConfig
-from exobench.mapping.odometry.preprocess import PreprocessConfig, clean_points, preprocess, voxel_downsample
+from exobench.mapping.odometry.preprocess import clean_points, preprocess, voxel_downsample
 from exobench.mapping.odometry.submaps import Node, OpenSubmap, keyframe_due, nodes_cloud
 
 __all__ = ["LeoSlamPipeline"]
@@ -77,109 +77,14 @@ def _motion(twist_per_s: np.ndarray, dt_s: float) -> np.ndarray:
 
 
 class LeoSlamPipeline:
-    """LEO-SLAM on :class:`LidarScan` frames; other frames are ignored."""
+    """LEO-SLAM on :class:`LidarScan` frames; other frames are ignored (config: :class:`LeoSlamConfig`)."""
 
     name: ClassVar[str] = "leo-slam"
     track: ClassVar[str] = "odometry"
 
-    @dataclass(frozen=True)
-    class Config:
-        """Parameters (the thesis gives the structure, small-GICP's 0.25 m leaf; the rest are
-        small-GICP / SC++ defaults or chosen for indoor VLP-16-class sensors).
+    Config: ClassVar[type[LeoSlamConfig]] = LeoSlamConfig
 
-        Attributes:
-            sensor_id: LiDAR to use; ``""`` takes the first one seen.
-            self_box_min_m / self_box_max_m: robot crop box in the sensor frame, m.
-            outer_box_min_m / outer_box_max_m: range crop box, m.
-            sor_neighbors / sor_std_ratio: statistical outlier filter (0 neighbours: off).
-            voxel_m: small-GICP voxel leaf of the registration clouds (thesis 5.2.1: 0.25 m).
-            map_voxel_m: voxel leaf of the map.
-            deskew: constant-velocity deskew with ``time_offset_s``.
-            gicp_max_correspondence_m / gicp_max_iterations / gicp_neighbors: GICP settings.
-            gicp_min_fitness / gicp_max_rmse_m: acceptance of an alignment.
-            keyframe_distance_m: ``Delta_m``.
-            keyframe_rotation_deg: ``Delta_theta``.
-            submap_count: ``N_s``, previous submaps aligned against (s2S and S2S).
-            loop_closure: enable submap loop closure.
-            sc_rings / sc_sectors / sc_max_radius_m / sc_tau: Scan Context++ (eq. 4.20-4.25).
-            sc_ceiling_above_sensor_m: ceiling removal height above the sensor, m (<= 0: off).
-            ellipsoid_base_m / ellipsoid_growth: search area ``a_s = a_0 + growth * travelled``.
-            loop_exclude_recent: newest nodes never used as loop candidates.
-            loop_neighbors: ``v`` of the loop alignment sets ``S_c`` / ``S_l``.
-            loop_max_correspondence_m: coarse GICP correspondence distance of the loop alignment.
-            loop_min_fitness: inlier fraction needed to accept a loop alignment.
-            loop_max_correction_m: larger corrections of the current node are rejected, m.
-            min_points: sweeps with fewer valid points are not aligned.
-            max_lost: consecutive failed alignments after which the s2S target is rebuilt
-                around the current pose.
-        """
-
-        sensor_id: str = ""
-        self_box_min_m: tuple[float, float, float] = (-0.5, -0.5, -1.6)
-        self_box_max_m: tuple[float, float, float] = (0.5, 0.5, 0.3)
-        outer_box_min_m: tuple[float, float, float] = (-50.0, -50.0, -10.0)
-        outer_box_max_m: tuple[float, float, float] = (50.0, 50.0, 10.0)
-        sor_neighbors: int = 20
-        sor_std_ratio: float = 2.0
-        voxel_m: float = 0.25
-        map_voxel_m: float = 0.1
-        deskew: bool = True
-        gicp_max_correspondence_m: float = 1.0
-        gicp_max_iterations: int = 20
-        gicp_neighbors: int = 20
-        gicp_min_fitness: float = 0.3
-        gicp_max_rmse_m: float = 0.5
-        keyframe_distance_m: float = 1.0
-        keyframe_rotation_deg: float = 15.0
-        submap_count: int = 5
-        loop_closure: bool = True
-        sc_rings: int = 20
-        sc_sectors: int = 60
-        sc_max_radius_m: float = 20.0
-        sc_tau: float = 0.7
-        sc_ceiling_above_sensor_m: float = 1.0
-        ellipsoid_base_m: tuple[float, float, float] = (3.0, 3.0, 1.0)
-        ellipsoid_growth: tuple[float, float, float] = (0.05, 0.05, 0.02)
-        loop_exclude_recent: int = 10
-        loop_neighbors: int = 2
-        loop_max_correspondence_m: float = 2.0
-        loop_min_fitness: float = 0.6
-        loop_max_correction_m: float = 3.0
-        min_points: int = 100
-        max_lost: int = 5
-
-        def __post_init__(self) -> None:
-            check_range("keyframe_distance_m", self.keyframe_distance_m, 0.0, None, low_open=True)
-            check_range("keyframe_rotation_deg", self.keyframe_rotation_deg, 0.0, 180.0, low_open=True)
-            for name in ("submap_count", "loop_neighbors", "min_points", "max_lost"):
-                low = 0 if name == "loop_neighbors" else 1
-                object.__setattr__(self, name, check_int(name, getattr(self, name), low))
-            check_range("loop_max_correspondence_m", self.loop_max_correspondence_m, 0.0, 100.0, low_open=True)
-            check_range("loop_min_fitness", self.loop_min_fitness, 0.0, 1.0)
-            check_range("loop_max_correction_m", self.loop_max_correction_m, 0.0, None, low_open=True)
-            self.preprocess_config()
-            self.gicp_config()
-            self.loop_config()
-
-        def preprocess_config(self) -> PreprocessConfig:
-            return PreprocessConfig(self.self_box_min_m, self.self_box_max_m, self.outer_box_min_m,
-                                    self.outer_box_max_m, self.sor_neighbors, self.sor_std_ratio, self.voxel_m,
-                                    self.map_voxel_m, self.deskew)
-
-        def gicp_config(self) -> GicpConfig:
-            return GicpConfig(max_correspondence_m=self.gicp_max_correspondence_m,
-                              max_iterations=self.gicp_max_iterations, covariance_neighbors=self.gicp_neighbors,
-                              min_fitness=self.gicp_min_fitness, max_rmse_m=self.gicp_max_rmse_m)
-
-        def loop_config(self) -> LoopDetectorConfig:
-            ceiling = self.sc_ceiling_above_sensor_m if self.sc_ceiling_above_sensor_m > 0 else None
-            return LoopDetectorConfig(n_rings=self.sc_rings, n_sectors=self.sc_sectors,
-                                      max_radius_m=self.sc_max_radius_m, tau=self.sc_tau,
-                                      ceiling_above_sensor_m=ceiling, ellipsoid_base_m=self.ellipsoid_base_m,
-                                      ellipsoid_growth=self.ellipsoid_growth,
-                                      exclude_recent=self.loop_exclude_recent)
-
-    def __init__(self, config: Config | None = None) -> None:
+    def __init__(self, config: LeoSlamConfig | None = None) -> None:
         self.config = config or self.Config()
         self._pre = self.config.preprocess_config()
         self._gicp = self.config.gicp_config()
@@ -451,7 +356,8 @@ class LeoSlamPipeline:
             return
         self._stats["n_loop_candidates"] += 1
         c, l_idx = node.index, match.index
-        res = self._align_loop(c, l_idx)
+        res = verify_loop(self._nodes, c, l_idx, cfg.loop_neighbors, cfg.loop_exclude_recent, cfg.voxel_m,
+                          cfg.gicp_neighbors, *cfg.loop_gicp_configs())
         T_map_l = self._nodes[l_idx].T_map_node
         T_map_c = node.T_map_node
         if res is None:
@@ -470,27 +376,3 @@ class LeoSlamPipeline:
         self._set_current(self._nodes[-1].T_map_node)
         self._loop_edges.append((self._nodes[l_idx].scan_index, node.scan_index))
         self._travel_at_loop = self._travelled
-
-    def _align_loop(self, c: int, l_idx: int) -> GicpResult | None:
-        """GICP of ``S_c`` (node c and v before) onto ``S_l`` (node l and v either side)."""
-        cfg = self.config
-        v = cfg.loop_neighbors
-        nodes = self._nodes
-        T_map_c, T_map_l = nodes[c].T_map_node, nodes[l_idx].T_map_node
-        src = nodes_cloud(nodes[max(0, c - v): c + 1], np.linalg.inv(T_map_c), cfg.voxel_m)
-        tgt_nodes = nodes[max(0, l_idx - v): min(l_idx + v + 1, c - cfg.loop_exclude_recent + 1)]
-        tgt = nodes_cloud(tgt_nodes, np.linalg.inv(T_map_l), cfg.voxel_m)
-        source, target = GicpCloud(src, cfg.gicp_neighbors), GicpCloud(tgt, cfg.gicp_neighbors)
-        T0 = np.linalg.inv(T_map_l) @ T_map_c  # translation = d_l of eq. (4.11) in the loop node frame
-        coarse_cfg = GicpConfig(max_correspondence_m=cfg.loop_max_correspondence_m,
-                                max_iterations=cfg.gicp_max_iterations, covariance_neighbors=cfg.gicp_neighbors,
-                                min_fitness=0.0, max_rmse_m=1e9)
-        coarse = align(source, target, T0, coarse_cfg)
-        if not coarse.converged:
-            return None
-        fine_cfg = GicpConfig(max_correspondence_m=cfg.gicp_max_correspondence_m,
-                              max_iterations=cfg.gicp_max_iterations, covariance_neighbors=cfg.gicp_neighbors,
-                              min_fitness=cfg.loop_min_fitness, max_rmse_m=cfg.gicp_max_rmse_m)
-        fine = align(source, target, coarse.T_target_source, fine_cfg)
-        return fine if fine.converged else None
-

@@ -15,16 +15,23 @@ Within ``K`` the ``num_candidates`` nearest ring keys (eq. 4.23) are compared in
 column shift (eq. 4.24) and the best is accepted when its similarity exceeds ``tau`` (4.25).
 The most recent ``exclude_recent`` nodes are never candidates (a loop joins non-consecutive
 nodes).
+
+A detected loop is verified by GICP (:func:`verify_loop`): the set ``S_c`` (the current node
+and the ``v`` before it) against ``S_l`` (the loop node and ``v`` nodes on either side), a coarse
+pass then a fine one, starting from the current relative pose (which carries ``d_l`` of eq. 4.11).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from exobench.core.errors import ConfigError, check_int, check_range
+from exobench.mapping.odometry.gicp import GicpCloud, GicpConfig, GicpResult, align
+from exobench.mapping.odometry.submaps import Node, nodes_cloud
 from exobench.perception.place_recognition.recognizer import ScanContextPP
 from exobench.perception.place_recognition.scan_context import (
     ContextDescriptor,
@@ -34,7 +41,7 @@ from exobench.perception.place_recognition.scan_context import (
     level_frame,
 )
 
-__all__ = ["LoopDetector", "LoopDetectorConfig", "in_search_ellipsoid"]
+__all__ = ["LoopDetector", "LoopDetectorConfig", "in_search_ellipsoid", "verify_loop"]
 
 
 @dataclass(frozen=True)
@@ -146,3 +153,22 @@ class LoopDetector:
         match = PlaceMatch(j, 1.0 - sim, shift, sim, accepted, "match" if accepted else "below_threshold", ns,
                            min(len(cand), cfg.num_candidates))
         return match, len(cand)
+
+
+def verify_loop(nodes: Sequence[Node], c: int, l_idx: int, neighbors: int, exclude_recent: int, voxel_m: float,
+                covariance_neighbors: int, coarse_cfg: GicpConfig, fine_cfg: GicpConfig) -> GicpResult | None:
+    """GICP of ``S_c`` (node ``c`` and ``neighbors`` before) onto ``S_l`` (node ``l_idx`` and
+    ``neighbors`` either side, none of the ``exclude_recent`` newest), clouds at ``voxel_m``;
+    the fine result in the loop node's frame, None when a pass does not converge."""
+    T_map_c, T_map_l = nodes[c].T_map_node, nodes[l_idx].T_map_node
+    v = neighbors
+    src = nodes_cloud(nodes[max(0, c - v): c + 1], np.linalg.inv(T_map_c), voxel_m)
+    tgt_nodes = nodes[max(0, l_idx - v): min(l_idx + v + 1, c - exclude_recent + 1)]
+    tgt = nodes_cloud(tgt_nodes, np.linalg.inv(T_map_l), voxel_m)
+    source, target = GicpCloud(src, covariance_neighbors), GicpCloud(tgt, covariance_neighbors)
+    T0 = np.linalg.inv(T_map_l) @ T_map_c  # translation = d_l of eq. (4.11) in the loop node frame
+    coarse = align(source, target, T0, coarse_cfg)
+    if not coarse.converged:
+        return None
+    fine = align(source, target, coarse.T_target_source, fine_cfg)
+    return fine if fine.converged else None
