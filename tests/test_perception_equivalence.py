@@ -1,7 +1,7 @@
 """The optimised RTLS pipelines against a straightforward reference computation of the same thing.
 
 The pipelines compute the ToF points with hand-rolled kinematic chains in plain floats and run
-Algorithm 1 on plain floats (perception/tof_kinematics.py, staircase.py, rtls.py). Here the
+Algorithm 1 on plain floats (perception/kinematics/, staircase.py, rtls.py). Here the
 same recorded frame stream is also processed the obvious way: a full pinocchio
 ``forwardKinematics`` for every point, and Algorithm 1 written directly from the listing with
 each surface's plane refitted in batch (centroid and eigen-decomposition of the scatter of its
