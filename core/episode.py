@@ -9,7 +9,7 @@ import numpy as np
 
 from .calibration import Calibration
 from .frames import Frame
-from .truth import LidarTruth, SceneTruth, StairTruth, StepTruth
+from .truth import LidarTruth, SceneTruth, SegmentationTruth, StairTruth, StepTruth
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,6 +34,9 @@ class EpisodeTruth:
             the start of each scan, the camera at each image), (N, 8) rows as ``body_tracks``
             (empty when the episode has none).
         steps: every step of the walk with its locomotion mode (empty when not labelled).
+        segmentation: one :class:`SegmentationTruth` per emitted RGB-D frame of the cameras that
+            record it (``RgbdConfig.segmentation_truth``; the scenarios' ``segmentation_truth``),
+            in the same order as those frames (empty when no camera records it).
         extra: track-specific truth (e.g. pedestrian tracks, camera poses), plain values/arrays.
     """
 
@@ -46,6 +49,7 @@ class EpisodeTruth:
     lidar: tuple[LidarTruth, ...] = ()
     trajectory_w: np.ndarray = field(default_factory=lambda: np.zeros((0, 8)))
     steps: tuple[StepTruth, ...] = ()
+    segmentation: tuple[SegmentationTruth, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
 
 

@@ -228,6 +228,29 @@ class LidarTruth:
         return (self.kind == ReturnKind.GENUINE) | (self.kind == ReturnKind.THROUGH_GLASS)
 
 
+@dataclass(frozen=True, eq=False)
+class SegmentationTruth:
+    """Ground truth of one RGB-D frame, pixel by pixel: what each pixel of the depth image shows.
+
+    Aligned with the :class:`~exobench.core.RgbdFrame` of the same ``stamp_s`` and ``sensor_id``:
+    the same (H, W) pixel grid, rendered at the same pose and instant as its depth image.
+
+    Attributes:
+        stamp_s, sensor_id: as the frame.
+        surface_id: ``SceneTruth`` surface the pixel shows, (H, W) int32; -1 for no surface, a geom
+            with no listed surface, or a face of a geom that is not one of its listed surfaces.
+        geom_id: MuJoCo geom the pixel shows, (H, W) int32; -1 for the background.
+        object_index: index into ``SceneTruth.objects`` of the object whose geom the pixel shows,
+            (H, W) int32; -1 for none.
+    """
+
+    stamp_s: float
+    sensor_id: str
+    surface_id: np.ndarray
+    geom_id: np.ndarray
+    object_index: np.ndarray
+
+
 def compact_truth(t: LidarTruth) -> LidarTruth:
     """The labels of a scan's truth without its per-point geometry, for long walks.
 

@@ -17,12 +17,14 @@ Layout of a session directory (format ``exobench-session``, version 5)::
                                    (version 4, or truths the stream does not take: truth/lidar/<k>.npz,
                                    the truth of the k-th LiDAR scan of the episode, all sensors)
     truth/extra.npz                the numpy arrays of ``EpisodeTruth.extra`` (only when it has any)
+    truth/segmentation/<id>.npz    per-pixel segmentation truth of every frame of that RGB-D camera
+                                   (only when the episode has some)
 
 Modules: :mod:`.codecs` (the one table saying how each frame kind is written and read: a new
 sensor kind is one entry there), :mod:`.store` (lossless JSON values and the .npz files),
 :mod:`.lidar_pack` and :mod:`.packing` (the compact LiDAR streams and their bit-exact residuals),
-:mod:`.calibration`, :mod:`.truth` (the ``truth/`` folder), :mod:`.io` (writing and reading
-directories).
+:mod:`.calibration`, :mod:`.truth` (the ``truth/`` folder; :mod:`.segmentation` its per-pixel
+part), :mod:`.io` (writing and reading directories).
 
 Floats in JSON are written with Python's shortest round-trip repr, so reading a session gives
 back the same float64 values bit for bit; NaN is written as ``null``. A session is written into

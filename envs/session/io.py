@@ -102,8 +102,12 @@ def write_session(
 
 
 def _truth_counts(episode: Episode) -> dict[str, int]:
+    """Truths of each part (``segmentation`` only when there are some, as sessions before it)."""
     stairs = episode.truth.stairs
-    return {"lidar": len(episode.truth.lidar), "tof": 0 if stairs is None else len(stairs.tof)}
+    out = {"lidar": len(episode.truth.lidar), "tof": 0 if stairs is None else len(stairs.tof)}
+    if episode.truth.segmentation:
+        out["segmentation"] = len(episode.truth.segmentation)
+    return out
 
 
 def read_meta(path: str | os.PathLike) -> dict[str, Any]:
@@ -211,8 +215,10 @@ def read_session(path: str | os.PathLike, *, track: str | None = None) -> Episod
     truth = read_truth(p)
     tc = meta.get("truth_counts")
     if isinstance(tc, dict):
-        got = {"lidar": len(truth.lidar), "tof": 0 if truth.stairs is None else len(truth.stairs.tof)}
-        for part, where in (("tof", "truth/tof.jsonl"), ("lidar", "truth/lidar")):
+        got = {"lidar": len(truth.lidar), "tof": 0 if truth.stairs is None else len(truth.stairs.tof),
+               "segmentation": len(truth.segmentation)}  # fmt: skip
+        tc = {"segmentation": 0, **tc}
+        for part, where in (("tof", "truth/tof.jsonl"), ("lidar", "truth/lidar"), ("segmentation", "truth/segmentation")):
             if got[part] != tc.get(part):
                 raise SessionError(f"{p / where}: {got[part]} {part} truths, meta.json says {tc.get(part)} (cut or edited)")
     return Episode(

@@ -14,7 +14,7 @@ unicode array of the field's dtype); files written before that hold ``material``
 unicode array) and still read. From version 4, a float64 ``hit_w`` is stored as ``hit_w_xor``, the
 XOR of its bits with ``origin_w + true_range_m * dir_w`` (zero for points seen directly), and
 rebuilt bit for bit. Sessions written before steps/extra existed read back with empty
-ones.
+ones. Per-pixel segmentation truth: :mod:`.segmentation` (``truth/segmentation/<camera>.npz``).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ from exobench.core import (
     LidarTruth,
     PlanarSurface,
     SceneTruth,
+    SegmentationTruth,
     SessionError,
     StairTruth,
     StepTruth,
@@ -37,6 +38,7 @@ from exobench.core import (
 )
 
 from .lidar_pack import TRUTH_SHUFFLED, TRUTH_STREAM_NAMES, pack_truths, packable_truths, unpack_truths
+from .segmentation import read_segmentation, write_segmentation
 from .store import (
     dec_array,
     dec_float,
@@ -195,6 +197,7 @@ def truth_from_dict(
     tof: tuple[ToFTruth, ...],
     lidar: tuple[LidarTruth, ...] = (),
     extra_arrays: dict[str, np.ndarray] | None = None,
+    segmentation: tuple[SegmentationTruth, ...] = (),
 ) -> EpisodeTruth:
     sc = d["scene"]
     scene = SceneTruth(
@@ -215,6 +218,7 @@ def truth_from_dict(
         lidar=lidar,
         trajectory_w=dec_array(d.get("trajectory_w", [])).reshape(-1, 8),
         steps=tuple(_step_from_dict(s) for s in d.get("steps", ())),
+        segmentation=segmentation,
         extra={**dict(d.get("extra", {})), **dict(extra_arrays or {})},
     )
 
@@ -261,6 +265,8 @@ def write_truth(
     stream = stream and packable_truths(t.lidar)
     if stream:
         episode["lidar_stream"] = LIDAR_STREAM
+    if t.segmentation:
+        episode["segmentation"] = write_segmentation(root, t.segmentation)
     (root / "truth" / "episode.json").write_text(dumps(episode))
     with open(root / "truth" / "tof.jsonl", "w") as fh:
         for tt in t.stairs.tof if t.stairs is not None else ():
@@ -303,8 +309,9 @@ def read_truth(root: Path) -> EpisodeTruth:
     else:
         lidar = tuple(read_lidar_truth(root, f"truth/lidar/{k:06d}.npz") for k in range(n_lidar))
     extra_arrays = load_npz(root, "truth/extra.npz", names) if names else {}
+    segmentation = read_segmentation(root, td["segmentation"]) if "segmentation" in td else ()
     try:
-        return truth_from_dict(td, tuple(tof), lidar, extra_arrays)
+        return truth_from_dict(td, tuple(tof), lidar, extra_arrays, segmentation)
     except (KeyError, TypeError, ValueError, AttributeError) as e:
         raise SessionError(f"{ep_path}: malformed truth ({type(e).__name__}: {e})") from None
 

@@ -9,9 +9,11 @@ the ``rig`` argument of a ``simulate_*`` function adds to or replaces it.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
-from exobench.core import ConfigError, UnknownNameError
+from exobench.core import ConfigError, SegmentationTruth, UnknownNameError
 from exobench.models.exo_spec import CONTACT_IDS, TOF_IDS
 
 from ..sensors import (
@@ -25,6 +27,9 @@ from ..sensors import (
     ToFConfig,
 )
 from ..sensors.adapter import MountedSensor
+
+if TYPE_CHECKING:
+    from .recorder import Recording
 
 Rig = tuple[MountedSensor, ...]
 IMU_TRUNK = "imu_trunk"
@@ -94,3 +99,19 @@ def with_presets(rig: Sequence[MountedSensor], text: str) -> Rig:
                 raise ConfigError("extra_sensors", text, f"sensors not already on the rig ({s.sensor_id!r} is)")
             out.append(s)
     return tuple(out)
+
+
+def with_segmentation_truth(rig: Sequence[MountedSensor]) -> Rig:
+    """``rig`` with every RGB-D camera keeping a segmentation truth of its frames
+    (``RgbdConfig.segmentation_truth``); the other sensors unchanged."""
+    return tuple(
+        dataclasses.replace(s, config=dataclasses.replace(s.config, segmentation_truth=True)) if s.kind == "rgbd" else s
+        for s in rig
+    )
+
+
+def segmentation_truths(rec: Recording, rig: Sequence[MountedSensor]) -> tuple[SegmentationTruth, ...]:
+    """The segmentation truths of a recording (``Recording.frame_truth``) of the rig's cameras
+    that keep one, in frame order."""
+    cams = [s.sensor_id for s in rig if s.kind == "rgbd" and s.config.segmentation_truth]
+    return rec.frame_truth(cams) if cams else ()

@@ -20,7 +20,7 @@ from exobench.models.world_params import ParamSpec, check_param, from_dict_check
 
 from .rig import preset_names
 
-OMIT_WHEN_EMPTY = ("extra_sensors",)
+OMIT_WHEN_EMPTY = ("extra_sensors", "segmentation_truth")
 
 
 def _is_free_string(spec: ParamSpec) -> bool:

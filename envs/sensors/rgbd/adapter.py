@@ -2,7 +2,9 @@
 
 Truth (``SensorOutput.truth``): ``t_s`` measurement times (N,), ``T_world_sensor`` (N, 4, 4) of
 the optical frame at each (lost frames included), ``watch_fraction`` (N, G) share of the image
-covered by each group of the recording's watched geoms (pedestrians).
+covered by each group of the recording's watched geoms (pedestrians). With
+``RgbdConfig.segmentation_truth``, one :class:`~exobench.core.SegmentationTruth` per emitted frame
+(``SensorOutput.frame_truth``; :mod:`.segmentation`).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import numpy as np
 from ..adapter import BaseAdapter, MountedSensor, RecordContext, SensorOutput
 from ..common import sample_times
 from .model import RgbdCamera
+from .segmentation import SegmentationLabeler
 
 
 class RgbdAdapter(BaseAdapter):
@@ -27,6 +30,8 @@ class RgbdAdapter(BaseAdapter):
         self.k = 0
         self.frames: list[Any] = []
         self.camera = RgbdCamera(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
+        self.labeler = SegmentationLabeler(ctx.model, ctx.scene_truth) if sensor.config.segmentation_truth else None
+        self.segmentation: list[Any] = []
 
     def instants(self) -> np.ndarray:
         return self.t
@@ -42,10 +47,14 @@ class RgbdAdapter(BaseAdapter):
             self.fraction[k, i] = float(np.isin(tr["geom_id"], gs).mean())
         if frame is not None:
             self.frames.append(frame)
+            if self.labeler is not None:
+                self.segmentation.append(self.labeler.label(frame.stamp_s, self.sensor_id, tr["geom_id"], tr["depth_m"],
+                                                            tr["T_world_sensor"], tr["K"]))  # fmt: skip
         self.k += 1
 
     def finish(self) -> SensorOutput:
-        return SensorOutput(self.frames, None, {"t_s": self.t, "T_world_sensor": self.T, "watch_fraction": self.fraction})
+        seg = self.segmentation if self.labeler is not None else None
+        return SensorOutput(self.frames, seg, {"t_s": self.t, "T_world_sensor": self.T, "watch_fraction": self.fraction})
 
     def close(self) -> None:
         self.camera.close()

@@ -54,6 +54,9 @@ class RgbdConfig:
             they make a frame about five times slower; depth is not affected).
         segmentation: also render the per-pixel geom ids (ground truth, a third render pass);
             off, the truth's ``geom_id`` is -1 everywhere and a frame costs two passes.
+        segmentation_truth: keep a :class:`~exobench.core.SegmentationTruth` of every emitted
+            frame (geom, surface and object of each pixel; ``EpisodeTruth.segmentation``); renders
+            the geom ids even when ``segmentation`` is off. Off by default.
     """
 
     width_px: int = 640
@@ -74,6 +77,7 @@ class RgbdConfig:
     pixel_dropout_prob: float = 0.0
     shadows: bool = False
     segmentation: bool = True
+    segmentation_truth: bool = False
 
     def __post_init__(self) -> None:
         w = check_int("rgbd.width_px", self.width_px, 1, 4096)
@@ -106,7 +110,7 @@ class RgbdConfig:
         check_range("rgbd.resolution_m", self.resolution_m, 0.0, 0.05)
         check_range("rgbd.dropout_prob", self.dropout_prob, 0.0, 1.0, high_open=True)
         check_range("rgbd.pixel_dropout_prob", self.pixel_dropout_prob, 0.0, 1.0)
-        for name in ("shadows", "segmentation"):
+        for name in ("shadows", "segmentation", "segmentation_truth"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ConfigError(f"rgbd.{name}", getattr(self, name), "True or False")
 

@@ -95,7 +95,7 @@ class RgbdCamera:
         r.scene.flags[self._shadow_flag] = bool(self.config.shadows)
         r.enable_depth_rendering()
         depth = r.render().copy()
-        if self.config.segmentation:
+        if self.config.segmentation or self.config.segmentation_truth:
             r.enable_segmentation_rendering()
             seg = r.render()
             r.disable_segmentation_rendering()

@@ -116,7 +116,7 @@ from ..compose import CHEST_CAMERA, attached_sites, compose_rig
 from ..hooks import PedestrianHook, ViewHook
 from ..pose import pose_rows
 from ..recorder import record
-from ..rig import Rig, camera_rig, with_presets
+from ..rig import Rig, camera_rig, segmentation_truths, with_presets, with_segmentation_truth
 from ..scenario import scenario_base
 from .course_world import step_truths
 
@@ -165,6 +165,7 @@ PARAMS: dict[str, ParamSpec] = {
     "odom_yaw_drift_deg_per_m": ParamSpec(0.5, 0.0, 20.0, "deg/m", "odometry heading drift per metre travelled"),
     "duration_cap_s": ParamSpec(60.0, 2.0, 600.0, "s", "the episode is cut after this time (frames and steps)"),
     "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: lidar_trunk, tof_calves, encoders, ...)"),
+    "segmentation_truth": ParamSpec(False, None, None, "", "keep per-pixel segmentation truth of every RGB-D frame (EpisodeTruth.segmentation)", choices=(False, True)),
 }
 
 
@@ -312,6 +313,8 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
 
     sc = scenario
     rig = tuple(default_rig(sc) if rig is None else rig)
+    if sc.segmentation_truth:
+        rig = with_segmentation_truth(rig)
     exo = sc.exo_spec()
     world, wps, motion, info = plan_locomotion(sc)
     truth_scene = world.truth
@@ -386,6 +389,7 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
         trajectory_w=trajectory,
         steps=steps,
         lidar=rec.frame_truth(lidars),
+        segmentation=segmentation_truths(rec, rig),
         extra=extra,
     )
     cal = build_calibration(exo, rig)

@@ -54,7 +54,7 @@ from ..calibration import build_calibration
 from ..compose import attached_sites, compose_rig
 from ..pose import pose_rows
 from ..recorder import TRACK_RATE_HZ, TRACKED_BODIES, record
-from ..rig import LIDAR_TRUNK, Rig, scalar_rig, with_presets
+from ..rig import LIDAR_TRUNK, Rig, scalar_rig, segmentation_truths, with_presets, with_segmentation_truth
 from ..scenario import scenario_base
 
 LIDAR_ID = LIDAR_TRUNK
@@ -94,6 +94,7 @@ PARAMS: dict[str, ParamSpec] = {
     "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks"),
     "encoder_noise_rad": ParamSpec(1e-4, 0.0, 0.05, "rad", "joint encoder white noise, standard deviation"),
     "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: rgbd_thigh, rgbd_head, rgbd_chest, tof_calves, ...)"),
+    "segmentation_truth": ParamSpec(False, None, None, "", "keep per-pixel segmentation truth of every RGB-D frame (EpisodeTruth.segmentation)", choices=(False, True)),
 }
 
 
@@ -185,6 +186,8 @@ def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSe
     """A walk along the scenario's office route with every sensor of ``rig`` (default
     :meth:`OfficeScenario.rig`; a trunk LiDAR ``lidar_trunk`` is what the LiDAR truth follows)."""
     rig = tuple(scenario.rig() if rig is None else rig)
+    if scenario.segmentation_truth:
+        rig = with_segmentation_truth(rig)
     exo = scenario.exo_spec()
     scene, motion = plan_office_walk(scenario, rig)
     model, truth = scene.model, scene.truth
@@ -219,6 +222,7 @@ def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSe
         events=dict(motion.events),
         lidar=tuple(lidar_truth),
         trajectory_w=trajectory,
+        segmentation=segmentation_truths(rec, rig),
         extra=extra,
     )
     cal = build_calibration(exo, rig)
