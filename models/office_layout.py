@@ -190,9 +190,12 @@ def facade_walls(p: OfficeParams, names: _Names, objects: list[dict], office_y: 
     X, C, te, t = p.corridor_length_m, p.ceiling_m, EXT_WALL_T_M, p.glass_thickness_m
     head = min(WINDOW_HEAD_M, C - 0.25)
     out: list[Solid] = []
-    walls = [("wall_ext_s", 0, 0.0, X, -te, 0.0, 0.0, X), ("wall_ext_w", 1, -te, office_y[1] + te, -te, 0.0, 0.0, office_y[0]),
-             ("wall_ext_e", 1, -te, office_y[1] + te, X, X + te, 0.0, office_y[0])]
-    for wname, axis, u0, u1, w0, w1, g0, g1 in walls:
+    # (name, axis, wall from u0 to u1, w0..w1 thick, glazed from g0 to g1, yaw of the window frames:
+    # x along the window, y outwards as the north windows')
+    walls = [("wall_ext_s", 0, 0.0, X, -te, 0.0, 0.0, X, math.pi),
+             ("wall_ext_w", 1, -te, office_y[1] + te, -te, 0.0, 0.0, office_y[0], 0.5 * math.pi),
+             ("wall_ext_e", 1, -te, office_y[1] + te, X, X + te, 0.0, office_y[0], -0.5 * math.pi)]
+    for wname, axis, u0, u1, w0, w1, g0, g1, yaw in walls:
         bays = _bays(g0, g1)
         out += plaster_wall(wname, axis, u0, u1, w0, w1, C, [(a, b, WINDOW_SILL_M, head) for a, b in bays])
         wm = 0.5 * (w0 + w1)
@@ -201,8 +204,11 @@ def facade_walls(p: OfficeParams, names: _Names, objects: list[dict], office_y: 
             lo, hi = _along(axis, a, b, wm - t / 2, wm + t / 2, WINDOW_SILL_M, head)
             out.append(_box(name, lo, hi, p.facade_glass, "office_glass", "glass"))
             c = 0.5 * (a + b)
-            objects.append({"name": name, "class": "window", "T_world_object": _T(c, wm, WINDOW_SILL_M) if axis == 0
-                            else _T(wm, c, WINDOW_SILL_M), "size_m": [b - a, t, head - WINDOW_SILL_M], "geom_names": [name]})
+            T = _T(c, wm, WINDOW_SILL_M) if axis == 0 else _T(wm, c, WINDOW_SILL_M)
+            cy, sy = round(math.cos(yaw), 12) + 0.0, round(math.sin(yaw), 12) + 0.0
+            T[0][:2], T[1][:2] = [cy, 0.0 - sy], [sy, cy]
+            objects.append({"name": name, "class": "window", "T_world_object": T, "size_m": [b - a, t, head - WINDOW_SILL_M],
+                            "geom_names": [name]})
     return out
 
 
