@@ -20,6 +20,12 @@ mullions). Doors are openings with an open leaf at 90 deg inside the room, hinge
 nearer the room's side wall; the clear width beside the open leaf is ``door_width_m``.
 Floors and ceilings are one plane per area (corridor, room), split under the walls.
 
+With ``facade="windows"`` the south, west and east exterior walls get a row of windows along the
+corridors (bays of :data:`~exobench.models.office_params.FACADE_BAY_M`, sill and head as the
+offices' windows), of ``facade_glass``, with nothing outside: a window-lined building at night,
+whose panes mirror the corridor (:mod:`exobench.models.materials`). ``partition_glass`` is the
+material of the glass partitions and glass door leaves.
+
 Glass and polished floors along the routes: of the ``round(glass_fraction * (n_offices + 2))``
 glass partitions the meeting room's south one (beside the ``"corridor"`` route) is always one,
 the others are drawn at random; of the ``round(polished_fraction * n_areas)`` polished floors
