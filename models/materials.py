@@ -16,6 +16,28 @@ Attributes of a :class:`LidarMaterial`:
         ray at the reflected path length (a ghost point). The ghost's light is mirrored out and
         back, so it keeps ``specular ** 2`` of the energy (and a return through glass
         ``transmission ** 2``): see :mod:`exobench.envs.sensors.lidar.optics`.
+    refractive_index: 0 (default): ``specular`` and ``transmission`` hold at every incidence.
+        Above 0 (glazing): they are the values at normal incidence, and the reflected share rises
+        towards grazing incidence as Fresnel's equations give for a pane of that index
+        (:func:`exobench.envs.sensors.lidar.optics.pane_split`).
+
+Glazing against a dark outside (the façade windows of :class:`~exobench.models.office.OfficeParams`
+``facade="windows"``), at the VLP-16's 905 nm:
+
+- ``float_glass``: clear soda-lime float glass, refractive index 1.51 near 900 nm (Rubin, "Optical
+  properties of soda lime silica glasses", Solar Energy Materials 12, 1985: n = 1.51-1.52 from 0.6
+  to 1 um). Fresnel: 4.1 % per surface at normal incidence, 7.9 % for the pane (two surfaces,
+  incoherent: ``2R / (1 + R)``), 17 % at 60 deg, 56 % at 80 deg. Transmission 0.84 at normal
+  incidence [A: the rest absorbed by the iron of clear float, whose Fe2+ band is centred near
+  1 um]. Its own diffuse backscatter 0.001 [A: a clean polished glass surface scatters of the order
+  of 1e-3 of the light outside the specular direction (total integrated scatter; haze on glass data
+  sheets, ASTM D1003, is 0.1-0.5 % but counts forward scatter through the pane); with it a pane is
+  detected frontally only within about 3.5 m, as lidar sees clean glass mostly near normal
+  incidence or close: Zhao, Yang and Schwertfeger, "Mapping with reflection", SSRR 2020].
+- ``lowe_glass``: soft-coat (sputtered silver) low-emissivity glazing, reflecting 30 % at normal
+  incidence at 905 nm [A: silver low-e coatings are made to reflect the near infrared, their
+  reflectance rising from ~5 % in the visible to 30-50 % at 0.9-1 um (glazing manufacturers'
+  spectra); we take the low end], transmission 0.60.
 """
 
 from __future__ import annotations
@@ -34,6 +56,7 @@ class LidarMaterial:
     kind: str = "diffuse"
     transmission: float = 0.0
     specular: float = 0.0
+    refractive_index: float = 0.0
 
 
 MATERIALS: dict[str, LidarMaterial] = {
@@ -52,6 +75,8 @@ MATERIALS: dict[str, LidarMaterial] = {
         LidarMaterial("glass", 0.05, "glass", transmission=0.85, specular=0.1),
         LidarMaterial("mirror", 0.05, "mirror", specular=0.95),
         LidarMaterial("retroreflector", 0.9, "retro"),
+        LidarMaterial("float_glass", 0.001, "glass", transmission=0.84, specular=0.079, refractive_index=1.51),
+        LidarMaterial("lowe_glass", 0.001, "glass", transmission=0.60, specular=0.30, refractive_index=1.51),
     )
 }
 

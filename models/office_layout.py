@@ -20,6 +20,12 @@ mullions). Doors are openings with an open leaf at 90 deg inside the room, hinge
 nearer the room's side wall; the clear width beside the open leaf is ``door_width_m``.
 Floors and ceilings are one plane per area (corridor, room), split under the walls.
 
+With ``facade="windows"`` the south, west and east exterior walls get a row of windows along the
+corridors (bays of :data:`~exobench.models.office_params.FACADE_BAY_M`, sill and head as the
+offices' windows), of ``facade_glass``, with nothing outside: a window-lined building at night,
+whose panes mirror the corridor (:mod:`exobench.models.materials`). ``partition_glass`` is the
+material of the glass partitions and glass door leaves.
+
 Glass and polished floors along the routes: of the ``round(glass_fraction * (n_offices + 2))``
 glass partitions the meeting room's south one (beside the ``"corridor"`` route) is always one,
 the others are drawn at random; of the ``round(polished_fraction * n_areas)`` polished floors
@@ -55,6 +61,8 @@ from .office_params import (
     DOOR_HEIGHT_M,
     DOOR_JAMB_M,
     EXT_WALL_T_M,
+    FACADE_BAY_M,
+    FACADE_PIER_M,
     GLASS_LEAF_T_M,
     MULLION_M,
     WALL_T_M,
@@ -128,7 +136,7 @@ def plaster_wall(name: str, axis: int, u0: float, u1: float, w0: float, w1: floa
 
 
 def glass_partition(name: str, axis: int, u0: float, u1: float, w_mid: float, height: float, glass_t: float,
-                    door: tuple[float, float] | None) -> tuple[list[Solid], list[str]]:
+                    door: tuple[float, float] | None, material: str = "glass") -> tuple[list[Solid], list[str]]:
     """Glass panes between square mullions from u0 to u1, centred on w_mid; a door opening (a, b)
     gets jamb mullions, a head rail at the door height and a glass transom. Returns solids and pane names."""
     m, gh = MULLION_M, 0.5 * glass_t
@@ -166,13 +174,52 @@ def glass_partition(name: str, axis: int, u0: float, u1: float, w_mid: float, he
     for i, (a, b, z0) in enumerate(spans):
         lo, hi = _along(axis, a, b, w_mid - gh, w_mid + gh, z0, height)
         pane = f"{name}_pane{i}"
-        solids.append(_box(pane, lo, hi, "glass", "office_glass", "glass"))
+        solids.append(_box(pane, lo, hi, material, "office_glass", "glass"))
         panes.append(pane)
     return solids, panes
 
 
+def _bays(u0: float, u1: float) -> list[tuple[float, float]]:
+    """Window openings (a, b) of a row of façade bays from u0 to u1, a pier at both ends."""
+    n = int((u1 - u0 - FACADE_PIER_M) // FACADE_BAY_M)
+    if n < 1:
+        return []
+    w = (u1 - u0 - (n + 1) * FACADE_PIER_M) / n
+    return [(u0 + FACADE_PIER_M + k * (w + FACADE_PIER_M), u0 + (k + 1) * (w + FACADE_PIER_M)) for k in range(n)]
+
+
+def facade_walls(p: OfficeParams, names: _Names, objects: list[dict], office_y: tuple[float, float]) -> list[Solid]:
+    """South, west and east exterior walls with a row of windows (``facade="windows"``) along the
+    corridors: windows of ``p.facade_glass`` between plaster piers, sill and head as the offices'
+    windows, nothing outside (a dark outside). The west and east walls keep no windows along the
+    offices (``office_y``: y from the north corridor's partition to the exterior wall)."""
+    X, C, te, t = p.corridor_length_m, p.ceiling_m, EXT_WALL_T_M, p.glass_thickness_m
+    head = min(WINDOW_HEAD_M, C - 0.25)
+    out: list[Solid] = []
+    # (name, axis, wall from u0 to u1, w0..w1 thick, glazed from g0 to g1, yaw of the window frames:
+    # x along the window, y outwards as the north windows')
+    walls = [("wall_ext_s", 0, 0.0, X, -te, 0.0, 0.0, X, math.pi),
+             ("wall_ext_w", 1, -te, office_y[1] + te, -te, 0.0, 0.0, office_y[0], 0.5 * math.pi),
+             ("wall_ext_e", 1, -te, office_y[1] + te, X, X + te, 0.0, office_y[0], -0.5 * math.pi)]
+    for wname, axis, u0, u1, w0, w1, g0, g1, yaw in walls:
+        bays = _bays(g0, g1)
+        out += plaster_wall(wname, axis, u0, u1, w0, w1, C, [(a, b, WINDOW_SILL_M, head) for a, b in bays])
+        wm = 0.5 * (w0 + w1)
+        for a, b in bays:
+            name = names("window")
+            lo, hi = _along(axis, a, b, wm - t / 2, wm + t / 2, WINDOW_SILL_M, head)
+            out.append(_box(name, lo, hi, p.facade_glass, "office_glass", "glass"))
+            c = 0.5 * (a + b)
+            T = _T(c, wm, WINDOW_SILL_M) if axis == 0 else _T(wm, c, WINDOW_SILL_M)
+            cy, sy = round(math.cos(yaw), 12) + 0.0, round(math.sin(yaw), 12) + 0.0
+            T[0][:2], T[1][:2] = [cy, 0.0 - sy], [sy, cy]
+            objects.append({"name": name, "class": "window", "T_world_object": T, "size_m": [b - a, t, head - WINDOW_SILL_M],
+                            "geom_names": [name]})
+    return out
+
+
 def _door_leaf(name: str, glass: bool, hinge_u: float, leaf_dir: int, face_w: float, into: int, opening: float,
-               axis: int = 0) -> tuple[Solid, dict]:
+               axis: int = 0, glass_material: str = "glass") -> tuple[Solid, dict]:
     """An open leaf hinged at ``hinge_u`` (the jamb), lying across the wall into the room.
 
     ``leaf_dir`` (+1/-1): the side of the hinge the leaf thickness lies on (into the opening);
@@ -182,7 +229,7 @@ def _door_leaf(name: str, glass: bool, hinge_u: float, leaf_dir: int, face_w: fl
     ua, ub = sorted((hinge_u, hinge_u + leaf_dir * t))
     wa, wb = sorted((face_w, face_w + into * opening))
     lo, hi = _along(axis, ua, ub, wa, wb, 0.0, DOOR_HEIGHT_M - 0.01)
-    mat, look, kind = ("glass", "office_glass", "glass") if glass else ("wood", "office_wood", "door")
+    mat, look, kind = (glass_material, "office_glass", "glass") if glass else ("wood", "office_wood", "door")
     s = _box(name, lo, hi, mat, look, kind)
     # object frame: x along the leaf (into the room), y its normal, origin at the bottom centre
     c = s.centre
@@ -281,9 +328,12 @@ def build_layout(p: OfficeParams) -> Layout:
 
     objects: list[dict] = []
     # exterior walls (north one with windows), service core, east wall of the meeting room
-    solids.append(_box("wall_ext_w", (-te, -te, 0.0), (0.0, yo1 + te, C), "plaster", "world_plaster", "wall"))
-    solids.append(_box("wall_ext_e", (X, -te, 0.0), (X + te, yo1 + te, C), "plaster", "world_plaster", "wall"))
-    solids.append(_box("wall_ext_s", (0.0, -te, 0.0), (X, 0.0, C), "plaster", "world_plaster", "wall"))
+    if p.facade == "windows":
+        solids += facade_walls(p, names, objects, (yn1, yo1))
+    else:
+        solids.append(_box("wall_ext_w", (-te, -te, 0.0), (0.0, yo1 + te, C), "plaster", "world_plaster", "wall"))
+        solids.append(_box("wall_ext_e", (X, -te, 0.0), (X + te, yo1 + te, C), "plaster", "world_plaster", "wall"))
+        solids.append(_box("wall_ext_s", (0.0, -te, 0.0), (X, 0.0, C), "plaster", "world_plaster", "wall"))
     windows = []
     if p.windows:
         head = min(WINDOW_HEAD_M, C - 0.25)
@@ -296,7 +346,7 @@ def build_layout(p: OfficeParams) -> Layout:
         name = names("window")
         ym = yo1 + te / 2
         solids.append(_box(name, (u0, ym - p.glass_thickness_m / 2, z0), (u1, ym + p.glass_thickness_m / 2, z1),
-                           "glass", "office_glass", "glass"))
+                           p.facade_glass, "office_glass", "glass"))
         objects.append({"name": name, "class": "window", "T_world_object": _T(0.5 * (u0 + u1), ym, z0),
                         "size_m": [u1 - u0, p.glass_thickness_m, z1 - z0], "geom_names": [name]})
     solids.append(_box("core", (W, W, 0.0), (xm0, yn0, C), "plaster", "world_plaster", "wall"))
@@ -313,7 +363,7 @@ def build_layout(p: OfficeParams) -> Layout:
         opening = (clear0 - lt, clear0 + dw) if hinge_west else (clear0, clear0 + dw + lt)
         mid = 0.5 * (slot[0] + slot[1])
         if is_glass:
-            s, panes = glass_partition(name, 0, u0, u1, mid, C, p.glass_thickness_m, opening)
+            s, panes = glass_partition(name, 0, u0, u1, mid, C, p.glass_thickness_m, opening, p.partition_glass)
             gname = names("glass_partition")
             objects.append({"name": gname, "class": "glass_partition", "T_world_object": _T(0.5 * (u0 + u1), mid, 0.0),
                             "size_m": [u1 - u0, MULLION_M, C], "geom_names": [g.name for g in s]})
@@ -322,7 +372,8 @@ def build_layout(p: OfficeParams) -> Layout:
             s = plaster_wall(name, 0, u0, u1, slot[0], slot[1], C, [(opening[0], opening[1], 0.0, DOOR_HEIGHT_M)])
             face = slot[1] if into > 0 else slot[0]
         hinge = opening[0] if hinge_west else opening[1]
-        leaf, obj = _door_leaf(names("door"), is_glass, hinge, 1 if hinge_west else -1, face, into, opening[1] - opening[0])
+        leaf, obj = _door_leaf(names("door"), is_glass, hinge, 1 if hinge_west else -1, face, into, opening[1] - opening[0],
+                               glass_material=p.partition_glass)
         objects.append(obj)
         return s + [leaf], face, hinge, opening
 

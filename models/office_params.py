@@ -5,7 +5,9 @@ the command line; :class:`OfficeParams` checks each value against its range and 
 combinations a building cannot have (offices narrower than their door, a meeting room longer
 than the corridor, ...), raising ``ConfigError`` naming the field, the value and what fits.
 Sizes follow ``/work/shared/SENSORS.md`` (Buildings): clear door >= 0.81 m, corridor >= 1.12 m,
-glass panes 8-12 mm and 2.4-3.0 m tall.
+glass panes 8-12 mm and 2.4-3.0 m tall. ``facade``, ``facade_glass`` and ``partition_glass``
+build the thesis' window-lined setting (seeds/003 section 5.2.2; materials in
+:mod:`exobench.models.materials`); their defaults build the plain office.
 """
 
 from __future__ import annotations
@@ -28,6 +30,11 @@ MULLION_M = 0.05  # aluminium profiles of glass partitions, square section
 OFFICE_MIN_WIDTH_M = 2.4  # narrowest cellular office [A: a desk, a chair and a door side by side]
 ROOM_DEPTH_SPARE_M = 0.6  # room depth beyond the open door leaf, to step past it
 
+FACADES = ("plain", "windows")
+FACADE_GLASSES = ("glass", "float_glass", "lowe_glass")
+FACADE_BAY_M = 1.5  # façade window bays: a window 1.2 m wide and a 0.3 m pier [A: typical ribbon glazing]
+FACADE_PIER_M = 0.3
+
 OFFICE_PARAMS: dict[str, ParamSpec] = {
     "seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the layout (office widths, door sides, glass, floors, furniture)"),
     "n_offices": ParamSpec(6, 1, 24, "", "cellular offices along the north corridor"),
@@ -42,6 +49,14 @@ OFFICE_PARAMS: dict[str, ParamSpec] = {
     "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas (rooms and corridors) with a polished floor"),
     "furniture_density": ParamSpec(0.8, 0.0, 1.0, "", "probability that each optional piece of furniture is placed (a room's desk or meeting table is there whenever > 0)"),
     "windows": ParamSpec(True, None, None, "", "one window per office in the north facade", choices=(False, True)),
+    "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, or windows (a row of "
+                        "windows along the south, west and east walls, as in a window-lined building)",
+                        choices=FACADES),
+    "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (models.materials: glass, "
+                              "float_glass: Fresnel float glass, lowe_glass: coated low-e glazing)",
+                              choices=FACADE_GLASSES),
+    "partition_glass": ParamSpec("glass", None, None, "", "material of the glass partitions and glass door leaves "
+                                 "(as facade_glass)", choices=FACADE_GLASSES),
 }
 
 
@@ -62,6 +77,9 @@ class OfficeParams:
     polished_fraction: float = OFFICE_PARAMS["polished_fraction"].default
     furniture_density: float = OFFICE_PARAMS["furniture_density"].default
     windows: bool = OFFICE_PARAMS["windows"].default
+    facade: str = OFFICE_PARAMS["facade"].default
+    facade_glass: str = OFFICE_PARAMS["facade_glass"].default
+    partition_glass: str = OFFICE_PARAMS["partition_glass"].default
 
     def __post_init__(self) -> None:
         validate_fields(self, OFFICE_PARAMS, "office")

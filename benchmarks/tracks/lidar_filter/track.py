@@ -15,7 +15,10 @@ Suites (cases deterministic; the run seed drives the sensor noise):
 - ``quick``: 4 m of the south corridor, VLP-16, filters scored directly.
 - ``paper``: the ring route (back to the start: Table 5.4's TE/OE/TVE) and the whole corridor,
   VLP-16 (the thesis' sensor), filters scored directly and through KISS-ICP.
-- ``full``: the paper cases with VLP-32 and Ouster-64, and without range noise.
+  The reflective loops ``ring-windows-float`` and ``ring-windows-lowe`` walk the same ring in the
+  thesis' setting: windows along every corridor against a dark outside (float or low-e glass), all
+  corridor partitions glass, the VLP-16 reporting its strongest echo (``lidar_return``).
+- ``full``: the paper suite, and its ring and corridor with VLP-32 and Ouster-64, and without range noise.
 
 Memory: the paper cases keep only the LiDAR truth's labels (``lidar_truth="labels"``: kind,
 surface and range per point, ~21 bytes instead of ~170), so the ring walk (~170 s, ~1,700
@@ -53,6 +56,16 @@ QUICK_M = 4.0
 PAPER_CASES = {
     "ring": {"route": "ring", "max_distance_m": 500.0, "score_odometry": True, "lidar_truth": "labels"},
     "corridor": {"route": "corridor", "max_distance_m": 60.0, "score_odometry": True, "lidar_truth": "labels"},
+}
+# the thesis' setting (seeds/003 5.2.2: "an indoor scenario with a high number of windows", Fig. 2.2:
+# corridors lined with windows): the ring with windows along every corridor's exterior wall against
+# a dark outside, every corridor partition glass, the VLP-16 in its default strongest-return mode;
+# clear float façade glass, or coated low-e as modern façades have (models.materials)
+_WINDOWS = {"route": "ring", "max_distance_m": 500.0, "score_odometry": True, "lidar_truth": "labels",
+            "facade": "windows", "glass_fraction": 1.0, "partition_glass": "float_glass", "lidar_return": "strongest"}
+REFLECTIVE_CASES = {
+    "ring-windows-float": {**_WINDOWS, "facade_glass": "float_glass"},
+    "ring-windows-lowe": {**_WINDOWS, "facade_glass": "lowe_glass"},
 }
 FULL_VARIANTS = {
     "vlp32": {"lidar": "vlp32"},
@@ -114,12 +127,13 @@ class LidarFilterTrack:
     def cases(self, suite: str, run_seed: int = 0) -> list[Case]:
         if suite == "quick":
             return [Case("corridor-4m", "corridor", {"route": "corridor", "max_distance_m": QUICK_M}, figure=True)]
-        paper = [Case(name, name, dict(sc), figure=True) for name, sc in PAPER_CASES.items()]
+        plain = [Case(name, name, dict(sc), figure=True) for name, sc in PAPER_CASES.items()]
+        paper = plain + [Case(name, name, dict(sc), figure=True) for name, sc in REFLECTIVE_CASES.items()]
         if suite == "paper":
             return paper
         if suite == "full":
             return paper + [
-                Case(f"{v}/{c.name}", f"{c.group} {v}", {**c.scenario, **sv}) for v, sv in FULL_VARIANTS.items() for c in paper
+                Case(f"{v}/{c.name}", f"{c.group} {v}", {**c.scenario, **sv}) for v, sv in FULL_VARIANTS.items() for c in plain
             ]
         raise UnknownNameError("suite", suite, self.suites)
 

@@ -11,6 +11,7 @@ from exobench.models.materials import KINDS, LidarMaterial
 from .pattern import LidarPattern
 
 INTENSITY_MODES = ("signal", "reflectivity")
+RETURN_MODES = ("sampled", "strongest", "last")
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,9 @@ class LidarConfig:
             (:mod:`exobench.envs.sensors.lidar.ray_scene`; a quarter less casting time in the office, same hits);
             False = cast on the simulation's model.
         materials: extra or replacement materials by name (on top of ``models.materials``).
+        return_mode: the echo reported when a pulse splits at glass (:mod:`~exobench.envs.sensors.lidar.optics`):
+            ``"sampled"`` (one path drawn per beam), ``"strongest"`` (the VLP-16 manual's
+            default) or ``"last"``.
     """
 
     pattern: LidarPattern = field(default_factory=LidarPattern.vlp16)
@@ -98,6 +102,7 @@ class LidarConfig:
     cast_near_m: float = 8.0
     zoned_cast: bool = True
     materials: tuple[LidarMaterial, ...] = ()
+    return_mode: str = "sampled"
 
     def __post_init__(self) -> None:
         if not isinstance(self.pattern, LidarPattern):
@@ -130,6 +135,8 @@ class LidarConfig:
             check_range(f"lidar.materials.{m.name}.transmission", m.transmission, 0.0, 1.0)
             check_range(f"lidar.materials.{m.name}.specular", m.specular, 0.0, 1.0 - m.transmission)
         object.__setattr__(self, "materials", mats)
+        if self.return_mode not in RETURN_MODES:
+            raise ConfigError("lidar.return_mode", self.return_mode, " or ".join(RETURN_MODES))
 
     @property
     def rate_hz(self) -> float:

@@ -38,7 +38,15 @@ from ..common import EXO_GROUP, WORLD_GROUP, sensor_rngs
 from .cast import RayCaster
 from .config import LidarConfig
 from .labels import SurfaceTable, label_surfaces
-from .optics import RETRO_CODE, GeomOptics, follow_beams, geom_optics, intensity_byte, return_signal
+from .optics import (
+    RETRO_CODE,
+    EchoChoice,
+    GeomOptics,
+    follow_beams,
+    geom_optics,
+    intensity_byte,
+    return_signal,
+)
 from .pattern import RayTable
 
 PoseFn = Callable[[np.ndarray], np.ndarray]
@@ -69,6 +77,8 @@ class LidarSensor:
         self._optics_cache: tuple[SceneTruth, GeomOptics] | None = None
         self._surface_cache: tuple[SceneTruth, SurfaceTable] | None = None
         self.caster = RayCaster(config, self.group, self.body_exclude)
+        self._echo = EchoChoice(config.return_mode, config.ref_reflectivity, config.ref_range_m,
+                                config.detection_threshold, pat.min_range_m, pat.max_range_m)  # fmt: skip
 
     def rays(self, sweep_start_s: float) -> RayTable:
         return self._static_rays if self._static_rays is not None else self.config.pattern.rays(sweep_start_s)
@@ -121,7 +131,7 @@ class LidarSensor:
         optics = self._optics(truth)
         beams = follow_beams(
             model, data, self.group, origins_w, dirs_w, gid, dist, nrm.reshape(-1, 3), optics, u_opt,
-            glass=c.glass, mirrors=c.mirrors,
+            glass=c.glass, mirrors=c.mirrors, echo=self._echo,
         )  # fmt: skip
         ok = beams.geom >= 0
         g = np.where(ok, beams.geom, 0)

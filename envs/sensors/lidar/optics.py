@@ -36,6 +36,24 @@ is ``min(level, 100)`` for diffuse surfaces and ``101 + min(level, 154)`` for re
 calibrated reflectivity, which compensates the range but not the path's losses),
 ``100 * G * rho * |cos|`` (see ``LidarConfig``). Detection uses the signal, so faint ghosts
 are never reported.
+
+Glazing (materials with a ``refractive_index``): the pane reflects ``S(theta)``, Fresnel's
+unpolarised reflectance of a pane of that index (two surfaces, incoherent: ``2R / (1 + R)``; 7.9 %
+at normal incidence for float glass, 56 % at 80 deg), or for a coated pane its normal-incidence
+``specular`` S0 raised towards 1 as the uncoated pane's: ``S0 + (1 - S0) (Rp(theta) - Rp(0)) /
+(1 - Rp(0))``; it transmits ``T0 (1 - S(theta)) / (1 - S0)``. Other materials keep fixed shares.
+
+Return mode (``return_mode``): ``"sampled"`` draws one path per beam at every event with the
+shares as probabilities (each beam carries all its energy down one path). A real pulse splits at a
+pane: part crosses, part is mirrored, a little scatters back from the pane, and the receiver sees
+every echo that comes back. ``"strongest"`` (the VLP-16 manual's default) and
+``"last"`` follow all three at a beam's first glass event and report the strongest, or the
+farthest detected, of the pane's own return, the return through it (energy ``T^2``) and the
+mirrored one (``S^2``); later events along either branch are drawn as in ``"sampled"``. Behind a
+window with nothing within range (a dark outside) the crossing branch returns nothing, so a
+strongest-return sensor reports the mirror image whenever it is detectable: the ghosts of a
+window-lined corridor (seeds/003 Fig. 2.2). Mirrors and polished floors keep the sampled model
+in every mode.
 """
 
 from __future__ import annotations
@@ -62,6 +80,7 @@ class GeomOptics:
     reflectivity: np.ndarray
     transmission: np.ndarray
     specular: np.ndarray
+    refractive_index: np.ndarray  # 0: fixed shares; > 0: glazing, shares by Fresnel (pane_split)
 
 
 def geom_optics(geom_names: list[str], truth: SceneTruth, overrides: Mapping[str, LidarMaterial]) -> GeomOptics:
@@ -77,7 +96,35 @@ def geom_optics(geom_names: list[str], truth: SceneTruth, overrides: Mapping[str
         np.array([m.reflectivity for m in mats]),
         np.array([m.transmission for m in mats]),
         np.array([m.specular for m in mats]),
+        np.array([m.refractive_index for m in mats]),
     )
+
+
+def pane_reflectance(n: np.ndarray | float, cos_inc: np.ndarray | float) -> np.ndarray:
+    """Unpolarised Fresnel reflectance of a pane of index ``n`` (two surfaces, multiple reflections
+    added incoherently, no absorption) at incidence ``|cos| = cos_inc``."""
+    c = np.clip(np.abs(np.asarray(cos_inc, dtype=float)), 1e-9, 1.0)
+    n = np.asarray(n, dtype=float)
+    ct = np.sqrt(np.maximum(1.0 - (1.0 - c * c) / (n * n), 0.0))
+    rs = ((c - n * ct) / (c + n * ct)) ** 2
+    rp = ((n * c - ct) / (n * c + ct)) ** 2
+    r = 0.5 * (rs + rp)
+    return 2.0 * r / (1.0 + r)
+
+
+def pane_split(T0: np.ndarray, S0: np.ndarray, n: np.ndarray, cos_inc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(transmitted, reflected) shares at incidence ``cos_inc``: ``T0, S0`` where ``n`` is 0, else the
+    glazing's angle-dependent shares of the module docstring (``S0, T0`` at normal incidence)."""
+    T0, S0, n = np.asarray(T0, dtype=float), np.asarray(S0, dtype=float), np.asarray(n, dtype=float)
+    fres = n > 0.0
+    if not np.any(fres):
+        return T0, S0
+    nn = np.where(fres, n, 1.5)
+    r0 = pane_reflectance(nn, 1.0)
+    rise = (pane_reflectance(nn, cos_inc) - r0) / (1.0 - r0)
+    S = np.where(fres, S0 + (1.0 - S0) * np.clip(rise, 0.0, 1.0), S0)
+    T = np.where(fres, T0 * (1.0 - S) / np.maximum(1.0 - S0, 1e-12), T0)
+    return T, S
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,10 +154,12 @@ def follow_beams(
     *,
     glass: bool,
     mirrors: bool,
+    echo: EchoChoice | None = None,
 ) -> BeamResult:
     """Resolve glass and mirror events of the primary hits ``(geom, dist, normals_w)``.
 
-    ``u`` (N, max_interactions) are the uniform draws deciding each event.
+    ``u`` (N, max_interactions) are the uniform draws deciding each event; ``echo`` (None:
+    ``"sampled"``) splits the beams whose first event is glass and picks their echo.
     """
     n = len(geom)
     geom = geom.astype(np.int64)  # a copy
@@ -125,6 +174,13 @@ def follow_beams(
     first = optics.kind[np.maximum(geom, 0)]
     # only beams that meet glass or a mirror first can end anywhere but their primary hit
     sub = np.flatnonzero(hit & (((first == _GLASS) & glass) | ((first == _MIRROR) & mirrors)))
+    if echo is not None and echo.mode != "sampled" and len(sub):
+        sp = sub[first[sub] == _GLASS]
+        sub = sub[first[sub] != _GLASS]
+        if len(sp):
+            res = _split_first(model, data, geomgroup, geom[sp], path[sp], hit_w[sp], dirs_w[sp], normals_w[sp],
+                               cos_inc[sp], optics, u[sp, 1:], echo, mirrors=mirrors)  # fmt: skip
+            geom[sp], path[sp], hit_w[sp], kind[sp], via[sp], gain[sp], cos_inc[sp] = res
     if len(sub):
         g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s = _follow(
             model, data, geomgroup, geom[sub], path[sub], hit_w[sub], dirs_w[sub], normals_w[sub], optics, u[sub],
@@ -137,6 +193,69 @@ def follow_beams(
     on_glass = (geom >= 0) & (optics.kind[np.maximum(geom, 0)] == _GLASS) & (kind != ReturnKind.GHOST)
     kind[on_glass] = ReturnKind.GLASS
     return BeamResult(geom, path, hit_w, cos_inc, kind, via, gain)
+
+
+@dataclass(frozen=True)
+class EchoChoice:
+    """Which echo a sensor reports when a pulse splits at glass (module docstring, ``return_mode``).
+
+    ``mode``: ``"sampled"``, ``"strongest"`` or ``"last"``; an echo is detected when its signal is
+    at least ``threshold`` and its path within ``[min_range_m, max_range_m]``; the signal uses
+    ``ref_reflectivity`` and ``ref_range_m`` (:func:`return_signal`).
+    """
+
+    mode: str
+    ref_reflectivity: float
+    ref_range_m: float
+    threshold: float
+    min_range_m: float
+    max_range_m: float
+
+
+def _split_first(
+    model: object, data: object, geomgroup: np.ndarray, geom: np.ndarray, path: np.ndarray, hit_w: np.ndarray,
+    dirs_w: np.ndarray, normals_w: np.ndarray, cos0: np.ndarray, optics: GeomOptics, u: np.ndarray, echo: EchoChoice,
+    *, mirrors: bool,
+) -> tuple[np.ndarray, ...]:
+    """Beams whose first hit is a pane: its own return, the crossing and the mirrored branch (later
+    events drawn from ``u``), and the echo ``echo.mode`` picks among the three."""
+    n = len(geom)
+    T, S = pane_split(optics.transmission[geom], optics.specular[geom], optics.refractive_index[geom], cos0)
+    cands = [(geom.copy(), path.copy(), hit_w.copy(), np.full(n, int(ReturnKind.GLASS), dtype=np.int8),
+              np.full(n, -1, dtype=np.int64), np.ones(n), cos0.copy())]
+    for mirrored in (False, True):
+        d = dirs_w.copy()
+        if mirrored:
+            d -= 2.0 * np.einsum("ij,ij->i", d, normals_w)[:, None] * normals_w
+            d /= np.linalg.norm(d, axis=1)[:, None]
+        o, r, gi, nn = _leave(model, data, geomgroup, hit_w, d, geom, np.full(n, mirrored))
+        lost = (r < 0.0) | (gi < 0)
+        q = o + np.where(lost, 0.0, r)[:, None] * d
+        p2 = np.where(lost, np.nan, path + np.linalg.norm(q - hit_w, axis=1))
+        g2 = np.where(lost, -1, gi)
+        g_f, path_f, hit_f, kind_f, via_f, gain_f, cos_f = _follow(
+            model, data, geomgroup, g2, p2, q, d, nn, optics, u, glass=True, mirrors=mirrors,
+        )  # fmt: skip
+        share = (S if mirrored else T) ** 2
+        kind_b = np.where(mirrored | (kind_f == ReturnKind.GHOST), int(ReturnKind.GHOST), int(ReturnKind.THROUGH_GLASS))
+        cands.append((g_f, path_f, hit_f, kind_b.astype(np.int8), np.where(via_f >= 0, via_f, geom), share * gain_f, cos_f))
+    sig = np.stack([_signal(c, optics, echo) for c in cands])  # (3, n), -inf without an echo
+    plen = np.stack([np.where(c[0] >= 0, c[1], -np.inf) for c in cands])
+    seen = (sig >= echo.threshold) & (plen >= echo.min_range_m) & (plen <= echo.max_range_m)
+    best = np.argmax(np.where(seen, sig, -np.inf), axis=0)
+    if echo.mode == "last":
+        best = np.where(seen.any(axis=0), np.argmax(np.where(seen, plen, -np.inf), axis=0), best)
+    best = np.where(seen.any(axis=0), best, np.argmax(sig, axis=0))
+    cols = np.arange(n)
+    return tuple(np.stack([c[k] for c in cands])[best, cols] for k in range(7))
+
+
+def _signal(cand: tuple[np.ndarray, ...], optics: GeomOptics, echo: EchoChoice) -> np.ndarray:
+    g, path, _, _, _, gain, cos = cand
+    ok = g >= 0
+    s = return_signal(optics.reflectivity[np.maximum(g, 0)], cos, np.where(ok, path, 1.0), echo.ref_reflectivity,
+                      echo.ref_range_m, gain)  # fmt: skip
+    return np.where(ok, s, -np.inf)
 
 
 def _follow(
@@ -168,8 +287,8 @@ def _follow(
         kind = np.where(geom >= 0, optics.kind[g], -1)
         is_glass = (kind == _GLASS) & glass
         is_mirror = (kind == _MIRROR) & mirrors
-        T = optics.transmission[g]
-        S = optics.specular[g]
+        T, S = pane_split(optics.transmission[g], optics.specular[g], optics.refractive_index[g],
+                          np.einsum("ij,ij->i", d_cur, n_cur))
         through = ~done & is_glass & (u[:, j] < T)
         mirror = ~done & (is_glass | is_mirror) & ~through & (u[:, j] < T + S)
         done |= ~(through | mirror)
@@ -182,15 +301,7 @@ def _follow(
         m = mirror[act]
         d[m] -= 2.0 * np.einsum("ij,ij->i", d[m], nv[m])[:, None] * nv[m]
         d[m] /= np.linalg.norm(d[m], axis=1)[:, None]
-        o = p + EPS_M * d
-        r, gi, nn = cast_rays(model, data, geomgroup, o, d)
-        # a crossing beam passes every face of its pane; a mirrored one skips a grazing self-hit
-        for _ in range(8):
-            redo = np.flatnonzero((r >= 0.0) & (gi == geom[act]) & (~m | (r < 1e-6)))
-            if len(redo) == 0:
-                break
-            o[redo] += (r[redo] + EPS_M)[:, None] * d[redo]
-            r[redo], gi[redo], nn[redo] = cast_rays(model, data, geomgroup, o[redo], d[redo])
+        o, r, gi, nn = _leave(model, data, geomgroup, p, d, geom[act], m)
         via[act] = geom[act]
         gain[act] *= np.where(m, S[act], T[act]) ** 2  # out and back by the same bounce / crossing
         lost = (r < 0.0) | (gi < 0)
@@ -206,6 +317,24 @@ def _follow(
     kind[reflected] = ReturnKind.GHOST
     cos_inc = np.abs(np.einsum("ij,ij->i", n_cur, d_cur))
     return geom, path, hit_w, kind, via, gain, cos_inc
+
+
+def _leave(
+    model: object, data: object, geomgroup: np.ndarray, p: np.ndarray, d: np.ndarray, own: np.ndarray, mirrored: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """Secondary rays leaving the surfaces ``own`` at ``p`` along ``d``: (origin, distance, geom, normal).
+
+    A crossing beam passes every face of its pane; a mirrored one skips a grazing self-hit.
+    """
+    o = p + EPS_M * d
+    r, gi, nn = cast_rays(model, data, geomgroup, o, d)
+    for _ in range(8):
+        redo = np.flatnonzero((r >= 0.0) & (gi == own) & (~mirrored | (r < 1e-6)))
+        if len(redo) == 0:
+            break
+        o[redo] += (r[redo] + EPS_M)[:, None] * d[redo]
+        r[redo], gi[redo], nn[redo] = cast_rays(model, data, geomgroup, o[redo], d[redo])
+    return o, r, gi, nn
 
 
 def cast_rays(

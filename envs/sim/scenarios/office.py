@@ -63,12 +63,20 @@ MIN_SEGMENT_M = 0.3  # shorter route segments are merged into the next one
 LIDAR_PATTERNS = ("vlp16", "vlp32", "ouster64", "livox")
 ROUTES = ("loop", "ring", "corridor")
 LIDAR_TRUTHS = ("full", "labels")
+RETURN_MODES = ("sampled", "strongest", "last")
 
 PARAMS: dict[str, ParamSpec] = {
     "office_seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the office layout"),
     "n_offices": ParamSpec(3, 1, 24, "", "cellular offices along the north corridor"),
     "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass (the meeting room's south one first)"),
     "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished stone (the south corridor first)"),
+    "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, or a row of windows "
+                        "against a dark outside (models.office: a window-lined building)", choices=("plain", "windows")),
+    "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (glass; float_glass, lowe_glass: "
+                              "Fresnel reflectance rising towards grazing incidence, models.materials)",
+                              choices=("glass", "float_glass", "lowe_glass")),
+    "partition_glass": ParamSpec("glass", None, None, "", "material of the glass partitions and glass doors (as "
+                                 "facade_glass)", choices=("glass", "float_glass", "lowe_glass")),
     "route": ParamSpec("corridor", None, None, "", "office route walked (loop: every office and two laps, "
                        "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor)",
                        choices=ROUTES),
@@ -80,6 +88,8 @@ PARAMS: dict[str, ParamSpec] = {
     "max_turn_deg": ParamSpec(30.0, 5.0, 60.0, "deg", "largest heading change per step (sharper corners are turned on the spot over several steps)"),
     "lidar": ParamSpec("vlp16", None, None, "", "LiDAR scan pattern", choices=LIDAR_PATTERNS),
     "lidar_rate_hz": ParamSpec(10.0, 5.0, 20.0, "Hz", "LiDAR sweeps per second"),
+    "lidar_return": ParamSpec("sampled", None, None, "", "echo reported where a pulse splits at glass: sampled "
+                              "(one path drawn per beam), strongest (the VLP-16 default) or last", choices=RETURN_MODES),
     "lidar_noise_m": ParamSpec(0.015, 0.0, 0.1, "m", "LiDAR range noise, standard deviation"),
     "lidar_resolution_m": ParamSpec(0.002, 0.0, 0.1, "m", "LiDAR range quantisation (0 = off)"),
     "lidar_scan_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a LiDAR sweep is lost"),
@@ -108,7 +118,8 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
         from exobench.models.office import OfficeParams
 
         return OfficeParams(seed=self.office_seed, n_offices=self.n_offices, glass_fraction=self.glass_fraction,
-                            polished_fraction=self.polished_fraction)  # fmt: skip
+                            polished_fraction=self.polished_fraction, facade=self.facade,
+                            facade_glass=self.facade_glass, partition_glass=self.partition_glass)  # fmt: skip
 
     def lidar_config(self) -> LidarConfig:
         r = self.lidar_rate_hz
@@ -122,7 +133,7 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
                            dropout_prob=self.lidar_scan_dropout, point_dropout_prob=self.lidar_point_dropout,
                            nan_point_prob=self.lidar_nan_points, duplicate_prob=self.lidar_duplicate_scans,
                            out_of_order_prob=self.lidar_out_of_order, time_jump_prob=self.lidar_time_jump_prob,
-                           time_jump_s=self.lidar_time_jump_s)  # fmt: skip
+                           time_jump_s=self.lidar_time_jump_s, return_mode=self.lidar_return)  # fmt: skip
 
     def rig(self) -> Rig:
         """Encoders, trunk IMU, insoles and the trunk LiDAR, plus ``extra_sensors``."""
