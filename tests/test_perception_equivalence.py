@@ -156,7 +156,9 @@ def reference_algorithm(points, flags, params: StaircaseParams):
             if cur >= params.n_surfaces:
                 target = None  # beyond S4: discarded
             elif cur % 2 == 0:
-                if flat and abs(qz - z_bar) < sigma_z:
+                moved = np.hypot(*(P[q[-1], :2] - P[u, :2]))
+                travel = moved >= params.th_z_m and moved > abs(P[q[-1], 2] - qz)
+                if flat and abs(qz - z_bar) < sigma_z and (travel or not params.tread_travel):
                     target = cur
                     if params.tread_gate_m and S[cur].ok:
                         n, e, _ = S[cur].fit(P)
@@ -168,7 +170,8 @@ def reference_algorithm(points, flags, params: StaircaseParams):
                 target = cur
             elif qz > e_z(S[cur - 1]) + params.th_pl_m:
                 h = np.hypot(*(P[q[-1], :2] - P[u, :2]))
-                if params.riser_exit == "paper" or (h >= params.th_z_m and h > abs(P[q[-1], 2] - qz)):
+                travel = h >= params.th_z_m and h > abs(P[q[-1], 2] - qz) and abs(qz - z_bar) < sigma_z
+                if params.riser_exit == "paper" or travel:
                     target = cur + 1
             elif params.riser_flat_low == "assign":
                 target = cur
@@ -198,7 +201,9 @@ def _assert_planes_equal(planes, surfaces, P, uid_stamps):
         assert got.n_points == {"tof_r_lat": s.count["r"], "tof_r_med": s.count["l"]}
         assert got.reliable == s.ok
         assert got.reliable_stamp_s == (None if s.ok_uid is None else uid_stamps[s.ok_uid])
-        ref_planes.append(PlaneEstimate(s.index, orient_normal(n, e), e, {}, sigma, s.ok))
+        X = P[s.members] - e
+        scatter = X.T @ X if s.kind == "general" else None
+        ref_planes.append(PlaneEstimate(s.index, orient_normal(n, e), e, {}, sigma, s.ok, scatter=scatter))
     return ref_planes
 
 
@@ -206,7 +211,8 @@ def _assert_planes_equal(planes, surfaces, P, uid_stamps):
 def test_algorithm_equals_the_reference_on_point_streams(htvr):
     """Algorithm 1 alone, on swept point streams and parameters that exercise every branch."""
     totals = dict.fromkeys(("n_assigned", "n_discarded", "n_removed", "n_shifted"), 0)
-    new = {"th_pl_m": 0.08, "reliable_n_riser": 2, "tread_gate_m": 8e-3, "sensor_ids": "per_sensor", "riser_exit": "travel"}
+    new = {"th_pl_m": 0.08, "reliable_n_riser": 2, "tread_gate_m": 8e-3, "sensor_ids": "per_sensor", "riser_exit": "travel",
+           "tread_travel": True}
     for seed, yaw_deg, noise_m, b, n_rel, policy, options in [
         (0, 0.0, 1.5e-3, 10, 5, "assign", {}),
         (1, 20.0, 1.5e-3, 4, 2, "assign", {}),
@@ -256,7 +262,7 @@ STREAMS = {
 # the pipelines' defaults, and the paper's Algorithm 1 and read-out as published
 PAPER_CONFIG = {
     "th_pl_m": 0.13, "reliable_n_riser": 0, "tread_gate_m": 0.0, "sensor_ids": "shared", "riser_exit": "paper",
-    "riser_at": "midpoint",
+    "tread_travel": False, "riser_at": "midpoint",
 }  # fmt: skip
 
 

@@ -113,8 +113,8 @@ def test_counts_and_reliability_follow_the_points():
 
 
 # --- branch by branch (q = 3) ---------------------------------------------------------------
-def _feed(alg, zs, flag="r", x0=0.0):
-    return [alg.assign(np.array([x0 + 0.01 * i, 0.0, z]), flag) for i, z in enumerate(zs)]
+def _feed(alg, zs, flag="r", x0=0.0, dx=0.01):
+    return [alg.assign(np.array([x0 + dx * i, 0.0, z]), flag) for i, z in enumerate(zs)]
 
 
 def test_queue_holds_points_until_full_then_line5_assigns_only_central_points():
@@ -160,6 +160,34 @@ def test_lines_14_to_17_flat_queue_on_a_riser(policy, level_z, to_tread):
     else:
         assert alg.current_id == 1
         assert alg.surface_of(flat) == (1 if policy == "assign" else -1)
+
+
+@pytest.mark.parametrize("riser_exit,top_on_tread", [("paper", True), ("travel", False)])
+def test_a_riser_top_point_under_a_flat_queue_does_not_start_the_tread(riser_exit, top_on_tread):
+    """The point from the top of a riser, 15 mm below the tread that fills the rest of its queue
+    (flat: sigma_z 6 mm), has moved on with the beam: the paper's exit puts it on the tread;
+    ``travel`` asks it to pass line 5's test too, so it is discarded and the tread starts on the
+    next point."""
+    alg = StaircaseAlgorithm(StaircaseParams(th_pl_m=0.08, riser_exit=riser_exit, sensor_ids="per_sensor"))
+    ids = _feed(alg, [0.03, 0.06, 0.09, 0.12, 0.15], x0=0.5, dx=0.0)  # up the riser at x = 0.5
+    top = _feed(alg, [0.165], x0=0.5, dx=0.0)[0]
+    tread = _feed(alg, [0.18, 0.1805, 0.1795, 0.18, 0.1802, 0.1798, 0.18], x0=0.51, dx=0.01)
+    assert all(alg.surface_of(i) == 1 for i in ids[:4])
+    assert alg.surface_of(top) == (2 if top_on_tread else -1)
+    assert alg.current_id == 2 and alg.surface_of(tread[0]) == 2
+
+
+@pytest.mark.parametrize("tread_travel", [False, True])
+def test_a_beam_resting_on_one_spot_adds_to_a_tread_only_without_tread_travel(tread_travel):
+    """A beam at rest (the calf stopping at the end of the swing, possibly on the riser above the
+    tread under investigation) gives a flat queue of one spot: line 5 takes it as tread; with
+    ``tread_travel`` it needs the beam to sweep."""
+    alg = StaircaseAlgorithm(StaircaseParams(tread_travel=tread_travel))
+    sweep = _feed(alg, [0.0, 0.001, -0.001, 0.0, 0.0005, -0.0005, 0.0, 0.0003])  # a sweep of the ground
+    assert alg.surface_of(sweep[0]) == 0
+    rest = _feed(alg, [0.0, 0.0005, -0.0005, 0.0, 0.0002, -0.0002, 0.0, 0.0], x0=0.5, dx=0.0)
+    on_s0 = [alg.surface_of(i) == 0 for i in rest[:3]]
+    assert any(on_s0) != tread_travel
 
 
 def test_stops_after_the_last_surface():

@@ -41,8 +41,9 @@ class RtlsStairs(StairsPipeline):
                 paper, defaults 5, 10, 5 (see :mod:`exobench.perception.stairs.staircase`).
             riser_flat_low: ``"assign"`` (listing of Algorithm 1) or ``"discard"`` (prose of
                 Sec. IV-A) for a flat queue below ``S_{id-1}.e_z + th_pl`` on a riser.
-            reliable_n_riser, tread_gate_m, sensor_ids, riser_exit: options of Algorithm 1 beyond
-                the listing (see :mod:`exobench.perception.stairs.staircase`).
+            reliable_n_riser, tread_gate_m, sensor_ids, riser_exit, tread_travel: options of
+                Algorithm 1 beyond the listing (see :mod:`exobench.perception.stairs.staircase`;
+                ``tread_travel`` is off for ``rtls-htvr``, whose horizontal treads it only thins).
             riser_at: where the riser height is read between two treads (see
                 :mod:`exobench.perception.stairs.readout`).
 
@@ -50,7 +51,8 @@ class RtlsStairs(StairsPipeline):
         paper's 0.13 m fits its staircases (0.153-0.175 m) but never leaves a riser lower than
         that; the default 0.08 m sits below the building codes' lowest riser (0.10 m). The
         paper's Algorithm 1 and read-out as published: ``th_pl_m=0.13, reliable_n_riser=0,
-        tread_gate_m=0, sensor_ids="shared", riser_exit="paper", riser_at="midpoint"``.
+        tread_gate_m=0, sensor_ids="shared", riser_exit="paper", tread_travel=False,
+        riser_at="midpoint"``.
         """
 
         leg: str = "r"
@@ -66,7 +68,8 @@ class RtlsStairs(StairsPipeline):
         tread_gate_m: float = 8e-3
         sensor_ids: str = "per_sensor"
         riser_exit: str = "travel"
-        riser_at: str = "upper_centroid"
+        tread_travel: bool = True
+        riser_at: str = "parallel"
 
         def __post_init__(self) -> None:
             check_common_config(self)
@@ -87,6 +90,7 @@ class RtlsStairs(StairsPipeline):
                 tread_gate_m=self.tread_gate_m,
                 sensor_ids=self.sensor_ids,
                 riser_exit=self.riser_exit,
+                tread_travel=self.tread_travel,
             )
 
     def _reset_estimator(self) -> None:
@@ -143,4 +147,10 @@ class RtlsHtvrStairs(RtlsStairs):
 
     name: ClassVar[str] = "rtls-htvr"
     htvr: ClassVar[bool] = True
+
+    @dataclass(frozen=True)
+    class Config(RtlsStairs.Config):
+        """As :class:`RtlsStairs.Config`, with ``tread_travel`` off."""
+
+        tread_travel: bool = False
 

@@ -53,7 +53,15 @@ documented here):
   - ``riser_exit="travel"``: lines 14-16 read a flat queue as the next tread, but a beam that
     climbs a riser slowly or rests on it (the calf at the end of the swing) is flat too. The
     switch then also needs the queue to have moved horizontally by at least ``th_z`` and more
-    than vertically; a flat queue above ``th_pl`` that has not is discarded.
+    than vertically, and ``q`` itself to pass line 5's test ``|q_z - z_bar| < sigma_z`` (a
+    point from the top of the riser, a centimetre or two below a tread that fills the rest of
+    the queue, leaves the queue flat but is not on the tread: joined to a tread a few
+    centimetres long it tilts it by tens of degrees); otherwise ``q`` is discarded.
+  - ``tread_travel``: likewise a beam resting on the next riser (the calf slowing at the end of
+    the swing) gives a flat queue that line 5 reads as tread; with this option a tread point
+    also needs the queue to have travelled (as ``riser_exit="travel"``). For general planes,
+    where a few such points tilt the last tread; HTVR's horizontal treads only lose points by
+    it.
   - ``tread_gate_m``: line 5 adds a point of a flat queue to the current tread; a beam resting
     on the riser above it (or on the riser below, seen past S4) passes that test. With a
     reliable tread the point must also lie within ``tread_gate_m`` of its plane.
@@ -116,6 +124,8 @@ class StaircaseParams:
         riser_exit: ``"paper"`` (lines 14-16: a flat queue above ``S_{id-1}.e_z + th_pl`` leaves
             the riser) or ``"travel"`` (it must also have moved horizontally), see the module
             docstring.
+        tread_travel: a tread point (line 5) also needs the queue to have moved horizontally
+            (default False: the paper's line 5), see the module docstring.
     """
 
     th_z_m: float = 8e-3
@@ -130,6 +140,7 @@ class StaircaseParams:
     tread_gate_m: float = 0.0
     sensor_ids: str = "shared"
     riser_exit: str = "paper"
+    tread_travel: bool = False
 
     def __post_init__(self) -> None:
         check_range("th_z_m", self.th_z_m, 0.0, 1.0, low_open=True)
@@ -141,6 +152,8 @@ class StaircaseParams:
             raise ConfigError("riser_flat_low", self.riser_flat_low, "'assign' or 'discard'")
         if self.sensor_ids not in ("shared", "per_sensor"):
             raise ConfigError("sensor_ids", self.sensor_ids, "'shared' or 'per_sensor'")
+        if not isinstance(self.tread_travel, bool):
+            raise ConfigError("tread_travel", self.tread_travel, "true or false")
         if self.riser_exit not in ("paper", "travel"):
             raise ConfigError("riser_exit", self.riser_exit, "'paper' or 'travel'")
 
@@ -266,7 +279,7 @@ class StaircaseAlgorithm:
         if i >= p.n_surfaces:
             self.counts["n_beyond_last"] += 1
         elif i % 2 == 0:
-            if sigma_z < p.th_z_m and abs(q_z - z_bar) < sigma_z:
+            if sigma_z < p.th_z_m and abs(q_z - z_bar) < sigma_z and (not p.tread_travel or self._travelled(qu, Q)):
                 S = self.surfaces[i]
                 if not (p.tread_gate_m and S.ok and abs(S.plane.distance3(*self._points[qu])) > p.tread_gate_m):
                     target = i
@@ -275,7 +288,7 @@ class StaircaseAlgorithm:
         elif sigma_z >= p.th_z_m:
             target = i
         elif q_z > self.surfaces[i - 1].e_z + p.th_pl_m:
-            if p.riser_exit == "paper" or self._travelled(qu, Q):
+            if p.riser_exit == "paper" or (self._travelled(qu, Q) and abs(q_z - z_bar) < sigma_z):
                 target = i + 1
         elif p.riser_flat_low == "assign":
             target = i
