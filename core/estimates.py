@@ -20,6 +20,9 @@ class PlaneEstimate:
         sigma_m: standard deviation of the point-to-plane distances, m.
         reliable: the paper's ``ok`` flag.
         reliable_stamp_s: time the surface first became reliable, s, or None.
+        scatter: ``sum (p - centroid)(p - centroid)^T`` of the plane's points, shape (3, 3), when
+            the estimator fits a general plane and keeps it (None otherwise): lets a read-out
+            pool the points of several planes (``riser_at="parallel"``).
     """
 
     index: int
@@ -29,6 +32,7 @@ class PlaneEstimate:
     sigma_m: float
     reliable: bool
     reliable_stamp_s: float | None = None
+    scatter: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -247,3 +247,40 @@ def test_readout_on_exact_planes():
     unreliable = dataclasses.replace(planes[3], reliable=False)
     assert np.isnan(tread_depth_m(planes[:3] + [unreliable]))
     assert np.isnan(riser_height_m(planes[1:2]))
+
+
+def _fitted(index, X):
+    """PlaneEstimate of the points X (total least squares) with their scatter."""
+    e = X.mean(axis=0)
+    S = (X - e).T @ (X - e)
+    n = np.linalg.eigh(S)[1][:, 0]
+    return PlaneEstimate(index, n if n[2] > 0 else -n, e, {"a": 9, "b": 9}, 0.001, True, 0.0, scatter=S)
+
+
+def test_parallel_riser_readout_on_inclined_treads_and_a_tilted_short_tread():
+    """Treads z = 0.03 x + k r (parallel, inclined by 1.7 deg) sampled on a grid: the parallel read-out
+    gives r exactly; with S2 seen on 4 cm and two of its points 2 cm low (a riser's top) it stays
+    within 1 %, while comparing S2 with its neighbours at a centroid is off by tens of percent; with
+    S2 unreliable it reads (S4 - S0) / 2; planes with one imposed normal and no scatter work too."""
+    r, slope = 0.17, 0.03
+    g = np.stack(np.meshgrid(np.linspace(0.0, 0.2, 6), np.linspace(-0.1, 0.1, 5)), -1).reshape(-1, 2)
+
+    def tread(k, xy):
+        return np.column_stack([xy, slope * xy[:, 0] + k * r])
+
+    lo, hi = tread(0, g + [0.0, 0.0]), tread(2, g + [0.6, 0.0])
+    mid = tread(1, np.column_stack([np.tile(np.linspace(0.3, 0.34, 5), 2), np.repeat([-0.05, 0.08], 5)]))  # two beams
+    exact = [_fitted(0, lo), _fitted(2, mid), _fitted(4, hi)]
+    assert abs(riser_height_m(exact, "parallel") - r) < 1e-12
+    bad = mid.copy()
+    bad[:2, 2] -= 0.02
+    planes = [exact[0], _fitted(2, bad), exact[2]]
+    assert abs(riser_height_m(planes, "parallel") - r) / r < 0.01
+    assert abs(riser_height_m(planes, "upper_centroid") - r) / r > 0.1
+    no_s2 = [exact[0], dataclasses.replace(planes[1], reliable=False), exact[2]]
+    assert abs(riser_height_m(no_s2, "parallel") - r) < 1e-12
+    assert np.isnan(riser_height_m(no_s2, "upper_centroid"))
+    flat = [_plane(k, [0, 0, 1], [0.3 * k, 0.0, k / 2 * r]) for k in (0, 2, 4)]  # HTVR: no scatter
+    assert abs(riser_height_m(flat, "parallel") - r) < 1e-12
+    with pytest.raises(ValueError, match="scatter"):
+        riser_height_m([exact[0], flat[1]], "parallel")

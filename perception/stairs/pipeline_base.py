@@ -212,6 +212,7 @@ class StairsPipeline(ABC):
             sigma_m=float(plane.sigma_m),
             reliable=bool(ok),
             reliable_stamp_s=None if ok_uid is None else self._uid_stamp[ok_uid],
+            scatter=scatter if (scatter := plane.scatter()).shape == (3, 3) else None,
         )
 
     def _estimate(
