@@ -1,0 +1,155 @@
+"""`exobench bench locomotion`: the locomotion track's speed at 640x480 (RGB-D rendering, TSDF
+integration and ray casting, per-prediction latency of each pipeline) beside the 31 ms per frame
+of seeds/002."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from exobench.core.episode import Episode
+from exobench.core.frames import frame_kind
+
+LOCOMOTION_BENCH_SCENARIO: dict[str, Any] = {
+    "terrain": "stairs", "riser_m": 0.15, "mount": "head", "pattern": "walk", "n_steps": 3, "approach_m": 1.5,
+    "landing_m": 1.2, "rate_hz": 15.0, "width_px": 640, "height_px": 480,
+}  # fmt: skip
+PAPER_MS_PER_PREDICTION = 31.0  # Tab. IV: D-VIO time per frame; Sec. III-A: prediction within 34 ms
+RENDER_POSES = 8
+
+
+def _render_fps(terrain: str, seed: int, repeats: int, segmentation: bool = False) -> dict[str, Any]:
+    """RGB-D frames per second at 640x480 (render colour and depth, with ``segmentation`` also
+    the geom-id truth, then the depth noise model: :meth:`RgbdCamera.capture`) of the head camera
+    on one course, the walker standing on the level approach facing the course at RENDER_POSES
+    positions and headings."""
+    import mujoco
+
+    from exobench.envs.sensors.rgbd import RgbdCamera, RgbdConfig
+    from exobench.envs.sim.compose import compose_rig
+    from exobench.envs.sim.scenarios.course import LocomotionScenario
+    from exobench.envs.sim.scenarios.course_world import build_locomotion_world
+
+    sc = LocomotionScenario.from_dict({"terrain": terrain, "width_px": 640, "height_px": 480})
+    world, wps = build_locomotion_world(sc)
+    scene = compose_rig(world, sc.exo_spec(), (("imu_head", "rgbd_head"),))
+    model = scene.model
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    root = int(model.jnt_qposadr[0])
+    x0 = data.qpos[root : root + 3].copy()
+    q0 = data.qpos[root + 3 : root + 7].copy()
+    cam = RgbdCamera("rgbd_head", RgbdConfig(width_px=640, height_px=480, segmentation=segmentation), model, seed)
+    try:
+        cam.capture(model, data, 0.0)  # warm-up: GL context and buffers
+        walls, valid = [], []
+        for r in range(max(1, repeats)):
+            for k in range(RENDER_POSES):
+                yaw = np.deg2rad(-20.0 + 40.0 * k / max(1, RENDER_POSES - 1))
+                dq = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+                q = np.empty(4)
+                mujoco.mju_mulQuat(q, dq, q0)
+                data.qpos[root : root + 3] = x0 + np.array([0.8 * k / RENDER_POSES, 0.0, 0.0])
+                data.qpos[root + 3 : root + 7] = q
+                mujoco.mj_forward(model, data)
+                t0 = time.perf_counter()
+                frame, _ = cam.capture(model, data, (r * RENDER_POSES + k) / 30.0)
+                walls.append(time.perf_counter() - t0)
+                if frame is not None:
+                    valid.append(float(np.mean(frame.depth_m > 0)))
+    finally:
+        cam.close()
+    med = float(np.median(walls))
+    return {"frames": len(walls), "ms_per_frame": med * 1e3, "frames_per_s": 1.0 / med, "valid_depth_fraction": float(np.mean(valid))}
+
+
+def _tsdf_fps(episode: Episode, repeats: int) -> dict[str, Any]:
+    """TSDF integration (eq. 19-22) of every RGB-D frame of ``episode`` at its odometry pose, and
+    the ray cast of the smoothed depth at half resolution, on the frames at their full resolution
+    (the issue's 640x480 figure; ``terrain-recon`` itself decimates frames wider than
+    ``max_work_width_px`` first, which its latency figure includes)."""
+    from exobench.core.frames import OdometrySample, RgbdFrame
+    from exobench.mapping.locomotion.depth import scale_intrinsics
+    from exobench.mapping.tsdf import Tsdf, TsdfConfig
+
+    odom = {round(float(f.stamp_s), 6): np.asarray(f.T_odom_body, dtype=float) for f in episode.frames
+            if isinstance(f, OdometrySample)}  # fmt: skip
+    pairs = [(f, odom[round(float(f.stamp_s), 6)]) for f in episode.frames
+             if isinstance(f, RgbdFrame) and round(float(f.stamp_s), 6) in odom]  # fmt: skip
+    if not pairs:
+        return {"frames": 0, "error": "no RGB-D frame with an odometry sample at its stamp"}
+    h, w = pairs[0][0].depth_m.shape
+    integ, cast = [], []
+    for _ in range(max(1, repeats)):
+        tsdf = Tsdf(TsdfConfig())
+        for f, T in pairs:
+            t0 = time.perf_counter()
+            tsdf.integrate(f.depth_m, f.K, T)
+            integ.append(time.perf_counter() - t0)
+        K2 = scale_intrinsics(np.asarray(pairs[-1][0].K, dtype=float), 0.5)
+        for _, T in pairs[-5:]:
+            t0 = time.perf_counter()
+            tsdf.raycast_depth(K2, T, w // 2, h // 2)
+            cast.append(time.perf_counter() - t0)
+    med = float(np.median(integ))
+    return {
+        "frames": len(pairs), "image_px": f"{w}x{h}", "integrate_ms_per_frame": med * 1e3, "integrate_frames_per_s": 1.0 / med,
+        "raycast_ms_half_resolution": float(np.median(cast) * 1e3), "active_blocks": int(tsdf.stats.active_blocks),
+    }  # fmt: skip
+
+
+def _pipeline_latency(name: str, episode: Episode) -> dict[str, Any]:
+    """Median and p95 latency per prediction (``ModePrediction.latency_s``) of a registered pipeline."""
+    from ..registry import default_registry
+
+    pipe = default_registry().make(name)
+    pipe.reset(episode.calibration)
+    t0 = time.perf_counter()
+    for frame in episode.frames:
+        pipe.process(frame)
+    est = pipe.finalize()
+    wall = time.perf_counter() - t0
+    lat = np.array([p.latency_s for p in est.predictions if np.isfinite(p.latency_s)], dtype=float)
+    ok = np.array([p.latency_s for p in est.predictions if p.status == "ok" and np.isfinite(p.latency_s)], dtype=float)
+    return {
+        "predictions": int(lat.size),
+        "latency_ms_median": float(np.median(lat) * 1e3) if lat.size else float("nan"),
+        "latency_ms_p95": float(np.percentile(lat, 95) * 1e3) if lat.size else float("nan"),
+        "latency_ms_median_ok": float(np.median(ok) * 1e3) if ok.size else float("nan"),
+        "predictions_ok": int(ok.size),
+        "wall_s": wall,
+    }
+
+
+def bench_locomotion(seed: int = 0, *, repeats: int = 2, pipelines: tuple[str, ...] = ("terrain-recon",)) -> dict[str, Any]:
+    """Speed of the locomotion track at 640x480 (seeds/002 reports 31 ms per frame).
+
+    - ``render``: RGB-D (colour + depth) frames per second of the head camera on the stairs,
+      ramp and parallel courses (:func:`_render_fps`); ``render_with_segmentation`` with the
+      geom-id truth pass the simulation also renders;
+    - ``tsdf``: TSDF integration frames per second on the frames of one episode
+      (:data:`LOCOMOTION_BENCH_SCENARIO`: short stair course, head camera, 640x480, 15 Hz),
+      plus the half-resolution ray cast;
+    - ``latency``: median / p95 ``latency_s`` per prediction of each pipeline on that episode
+      (all predictions; ``_ok`` only those with status ok).
+    """
+    from ..tracks.locomotion import LocomotionTrack
+
+    track = LocomotionTrack()
+    t0 = time.perf_counter()
+    episode = track.simulate(track.validate_scenario(LOCOMOTION_BENCH_SCENARIO), seed)
+    sim_wall = time.perf_counter() - t0
+    n_rgbd = sum(frame_kind(f) == "rgbd" for f in episode.frames)
+    result: dict[str, Any] = {
+        "scenario": dict(LOCOMOTION_BENCH_SCENARIO),
+        "seed": seed,
+        "episode": {"rgbd_frames": n_rgbd, "steps": len(episode.truth.steps), "simulate_wall_s": sim_wall},
+        "latency": {name: _pipeline_latency(name, episode) for name in pipelines},
+        "tsdf": _tsdf_fps(episode, repeats),
+        "render": {t: _render_fps(t, seed, repeats) for t in ("stairs", "ramp", "parallel")},
+        "render_with_segmentation": {t: _render_fps(t, seed, repeats, segmentation=True) for t in ("stairs", "ramp", "parallel")},
+        "paper_ms_per_prediction": PAPER_MS_PER_PREDICTION,
+    }
+    return result
