@@ -66,6 +66,8 @@ import numpy as np
 from exobench.core import ReturnKind, SceneTruth
 from exobench.models.materials import DEFAULT_MATERIAL, KINDS, LidarMaterial, material
 
+from .pane_shape import PaneShapes
+
 KIND_CODE = {k: i for i, k in enumerate(KINDS)}  # diffuse 0, glass 1, mirror 2, retro 3
 _GLASS, _MIRROR, _RETRO = KIND_CODE["glass"], KIND_CODE["mirror"], KIND_CODE["retro"]
 EPS_M = 1e-6  # secondary rays start this far along their direction, beyond the surface left
@@ -81,6 +83,7 @@ class GeomOptics:
     transmission: np.ndarray
     specular: np.ndarray
     refractive_index: np.ndarray  # 0: fixed shares; > 0: glazing, shares by Fresnel (pane_split)
+    shape: PaneShapes | None = None  # panes that are not flat (pane_shape); None: every pane flat
 
 
 def geom_optics(geom_names: list[str], truth: SceneTruth, overrides: Mapping[str, LidarMaterial]) -> GeomOptics:
@@ -167,6 +170,7 @@ def follow_beams(
     geom[~hit] = -1
     path = np.where(hit, dist, np.nan)
     hit_w = origins_w + np.where(hit, dist, 0.0)[:, None] * dirs_w
+    normals_w = _local_normals(optics, data, geom, hit_w, normals_w)
     cos_inc = np.abs(np.einsum("ij,ij->i", normals_w, dirs_w))
     via = np.full(n, -1, dtype=np.int64)
     gain = np.ones(n)
@@ -231,6 +235,7 @@ def _split_first(
         o, r, gi, nn = _leave(model, data, geomgroup, hit_w, d, geom, np.full(n, mirrored))
         lost = (r < 0.0) | (gi < 0)
         q = o + np.where(lost, 0.0, r)[:, None] * d
+        nn = _local_normals(optics, data, gi, q, nn)
         p2 = np.where(lost, np.nan, path + np.linalg.norm(q - hit_w, axis=1))
         g2 = np.where(lost, -1, gi)
         g_f, path_f, hit_f, kind_f, via_f, gain_f, cos_f = _follow(
@@ -306,6 +311,7 @@ def _follow(
         gain[act] *= np.where(m, S[act], T[act]) ** 2  # out and back by the same bounce / crossing
         lost = (r < 0.0) | (gi < 0)
         q = o + np.where(lost, 0.0, r)[:, None] * d
+        nn = _local_normals(optics, data, gi, q, nn)
         path[act] = np.where(lost, np.nan, path[act] + np.linalg.norm(q - p, axis=1))
         geom[act] = np.where(lost, -1, gi)
         hit_w[act], d_cur[act], n_cur[act] = q, d, nn
@@ -317,6 +323,11 @@ def _follow(
     kind[reflected] = ReturnKind.GHOST
     cos_inc = np.abs(np.einsum("ij,ij->i", n_cur, d_cur))
     return geom, path, hit_w, kind, via, gain, cos_inc
+
+
+def _local_normals(optics: GeomOptics, data: object, geom: np.ndarray, hit_w: np.ndarray, normals_w: np.ndarray) -> np.ndarray:
+    """The surface normals at the hits, bent where a pane is not flat (``optics.shape``)."""
+    return normals_w if optics.shape is None else optics.shape.normals(data, geom, hit_w, normals_w)
 
 
 def _leave(
