@@ -57,7 +57,23 @@ class LidarMaterial:
     transmission: float = 0.0
     specular: float = 0.0
     refractive_index: float = 0.0
+    front_share: float = 1.0  # insulating glass: share of ``specular`` the front pane reflects (the rest the back pane)
 
+
+def insulating_unit(name: str, front: LidarMaterial, back: LidarMaterial) -> LidarMaterial:
+    """A double-glazed unit of two panes at normal incidence, their reflections and transmissions
+    combined incoherently (the multiple reflections between the panes summed, as for the two faces
+    of one pane): ``R = R1 + T1^2 R2 / (1 - R1 R2)``, ``T = T1 T2 / (1 - R1 R2)``; the front pane's
+    share of ``R`` is ``R1 / R``. Its own echo and index are the front pane's."""
+    r1, t1, r2, t2 = front.specular, front.transmission, back.specular, back.transmission
+    k = 1.0 - r1 * r2
+    r = r1 + t1 * t1 * r2 / k
+    return LidarMaterial(name, front.reflectivity, "glass", transmission=t1 * t2 / k, specular=r,
+                         refractive_index=front.refractive_index, front_share=r1 / r)  # fmt: skip
+
+
+_FLOAT = LidarMaterial("float_glass", 0.001, "glass", transmission=0.84, specular=0.079, refractive_index=1.51)
+_LOWE = LidarMaterial("lowe_glass", 0.001, "glass", transmission=0.60, specular=0.30, refractive_index=1.51)
 
 MATERIALS: dict[str, LidarMaterial] = {
     m.name: m
@@ -75,8 +91,10 @@ MATERIALS: dict[str, LidarMaterial] = {
         LidarMaterial("glass", 0.05, "glass", transmission=0.85, specular=0.1),
         LidarMaterial("mirror", 0.05, "mirror", specular=0.95),
         LidarMaterial("retroreflector", 0.9, "retro"),
-        LidarMaterial("float_glass", 0.001, "glass", transmission=0.84, specular=0.079, refractive_index=1.51),
-        LidarMaterial("lowe_glass", 0.001, "glass", transmission=0.60, specular=0.30, refractive_index=1.51),
+        _FLOAT,
+        _LOWE,
+        insulating_unit("igu_float", _FLOAT, _FLOAT),
+        insulating_unit("igu_lowe", _LOWE, _FLOAT),
     )
 }
 

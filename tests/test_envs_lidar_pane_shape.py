@@ -55,9 +55,9 @@ def test_local_normal_of_a_bowed_wavy_pane(bow: float, wave: float):
     s = _shapes(model, names, optics, bow, wave)
     # the pane's thin axis is x: u = y (half 0.6), v = z (half 0.65)
     assert s.normal_axis[0] == 0 and tuple(s.half[0]) == (HALF_U, HALF_V)
-    delta = s.delta[0]
+    delta = s.delta[0, 0]
     assert abs(delta) == pytest.approx(bow * 2 * np.hypot(HALF_U, HALF_V))  # 5.3 mm at 3 mm/m on a 1.77 m diagonal
-    A, k, phi, on_v = 0.5 * wave, 2 * np.pi / 0.35, s.phase[0], bool(s.wave_on_v[0])
+    A, k, phi, on_v = 0.5 * wave, 2 * np.pi / 0.35, s.phase[0, 0], bool(s.wave_on_v[0, 0])
 
     def w(u, v):
         t = v if on_v else u
@@ -97,7 +97,7 @@ def test_ghost_in_a_bowed_pane_moves_by_twice_the_slope():
     bowed, s = _ghost(3e-3)
     # slope at u = 0.3, v = 0: dw/du = -delta pi / 1.2 sin(pi 0.3 / 1.2) = -/+ 9.8 mrad; the beam is turned
     # by twice the slope: back over 5 m to the wall, tan(2 theta) = 2 tan / (1 - tan^2)
-    wu = -s.delta[0] * np.pi / (2 * HALF_U) * np.sin(np.pi * 0.3 / (2 * HALF_U))
+    wu = -s.delta[0, 0] * np.pi / (2 * HALF_U) * np.sin(np.pi * 0.3 / (2 * HALF_U))
     expect_dy = (PANE_X - BACK_X) * 2 * wu / (1 - wu * wu)
     assert abs(expect_dy) == pytest.approx(0.098, abs=1e-3)
     assert bowed[1] - flat[1] == pytest.approx(expect_dy, abs=1e-6)
@@ -152,3 +152,29 @@ def test_office_scenario_passes_the_pane_shape_to_the_lidar():
     assert not OfficeScenario().lidar_config().glass_shaped
     with pytest.raises(ConfigError, match=r"glass_bow_mm_per_m=25.0 is invalid; allowed: 0.0 <= glass_bow_mm_per_m"):
         OfficeScenario(glass_bow_mm_per_m=25.0)
+
+
+def test_double_glazing_reflects_from_two_panes_bowed_apart():
+    from exobench.models.materials import material
+
+    # two float panes (R 0.079, T 0.84): R = 0.079 + 0.84^2 0.079 / (1 - 0.079^2) = 0.1351,
+    # T = 0.84^2 / (1 - 0.079^2) = 0.7100, the front pane's share 0.079 / 0.1351 = 0.585
+    igu = material("igu_float")
+    assert (igu.specular, igu.transmission, igu.front_share) == pytest.approx((0.1351, 0.7100, 0.585), abs=5e-4)
+    model, data, truth, names = _scene()
+    truth = SceneTruth(surfaces=(), geom_surfaces={}, geom_materials={"pane": "igu_float", "back": "plaster"})
+    optics = geom_optics(names, truth, {})
+    shapes = PaneShapes(model, names, optics.kind == KIND_CODE["glass"], 3e-3, 0.0, 0.35, 7, optics.front_share)
+    optics = replace(optics, shape=shapes)
+    o, d = np.array([[0.0, 0.3, Z_C]]), np.array([[1.0, 0.0, 0.0]])
+    group = np.ones(6, dtype=np.uint8)
+    r, g, n = cast_rays(model, data, group, o, d)
+    ys = []
+    # sampled draws mirroring the beam (T = 0.710 <= u < T + S = 0.845); frac(1024 u) picks the pane:
+    # 0 (front, share 0.585) or 0.9 (back)
+    for u0 in (0.75, 0.75 + 0.9 / 1024):
+        res = follow_beams(model, data, group, o, d, g, r, n, optics, np.full((1, 3), u0), glass=True, mirrors=True)
+        assert res.kind[0] == ReturnKind.GHOST
+        ys.append(res.hit_w[0, 1] - 0.3)
+    assert abs(ys[0]) == pytest.approx(0.098, abs=1e-3)
+    assert ys[1] == pytest.approx(-ys[0], abs=1e-9)

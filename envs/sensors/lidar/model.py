@@ -196,7 +196,8 @@ class LidarSensor:
             c = self.config
             if c.glass_shaped:
                 shape = PaneShapes(model, self.geom_names, optics.kind == KIND_CODE["glass"], 1e-3 * c.glass_bow_mm_per_m,
-                                   1e-3 * c.glass_roller_wave_mm, c.glass_roller_wave_length_m, c.glass_shape_seed)  # fmt: skip
+                                   1e-3 * c.glass_roller_wave_mm, c.glass_roller_wave_length_m, c.glass_shape_seed,
+                                   optics.front_share)  # fmt: skip
                 optics = replace(optics, shape=shape)
             self._optics_cache = (truth, optics)
         return self._optics_cache[1]

@@ -43,10 +43,12 @@ class PaneShapes:
         wave_pv_m: roller wave peak-to-valley, m.
         wave_length_m: roller wave wavelength, m.
         seed: draws of the per-pane sign, roller direction and phase.
+        front_share: per geom id, the share of a double-glazed unit's reflection from its front
+            pane (1: a single pane; default all 1).
     """
 
     def __init__(self, model: object, geom_names: list[str], is_glass: np.ndarray, bow_per_m: float, wave_pv_m: float,
-                 wave_length_m: float, seed: int) -> None:  # fmt: skip
+                 wave_length_m: float, seed: int, front_share: np.ndarray | None = None) -> None:  # fmt: skip
         import mujoco
 
         gtype = np.asarray(model.geom_type)  # type: ignore[attr-defined]
@@ -60,28 +62,37 @@ class PaneShapes:
         self.u_axis, self.v_axis = axes[:, 0], axes[:, 1]
         rows = np.arange(len(ids))
         self.half = np.stack([size[rows, self.u_axis], size[rows, self.v_axis]], axis=1)
-        draws = np.array([_draws(seed, geom_names[g]) for g in ids]).reshape(len(ids), 3)
+        draws = np.array([_draws(seed, geom_names[g]) for g in ids]).reshape(len(ids), 5)
         diag = 2.0 * np.hypot(self.half[:, 0], self.half[:, 1])
-        self.delta = np.where(draws[:, 0] < 0.5, -1.0, 1.0) * bow_per_m * diag
-        self.wave_on_v = draws[:, 1] < 0.5
-        self.phase = 2.0 * np.pi * draws[:, 2]
+        # column 0: the pane on the +e_n side; column 1: a double-glazed unit's pane on the -e_n side,
+        # bowed the other way (the cavity's pressure pushes both panes out, or both in)
+        delta = np.where(draws[:, 0] < 0.5, -1.0, 1.0) * bow_per_m * diag
+        self.delta = np.stack([delta, -delta], axis=1)
+        self.wave_on_v = np.stack([draws[:, 1] < 0.5, draws[:, 3] < 0.5], axis=1)
+        self.phase = 2.0 * np.pi * draws[:, [2, 4]]
+        fs = np.ones(len(gtype)) if front_share is None else np.asarray(front_share, dtype=float)
+        self.front_share = fs[ids]
         self.amp = 0.5 * wave_pv_m
         self.k = 2.0 * np.pi / wave_length_m
 
-    def slopes(self, rows: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(dw/du, dw/dv) of the panes ``rows`` at their in-plane coordinates ``u, v`` (m)."""
+    def slopes(self, rows: np.ndarray, u: np.ndarray, v: np.ndarray, pane: np.ndarray | int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(dw/du, dw/dv) of the panes ``rows`` at their in-plane coordinates ``u, v`` (m); ``pane`` 0
+        the (single or) +e_n-side pane, 1 a double-glazed unit's -e_n-side pane."""
         a, b = self.half[rows, 0], self.half[rows, 1]
         cu, cv = np.pi / (2.0 * a), np.pi / (2.0 * b)
-        d = self.delta[rows]
+        d = self.delta[rows, pane]
         wu = -d * cu * np.sin(cu * u) * np.cos(cv * v)
         wv = -d * cv * np.cos(cu * u) * np.sin(cv * v)
-        on_v = self.wave_on_v[rows]
-        wave = self.amp * self.k * np.cos(self.k * np.where(on_v, v, u) + self.phase[rows])
+        on_v = self.wave_on_v[rows, pane]
+        wave = self.amp * self.k * np.cos(self.k * np.where(on_v, v, u) + self.phase[rows, pane])
         return wu + np.where(on_v, 0.0, wave), wv + np.where(on_v, wave, 0.0)
 
-    def normals(self, data: object, geom: np.ndarray, hit_w: np.ndarray, normals_w: np.ndarray) -> np.ndarray:
+    def normals(self, data: object, geom: np.ndarray, hit_w: np.ndarray, normals_w: np.ndarray,
+                pick: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
         """``normals_w`` with the local normal at the hits ``hit_w`` on shaped panes' faces (a copy
-        where any changes; the flat normal where the hit is on a pane's edge)."""
+        where any changes; the flat normal where the hit is on a pane's edge). At a double-glazed
+        unit the back pane (as seen from the side hit) is taken where the uniform ``pick`` is at
+        least the unit's front share (None: the front pane)."""
         g = np.asarray(geom, dtype=np.int64)
         ok = g >= 0
         rows_all = np.where(ok, self.row[np.where(ok, g, 0)], -1)
@@ -95,13 +106,16 @@ class PaneShapes:
         n_idx = np.arange(len(sel))
         u = np.clip(local[n_idx, self.u_axis[rows]], -self.half[rows, 0], self.half[rows, 0])
         v = np.clip(local[n_idx, self.v_axis[rows]], -self.half[rows, 1], self.half[rows, 1])
-        wu, wv = self.slopes(rows, u, v)
-        grad = np.zeros((len(sel), 3))
-        grad[n_idx, self.u_axis[rows]] = wu
-        grad[n_idx, self.v_axis[rows]] = wv
         e_n = R[n_idx, :, self.normal_axis[rows]]
         nrm = normals_w[sel]
         side = np.einsum("ij,ij->i", nrm, e_n)
+        back = np.zeros(len(sel), dtype=bool) if pick is None else np.asarray(pick)[sel] >= self.front_share[rows]
+        # a single pane's two faces bend together; a unit's pane on the -e_n side is pane 1
+        pane = np.where(self.front_share[rows] < 1.0, (side < 0.0) ^ back, False).astype(np.int64)
+        wu, wv = self.slopes(rows, u, v, pane)
+        grad = np.zeros((len(sel), 3))
+        grad[n_idx, self.u_axis[rows]] = wu
+        grad[n_idx, self.v_axis[rows]] = wv
         face = np.abs(side) > 0.5  # hits on a pane's edge keep their flat normal
         new = np.where(side < 0.0, -1.0, 1.0)[:, None] * (e_n - np.einsum("nij,nj->ni", R, grad))
         new /= np.linalg.norm(new, axis=1)[:, None]
@@ -111,5 +125,6 @@ class PaneShapes:
 
 
 def _draws(seed: int, name: str) -> np.ndarray:
-    """Three uniforms for a pane: bow sign, roller direction, wave phase."""
-    return np.random.default_rng([int(seed), zlib.crc32(name.encode())]).random(3)
+    """Five uniforms for a pane: bow sign, roller direction and wave phase of its (+e_n side) pane,
+    roller direction and wave phase of a double-glazed unit's other pane."""
+    return np.random.default_rng([int(seed), zlib.crc32(name.encode())]).random(5)

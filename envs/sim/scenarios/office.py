@@ -37,6 +37,7 @@ import numpy as np
 
 from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
 from exobench.models.exo_spec import ExoSpec
+from exobench.models.office_params import FACADE_GLASSES
 from exobench.models.world_params import ParamSpec
 
 from ...motion import Motion, Route, plan_walk
@@ -73,10 +74,10 @@ PARAMS: dict[str, ParamSpec] = {
     "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, or a row of windows "
                         "against a dark outside (models.office: a window-lined building)", choices=("plain", "windows")),
     "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (glass; float_glass, lowe_glass: "
-                              "Fresnel reflectance rising towards grazing incidence, models.materials)",
-                              choices=("glass", "float_glass", "lowe_glass")),
+                              "Fresnel reflectance rising towards grazing incidence; igu_float, igu_lowe: double-glazed "
+                              "units of them and a float pane; models.materials)", choices=FACADE_GLASSES),
     "partition_glass": ParamSpec("glass", None, None, "", "material of the glass partitions and glass doors (as "
-                                 "facade_glass)", choices=("glass", "float_glass", "lowe_glass")),
+                                 "facade_glass)", choices=FACADE_GLASSES),
     "glass_bow_mm_per_m": ParamSpec(0.0, 0.0, 20.0, "mm/m", "overall bow of every glass pane, centre deflection per metre "
                                     "of its diagonal (0: flat; EN 12150-1 allows 3 for toughened float glass, models.materials)"),
     "glass_roller_wave_mm": ParamSpec(0.0, 0.0, 5.0, "mm", "roller wave of every glass pane, peak-to-valley (0: none; "
