@@ -38,6 +38,34 @@ Glazing against a dark outside (the façade windows of :class:`~exobench.models.
   incidence at 905 nm [A: silver low-e coatings are made to reflect the near infrared, their
   reflectance rising from ~5 % in the visible to 30-50 % at 0.9-1 um (glazing manufacturers'
   spectra); we take the low end], transmission 0.60.
+- ``igu_float``, ``igu_lowe``: double-glazed (insulating glass) units, EN 1279, of two float panes
+  or a low-e and a float pane, their panes' reflections and transmissions combined incoherently
+  (:func:`insulating_unit`): 13.5 % at normal incidence for two float panes at 905 nm (about
+  14-15 % in the visible, where float absorbs less), transmission 0.71; low-e: 32.9 %, 0.52. A
+  unit's ghost comes from its front or back pane in proportion to their shares (0.58 / 0.42 for
+  two float panes); with bowed panes the two bow in opposite directions [A: under a climatic load
+  the cavity's gas pushes both panes out, or pulls both in (Respondek, Materials 13 (2020) 286;
+  Respondek, Kozlowski and Wisniowski, Materials 15 (2022) 2427, compute these deflections); that
+  they reach millimetres on ordinary units, as toughening bow does, is our reading].
+
+Panes that are not flat (the ``glass_bow_mm_per_m`` and ``glass_roller_wave_mm`` of the office
+scenario and :class:`~exobench.envs.sensors.lidar.LidarConfig`, modelled in
+:mod:`exobench.envs.sensors.lidar.pane_shape`; 0 = flat, the default). Glass partitions and doors
+are safety glazing, usually thermally toughened, and toughened glass leaves a horizontal furnace
+bowed and with a roller wave (Pilkington, "How is distortion in toughened glass defined?";
+ASTM C1651 measures the roll wave as peak-to-valley depth and wavelength):
+
+- overall bow: EN 12150-1 allows 0.003 mm/mm (3 mm per metre) for horizontally toughened float
+  glass, and 0.5 mm over 300 mm of local distortion (the EN 12150-1 table as a processor quotes it,
+  uniglasspolska.pl, "Ocena jakosci szkla hartowanego"). We set the centre deflection of a pane
+  held flat at its edges to ``bow * diagonal`` [A: the standard measures the bow along edges and
+  diagonals; a framed pane's edges are held];
+- roller wave: EN 12150-1:2015 added a roller-wave limit; 0.3 mm peak-to-valley for float glass
+  [A: as commonly quoted, not checked against the standard's text here; ASTM C1048 has a
+  comparable limit], wavelength 0.35 m [A: the pitch of a furnace's rollers, some 0.3-0.4 m].
+
+These are tolerance limits, the least flat a conforming pane may be: typical panes are flatter
+[A]. A single value applies to every glass pane of the building (partitions, doors, windows).
 """
 
 from __future__ import annotations
