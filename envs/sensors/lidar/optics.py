@@ -54,6 +54,10 @@ window with nothing within range (a dark outside) the crossing branch returns no
 strongest-return sensor reports the mirror image whenever it is detectable: the ghosts of a
 window-lined corridor (seeds/003 Fig. 2.2). Mirrors and polished floors keep the sampled model
 in every mode.
+
+Panes that are not flat (``GeomOptics.shape``, :mod:`exobench.envs.sensors.lidar.pane_shape`):
+beams are mirrored about the local normal of a bowed, roller-waved pane, and at a double-glazed
+unit about its front or back pane's.
 """
 
 from __future__ import annotations
