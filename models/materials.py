@@ -38,6 +38,34 @@ Glazing against a dark outside (the façade windows of :class:`~exobench.models.
   incidence at 905 nm [A: silver low-e coatings are made to reflect the near infrared, their
   reflectance rising from ~5 % in the visible to 30-50 % at 0.9-1 um (glazing manufacturers'
   spectra); we take the low end], transmission 0.60.
+- ``igu_float``, ``igu_lowe``: double-glazed (insulating glass) units, EN 1279, of two float panes
+  or a low-e and a float pane, their panes' reflections and transmissions combined incoherently
+  (:func:`insulating_unit`): 13.5 % at normal incidence for two float panes at 905 nm (about
+  14-15 % in the visible, where float absorbs less), transmission 0.71; low-e: 32.9 %, 0.52. A
+  unit's ghost comes from its front or back pane in proportion to their shares (0.58 / 0.42 for
+  two float panes); with bowed panes the two bow in opposite directions [A: under a climatic load
+  the cavity's gas pushes both panes out, or pulls both in (Respondek, Materials 13 (2020) 286;
+  Respondek, Kozlowski and Wisniowski, Materials 15 (2022) 2427, compute these deflections); that
+  they reach millimetres on ordinary units, as toughening bow does, is our reading].
+
+Panes that are not flat (the ``glass_bow_mm_per_m`` and ``glass_roller_wave_mm`` of the office
+scenario and :class:`~exobench.envs.sensors.lidar.LidarConfig`, modelled in
+:mod:`exobench.envs.sensors.lidar.pane_shape`; 0 = flat, the default). Glass partitions and doors
+are safety glazing, usually thermally toughened, and toughened glass leaves a horizontal furnace
+bowed and with a roller wave (Pilkington, "How is distortion in toughened glass defined?";
+ASTM C1651 measures the roll wave as peak-to-valley depth and wavelength):
+
+- overall bow: EN 12150-1 allows 0.003 mm/mm (3 mm per metre) for horizontally toughened float
+  glass, and 0.5 mm over 300 mm of local distortion (the EN 12150-1 table as a processor quotes it,
+  uniglasspolska.pl, "Ocena jakosci szkla hartowanego"). We set the centre deflection of a pane
+  held flat at its edges to ``bow * diagonal`` [A: the standard measures the bow along edges and
+  diagonals; a framed pane's edges are held];
+- roller wave: EN 12150-1:2015 added a roller-wave limit; 0.3 mm peak-to-valley for float glass
+  [A: as commonly quoted, not checked against the standard's text here; ASTM C1048 has a
+  comparable limit], wavelength 0.35 m [A: the pitch of a furnace's rollers, some 0.3-0.4 m].
+
+These are tolerance limits, the least flat a conforming pane may be: typical panes are flatter
+[A]. A single value applies to every glass pane of the building (partitions, doors, windows).
 """
 
 from __future__ import annotations
@@ -57,7 +85,23 @@ class LidarMaterial:
     transmission: float = 0.0
     specular: float = 0.0
     refractive_index: float = 0.0
+    front_share: float = 1.0  # insulating glass: share of ``specular`` the front pane reflects (the rest the back pane)
 
+
+def insulating_unit(name: str, front: LidarMaterial, back: LidarMaterial) -> LidarMaterial:
+    """A double-glazed unit of two panes at normal incidence, their reflections and transmissions
+    combined incoherently (the multiple reflections between the panes summed, as for the two faces
+    of one pane): ``R = R1 + T1^2 R2 / (1 - R1 R2)``, ``T = T1 T2 / (1 - R1 R2)``; the front pane's
+    share of ``R`` is ``R1 / R``. Its own echo and index are the front pane's."""
+    r1, t1, r2, t2 = front.specular, front.transmission, back.specular, back.transmission
+    k = 1.0 - r1 * r2
+    r = r1 + t1 * t1 * r2 / k
+    return LidarMaterial(name, front.reflectivity, "glass", transmission=t1 * t2 / k, specular=r,
+                         refractive_index=front.refractive_index, front_share=r1 / r)  # fmt: skip
+
+
+_FLOAT = LidarMaterial("float_glass", 0.001, "glass", transmission=0.84, specular=0.079, refractive_index=1.51)
+_LOWE = LidarMaterial("lowe_glass", 0.001, "glass", transmission=0.60, specular=0.30, refractive_index=1.51)
 
 MATERIALS: dict[str, LidarMaterial] = {
     m.name: m
@@ -75,8 +119,10 @@ MATERIALS: dict[str, LidarMaterial] = {
         LidarMaterial("glass", 0.05, "glass", transmission=0.85, specular=0.1),
         LidarMaterial("mirror", 0.05, "mirror", specular=0.95),
         LidarMaterial("retroreflector", 0.9, "retro"),
-        LidarMaterial("float_glass", 0.001, "glass", transmission=0.84, specular=0.079, refractive_index=1.51),
-        LidarMaterial("lowe_glass", 0.001, "glass", transmission=0.60, specular=0.30, refractive_index=1.51),
+        _FLOAT,
+        _LOWE,
+        insulating_unit("igu_float", _FLOAT, _FLOAT),
+        insulating_unit("igu_lowe", _LOWE, _FLOAT),
     )
 }
 

@@ -31,7 +31,7 @@ OFFICE_MIN_WIDTH_M = 2.4  # narrowest cellular office [A: a desk, a chair and a 
 ROOM_DEPTH_SPARE_M = 0.6  # room depth beyond the open door leaf, to step past it
 
 FACADES = ("plain", "windows")
-FACADE_GLASSES = ("glass", "float_glass", "lowe_glass")
+FACADE_GLASSES = ("glass", "float_glass", "lowe_glass", "igu_float", "igu_lowe")
 FACADE_BAY_M = 1.5  # façade window bays: a window 1.2 m wide and a 0.3 m pier [A: typical ribbon glazing]
 FACADE_PIER_M = 0.3
 
@@ -53,7 +53,8 @@ OFFICE_PARAMS: dict[str, ParamSpec] = {
                         "windows along the south, west and east walls, as in a window-lined building)",
                         choices=FACADES),
     "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (models.materials: glass, "
-                              "float_glass: Fresnel float glass, lowe_glass: coated low-e glazing)",
+                              "float_glass: Fresnel float glass, lowe_glass: coated low-e glazing; igu_float, igu_lowe: "
+                              "double-glazed units of them and a float pane)",
                               choices=FACADE_GLASSES),
     "partition_glass": ParamSpec("glass", None, None, "", "material of the glass partitions and glass door leaves "
                                  "(as facade_glass)", choices=FACADE_GLASSES),

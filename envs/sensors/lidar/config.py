@@ -76,6 +76,14 @@ class LidarConfig:
         return_mode: the echo reported when a pulse splits at glass (:mod:`~exobench.envs.sensors.lidar.optics`):
             ``"sampled"`` (one path drawn per beam), ``"strongest"`` (the VLP-16 manual's
             default) or ``"last"``.
+        glass_bow_mm_per_m: overall bow of every glass pane, centre deflection in mm per metre
+            of the pane's diagonal (:mod:`~exobench.envs.sensors.lidar.pane_shape`; 0 = flat;
+            EN 12150-1 allows 3 for horizontally toughened float glass, see
+            :mod:`exobench.models.materials`).
+        glass_roller_wave_mm: roller wave of every glass pane, peak-to-valley, mm (0 = none).
+        glass_roller_wave_length_m: the roller wave's wavelength, m [A: 0.35, the furnace's roll pitch].
+        glass_shape_seed: seed of each pane's bow sign, roller direction and wave phase (a
+            property of the building: the office's seed, not the run's).
     """
 
     pattern: LidarPattern = field(default_factory=LidarPattern.vlp16)
@@ -103,6 +111,10 @@ class LidarConfig:
     zoned_cast: bool = True
     materials: tuple[LidarMaterial, ...] = ()
     return_mode: str = "sampled"
+    glass_bow_mm_per_m: float = 0.0
+    glass_roller_wave_mm: float = 0.0
+    glass_roller_wave_length_m: float = 0.35
+    glass_shape_seed: int = 0
 
     def __post_init__(self) -> None:
         if not isinstance(self.pattern, LidarPattern):
@@ -137,6 +149,15 @@ class LidarConfig:
         object.__setattr__(self, "materials", mats)
         if self.return_mode not in RETURN_MODES:
             raise ConfigError("lidar.return_mode", self.return_mode, " or ".join(RETURN_MODES))
+        check_range("lidar.glass_bow_mm_per_m", self.glass_bow_mm_per_m, 0.0, 20.0)
+        check_range("lidar.glass_roller_wave_mm", self.glass_roller_wave_mm, 0.0, 5.0)
+        check_range("lidar.glass_roller_wave_length_m", self.glass_roller_wave_length_m, 0.0, 10.0, low_open=True)
+        object.__setattr__(self, "glass_shape_seed", check_int("lidar.glass_shape_seed", self.glass_shape_seed, 0, 2**31 - 1))
+
+    @property
+    def glass_shaped(self) -> bool:
+        """Whether any pane is not flat (``glass_bow_mm_per_m`` or ``glass_roller_wave_mm`` above 0)."""
+        return self.glass_bow_mm_per_m > 0.0 or self.glass_roller_wave_mm > 0.0
 
     @property
     def rate_hz(self) -> float:

@@ -29,6 +29,7 @@ truth entry stays (the beam's true hit) with kind ``ReturnKind.NAN``. The faults
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -39,6 +40,7 @@ from .cast import RayCaster
 from .config import LidarConfig
 from .labels import SurfaceTable, label_surfaces
 from .optics import (
+    KIND_CODE,
     RETRO_CODE,
     EchoChoice,
     GeomOptics,
@@ -47,6 +49,7 @@ from .optics import (
     intensity_byte,
     return_signal,
 )
+from .pane_shape import PaneShapes
 from .pattern import RayTable
 
 PoseFn = Callable[[np.ndarray], np.ndarray]
@@ -128,7 +131,7 @@ class LidarSensor:
         origins_w, dirs_w = _rays_in_world(T, np.diff(bounds), rays.dirs_s)
         gid, dist, nrm = self.caster.cast(model, data, rays, origins_w, dirs_w)
 
-        optics = self._optics(truth)
+        optics = self._optics(model, truth)
         beams = follow_beams(
             model, data, self.group, origins_w, dirs_w, gid, dist, nrm.reshape(-1, 3), optics, u_opt,
             glass=c.glass, mirrors=c.mirrors, echo=self._echo,
@@ -187,9 +190,16 @@ class LidarSensor:
             self._surface_cache = (truth, SurfaceTable.build(truth, self.geom_names))
         return self._surface_cache[1]
 
-    def _optics(self, truth: SceneTruth) -> GeomOptics:
+    def _optics(self, model: object, truth: SceneTruth) -> GeomOptics:
         if self._optics_cache is None or self._optics_cache[0] is not truth:
-            self._optics_cache = (truth, geom_optics(self.geom_names, truth, self.config.material_overrides()))
+            optics = geom_optics(self.geom_names, truth, self.config.material_overrides())
+            c = self.config
+            if c.glass_shaped:
+                shape = PaneShapes(model, self.geom_names, optics.kind == KIND_CODE["glass"], 1e-3 * c.glass_bow_mm_per_m,
+                                   1e-3 * c.glass_roller_wave_mm, c.glass_roller_wave_length_m, c.glass_shape_seed,
+                                   optics.front_share)  # fmt: skip
+                optics = replace(optics, shape=shape)
+            self._optics_cache = (truth, optics)
         return self._optics_cache[1]
 
 

@@ -54,6 +54,10 @@ window with nothing within range (a dark outside) the crossing branch returns no
 strongest-return sensor reports the mirror image whenever it is detectable: the ghosts of a
 window-lined corridor (seeds/003 Fig. 2.2). Mirrors and polished floors keep the sampled model
 in every mode.
+
+Panes that are not flat (``GeomOptics.shape``, :mod:`exobench.envs.sensors.lidar.pane_shape`):
+beams are mirrored about the local normal of a bowed, roller-waved pane, and at a double-glazed
+unit about its front or back pane's.
 """
 
 from __future__ import annotations
@@ -65,6 +69,8 @@ import numpy as np
 
 from exobench.core import ReturnKind, SceneTruth
 from exobench.models.materials import DEFAULT_MATERIAL, KINDS, LidarMaterial, material
+
+from .pane_shape import PaneShapes
 
 KIND_CODE = {k: i for i, k in enumerate(KINDS)}  # diffuse 0, glass 1, mirror 2, retro 3
 _GLASS, _MIRROR, _RETRO = KIND_CODE["glass"], KIND_CODE["mirror"], KIND_CODE["retro"]
@@ -81,6 +87,8 @@ class GeomOptics:
     transmission: np.ndarray
     specular: np.ndarray
     refractive_index: np.ndarray  # 0: fixed shares; > 0: glazing, shares by Fresnel (pane_split)
+    front_share: np.ndarray  # < 1: a double-glazed unit, share of the reflection from its front pane
+    shape: PaneShapes | None = None  # panes that are not flat (pane_shape); None: every pane flat
 
 
 def geom_optics(geom_names: list[str], truth: SceneTruth, overrides: Mapping[str, LidarMaterial]) -> GeomOptics:
@@ -97,6 +105,7 @@ def geom_optics(geom_names: list[str], truth: SceneTruth, overrides: Mapping[str
         np.array([m.transmission for m in mats]),
         np.array([m.specular for m in mats]),
         np.array([m.refractive_index for m in mats]),
+        np.array([m.front_share for m in mats]),
     )
 
 
@@ -167,6 +176,7 @@ def follow_beams(
     geom[~hit] = -1
     path = np.where(hit, dist, np.nan)
     hit_w = origins_w + np.where(hit, dist, 0.0)[:, None] * dirs_w
+    normals_w = _local_normals(optics, data, geom, hit_w, normals_w, u[:, 0] if u.shape[1] else None)
     cos_inc = np.abs(np.einsum("ij,ij->i", normals_w, dirs_w))
     via = np.full(n, -1, dtype=np.int64)
     gain = np.ones(n)
@@ -231,6 +241,7 @@ def _split_first(
         o, r, gi, nn = _leave(model, data, geomgroup, hit_w, d, geom, np.full(n, mirrored))
         lost = (r < 0.0) | (gi < 0)
         q = o + np.where(lost, 0.0, r)[:, None] * d
+        nn = _local_normals(optics, data, gi, q, nn, u[:, 0] if u.shape[1] else None)
         p2 = np.where(lost, np.nan, path + np.linalg.norm(q - hit_w, axis=1))
         g2 = np.where(lost, -1, gi)
         g_f, path_f, hit_f, kind_f, via_f, gain_f, cos_f = _follow(
@@ -306,6 +317,7 @@ def _follow(
         gain[act] *= np.where(m, S[act], T[act]) ** 2  # out and back by the same bounce / crossing
         lost = (r < 0.0) | (gi < 0)
         q = o + np.where(lost, 0.0, r)[:, None] * d
+        nn = _local_normals(optics, data, gi, q, nn, u[act, j + 1] if j + 1 < u.shape[1] else None)
         path[act] = np.where(lost, np.nan, path[act] + np.linalg.norm(q - p, axis=1))
         geom[act] = np.where(lost, -1, gi)
         hit_w[act], d_cur[act], n_cur[act] = q, d, nn
@@ -317,6 +329,17 @@ def _follow(
     kind[reflected] = ReturnKind.GHOST
     cos_inc = np.abs(np.einsum("ij,ij->i", n_cur, d_cur))
     return geom, path, hit_w, kind, via, gain, cos_inc
+
+
+def _local_normals(optics: GeomOptics, data: object, geom: np.ndarray, hit_w: np.ndarray, normals_w: np.ndarray,
+                   u_next: np.ndarray | None) -> np.ndarray:  # fmt: skip
+    """The surface normals at the hits, bent where a pane is not flat (``optics.shape``); at a
+    double-glazed unit the front or back pane's, drawn from the low bits of the draw ``u_next`` of
+    the beam's next event (``frac(1024 u)``: uniform, and independent of the event's own decision)."""
+    if optics.shape is None:
+        return normals_w
+    pick = None if u_next is None else np.mod(1024.0 * u_next, 1.0)
+    return optics.shape.normals(data, geom, hit_w, normals_w, pick)
 
 
 def _leave(

@@ -37,6 +37,7 @@ import numpy as np
 
 from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
 from exobench.models.exo_spec import ExoSpec
+from exobench.models.office_params import FACADE_GLASSES
 from exobench.models.world_params import ParamSpec
 
 from ...motion import Motion, Route, plan_walk
@@ -73,10 +74,14 @@ PARAMS: dict[str, ParamSpec] = {
     "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, or a row of windows "
                         "against a dark outside (models.office: a window-lined building)", choices=("plain", "windows")),
     "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (glass; float_glass, lowe_glass: "
-                              "Fresnel reflectance rising towards grazing incidence, models.materials)",
-                              choices=("glass", "float_glass", "lowe_glass")),
+                              "Fresnel reflectance rising towards grazing incidence; igu_float, igu_lowe: double-glazed "
+                              "units of them and a float pane; models.materials)", choices=FACADE_GLASSES),
     "partition_glass": ParamSpec("glass", None, None, "", "material of the glass partitions and glass doors (as "
-                                 "facade_glass)", choices=("glass", "float_glass", "lowe_glass")),
+                                 "facade_glass)", choices=FACADE_GLASSES),
+    "glass_bow_mm_per_m": ParamSpec(0.0, 0.0, 20.0, "mm/m", "overall bow of every glass pane, centre deflection per metre "
+                                    "of its diagonal (0: flat; EN 12150-1 allows 3 for toughened float glass, models.materials)"),
+    "glass_roller_wave_mm": ParamSpec(0.0, 0.0, 5.0, "mm", "roller wave of every glass pane, peak-to-valley (0: none; "
+                                      "toughened glass, models.materials)"),
     "route": ParamSpec("corridor", None, None, "", "office route walked (loop: every office and two laps, "
                        "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor)",
                        choices=ROUTES),
@@ -133,7 +138,9 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
                            dropout_prob=self.lidar_scan_dropout, point_dropout_prob=self.lidar_point_dropout,
                            nan_point_prob=self.lidar_nan_points, duplicate_prob=self.lidar_duplicate_scans,
                            out_of_order_prob=self.lidar_out_of_order, time_jump_prob=self.lidar_time_jump_prob,
-                           time_jump_s=self.lidar_time_jump_s, return_mode=self.lidar_return)  # fmt: skip
+                           time_jump_s=self.lidar_time_jump_s, return_mode=self.lidar_return,
+                           glass_bow_mm_per_m=self.glass_bow_mm_per_m, glass_roller_wave_mm=self.glass_roller_wave_mm,
+                           glass_shape_seed=self.office_seed)  # fmt: skip
 
     def rig(self) -> Rig:
         """Encoders, trunk IMU, insoles and the trunk LiDAR, plus ``extra_sensors``."""
