@@ -35,7 +35,6 @@ corridor, so it passes all of them.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -61,17 +60,24 @@ from .office_params import (
     DOOR_HEIGHT_M,
     DOOR_JAMB_M,
     EXT_WALL_T_M,
-    FACADE_BAY_M,
-    FACADE_PIER_M,
     GLASS_LEAF_T_M,
     MULLION_M,
     WALL_T_M,
     WOOD_LEAF_T_M,
     OfficeParams,
 )
+from .office_walls import (
+    WINDOW_HEAD_M,
+    WINDOW_SILL_M,
+    Names,
+    box,
+    door_leaf,
+    facade_walls,
+    glass_partition,
+    plaster_wall,
+    translation,
+)
 
-MAX_PANE_M = 1.2  # widest glass pane between mullions [A]
-WINDOW_SILL_M, WINDOW_HEAD_M = 0.9, 2.2  # [A]
 VISIT_M = 1.5  # how far a route walks into a room past its door
 ROUTE_KEEPOUT_M = 0.5  # furniture keeps this far from a route
 
@@ -90,157 +96,7 @@ class Layout:
     extent: Rect  # outside of the exterior walls
 
 
-class _Names:
-    def __init__(self) -> None:
-        self.counts: dict[str, int] = {}
-
-    def __call__(self, prefix: str) -> str:
-        k = self.counts.get(prefix, 0)
-        self.counts[prefix] = k + 1
-        return f"{prefix}{k}"
-
-
-def _box(name: str, lo: tuple[float, float, float], hi: tuple[float, float, float], material: str, look: str,
-         kind: str) -> Solid:
-    return Solid(name, "box", tuple(0.5 * (a + b) for a, b in zip(lo, hi)), tuple(0.5 * (b - a) for a, b in zip(lo, hi)),
-                 material, look, kind)
-
-
-def _along(axis: int, u0: float, u1: float, w0: float, w1: float, z0: float, z1: float) -> tuple[tuple, tuple]:
-    """lo, hi of a box spanning u along ``axis`` (0: x, 1: y) and w across it."""
-    if axis == 0:
-        return (u0, w0, z0), (u1, w1, z1)
-    return (w0, u0, z0), (w1, u1, z1)
-
-
-def plaster_wall(name: str, axis: int, u0: float, u1: float, w0: float, w1: float, height: float,
-                 openings: list[tuple[float, float, float, float]]) -> list[Solid]:
-    """A plaster wall from u0 to u1 along ``axis``, w0..w1 thick, with openings (u0, u1, z0, z1)."""
-    out: list[Solid] = []
-    u = u0
-    parts: list[tuple[float, float, float, float]] = []
-    for a, b, z0, z1 in sorted(openings):
-        if a > u:
-            parts.append((u, a, 0.0, height))
-        if z0 > 0.0:
-            parts.append((a, b, 0.0, z0))
-        if z1 < height:
-            parts.append((a, b, z1, height))
-        u = b
-    if u < u1:
-        parts.append((u, u1, 0.0, height))
-    for i, (a, b, z0, z1) in enumerate(parts):
-        lo, hi = _along(axis, a, b, w0, w1, z0, z1)
-        out.append(_box(f"{name}_{i}", lo, hi, "plaster", "world_plaster", "wall"))
-    return out
-
-
-def glass_partition(name: str, axis: int, u0: float, u1: float, w_mid: float, height: float, glass_t: float,
-                    door: tuple[float, float] | None, material: str = "glass") -> tuple[list[Solid], list[str]]:
-    """Glass panes between square mullions from u0 to u1, centred on w_mid; a door opening (a, b)
-    gets jamb mullions, a head rail at the door height and a glass transom. Returns solids and pane names."""
-    m, gh = MULLION_M, 0.5 * glass_t
-    w0, w1 = w_mid - m / 2, w_mid + m / 2
-    posts = [(u0, u0 + m)]
-    spans: list[tuple[float, float, float]] = []  # (u0, u1, z0) of each pane
-    if door is not None:
-        posts += [(door[0] - m, door[0]), (door[1], door[1] + m)]
-    posts.append((u1 - m, u1))
-    posts.sort()
-    solids: list[Solid] = []
-    panes: list[str] = []
-    frames: list[tuple[float, float]] = list(posts)
-    for (_, a), (b, _) in zip(posts, posts[1:]):
-        if door is not None and abs(a - door[0]) < 1e-12:
-            continue  # the door opening itself
-        if b - a < 0.2:  # too narrow for a pane: a wide aluminium profile instead
-            frames.append((a, b))
-            continue
-        n = math.ceil((b - a) / MAX_PANE_M - 1e-9)
-        pw = (b - a - (n - 1) * m) / n
-        for k in range(n):
-            s0 = a + k * (pw + m)
-            spans.append((s0, s0 + pw, 0.0))
-            if k:
-                frames.append((s0 - m, s0))
-    for i, (a, b) in enumerate(sorted(frames)):
-        lo, hi = _along(axis, a, b, w0, w1, 0.0, height)
-        solids.append(_box(f"{name}_mullion{i}", lo, hi, "metal", "office_metal", "frame"))
-    if door is not None:
-        lo, hi = _along(axis, door[0], door[1], w0, w1, DOOR_HEIGHT_M, DOOR_HEIGHT_M + m)
-        solids.append(_box(f"{name}_head", lo, hi, "metal", "office_metal", "frame"))
-        if height - DOOR_HEIGHT_M - m > 0.05:
-            spans.append((door[0], door[1], DOOR_HEIGHT_M + m))
-    for i, (a, b, z0) in enumerate(spans):
-        lo, hi = _along(axis, a, b, w_mid - gh, w_mid + gh, z0, height)
-        pane = f"{name}_pane{i}"
-        solids.append(_box(pane, lo, hi, material, "office_glass", "glass"))
-        panes.append(pane)
-    return solids, panes
-
-
-def _bays(u0: float, u1: float) -> list[tuple[float, float]]:
-    """Window openings (a, b) of a row of façade bays from u0 to u1, a pier at both ends."""
-    n = int((u1 - u0 - FACADE_PIER_M) // FACADE_BAY_M)
-    if n < 1:
-        return []
-    w = (u1 - u0 - (n + 1) * FACADE_PIER_M) / n
-    return [(u0 + FACADE_PIER_M + k * (w + FACADE_PIER_M), u0 + (k + 1) * (w + FACADE_PIER_M)) for k in range(n)]
-
-
-def facade_walls(p: OfficeParams, names: _Names, objects: list[dict], office_y: tuple[float, float]) -> list[Solid]:
-    """South, west and east exterior walls with a row of windows (``facade="windows"``) along the
-    corridors: windows of ``p.facade_glass`` between plaster piers, sill and head as the offices'
-    windows, nothing outside (a dark outside). The west and east walls keep no windows along the
-    offices (``office_y``: y from the north corridor's partition to the exterior wall)."""
-    X, C, te, t = p.corridor_length_m, p.ceiling_m, EXT_WALL_T_M, p.glass_thickness_m
-    head = min(WINDOW_HEAD_M, C - 0.25)
-    out: list[Solid] = []
-    # (name, axis, wall from u0 to u1, w0..w1 thick, glazed from g0 to g1, yaw of the window frames:
-    # x along the window, y outwards as the north windows')
-    walls = [("wall_ext_s", 0, 0.0, X, -te, 0.0, 0.0, X, math.pi),
-             ("wall_ext_w", 1, -te, office_y[1] + te, -te, 0.0, 0.0, office_y[0], 0.5 * math.pi),
-             ("wall_ext_e", 1, -te, office_y[1] + te, X, X + te, 0.0, office_y[0], -0.5 * math.pi)]
-    for wname, axis, u0, u1, w0, w1, g0, g1, yaw in walls:
-        bays = _bays(g0, g1)
-        out += plaster_wall(wname, axis, u0, u1, w0, w1, C, [(a, b, WINDOW_SILL_M, head) for a, b in bays])
-        wm = 0.5 * (w0 + w1)
-        for a, b in bays:
-            name = names("window")
-            lo, hi = _along(axis, a, b, wm - t / 2, wm + t / 2, WINDOW_SILL_M, head)
-            out.append(_box(name, lo, hi, p.facade_glass, "office_glass", "glass"))
-            c = 0.5 * (a + b)
-            T = _T(c, wm, WINDOW_SILL_M) if axis == 0 else _T(wm, c, WINDOW_SILL_M)
-            cy, sy = round(math.cos(yaw), 12) + 0.0, round(math.sin(yaw), 12) + 0.0
-            T[0][:2], T[1][:2] = [cy, 0.0 - sy], [sy, cy]
-            objects.append({"name": name, "class": "window", "T_world_object": T, "size_m": [b - a, t, head - WINDOW_SILL_M],
-                            "geom_names": [name]})
-    return out
-
-
-def _door_leaf(name: str, glass: bool, hinge_u: float, leaf_dir: int, face_w: float, into: int, opening: float,
-               axis: int = 0, glass_material: str = "glass") -> tuple[Solid, dict]:
-    """An open leaf hinged at ``hinge_u`` (the jamb), lying across the wall into the room.
-
-    ``leaf_dir`` (+1/-1): the side of the hinge the leaf thickness lies on (into the opening);
-    ``into`` (+1/-1): the direction from the wall face ``face_w`` into the room.
-    """
-    t = GLASS_LEAF_T_M if glass else WOOD_LEAF_T_M
-    ua, ub = sorted((hinge_u, hinge_u + leaf_dir * t))
-    wa, wb = sorted((face_w, face_w + into * opening))
-    lo, hi = _along(axis, ua, ub, wa, wb, 0.0, DOOR_HEIGHT_M - 0.01)
-    mat, look, kind = (glass_material, "office_glass", "glass") if glass else ("wood", "office_wood", "door")
-    s = _box(name, lo, hi, mat, look, kind)
-    # object frame: x along the leaf (into the room), y its normal, origin at the bottom centre
-    c = s.centre
-    R = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]] if into > 0 else [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
-    T = [R[0] + [c[0]], R[1] + [c[1]], R[2] + [0.0], [0.0, 0.0, 0.0, 1.0]]
-    obj = {"name": name, "class": "door", "T_world_object": T, "size_m": [opening, t, DOOR_HEIGHT_M - 0.01],
-           "geom_names": [name], "glass": glass}
-    return s, obj
-
-
-def _place_groups(rng: np.random.Generator, names: _Names, room: Rect, room_name: str, density: float,
+def _place_groups(rng: np.random.Generator, names: Names, room: Rect, room_name: str, density: float,
                   candidates: list[tuple[Callable[[np.random.Generator], Group], bool]], keepouts: list[Rect]) -> tuple[list[Solid], list[dict]]:
     solids: list[Solid] = []
     objects: list[dict] = []
@@ -272,7 +128,7 @@ def _plane(name: str, rect: Rect, z: float, up: bool, material: str, look: str, 
 def build_layout(p: OfficeParams) -> Layout:
     """Lay out the whole floor from validated parameters; deterministic in ``p`` (incl. its seed)."""
     rng = np.random.default_rng(p.seed)
-    names = _Names()
+    names = Names()
     W, X, D, C, t, te = p.corridor_width_m, p.corridor_length_m, p.room_depth_m, p.ceiling_m, WALL_T_M, EXT_WALL_T_M
     dw, n = p.door_width_m, p.n_offices
     # y of the slots and areas, south to north
@@ -331,9 +187,9 @@ def build_layout(p: OfficeParams) -> Layout:
     if p.facade == "windows":
         solids += facade_walls(p, names, objects, (yn1, yo1))
     else:
-        solids.append(_box("wall_ext_w", (-te, -te, 0.0), (0.0, yo1 + te, C), "plaster", "world_plaster", "wall"))
-        solids.append(_box("wall_ext_e", (X, -te, 0.0), (X + te, yo1 + te, C), "plaster", "world_plaster", "wall"))
-        solids.append(_box("wall_ext_s", (0.0, -te, 0.0), (X, 0.0, C), "plaster", "world_plaster", "wall"))
+        solids.append(box("wall_ext_w", (-te, -te, 0.0), (0.0, yo1 + te, C), "plaster", "world_plaster", "wall"))
+        solids.append(box("wall_ext_e", (X, -te, 0.0), (X + te, yo1 + te, C), "plaster", "world_plaster", "wall"))
+        solids.append(box("wall_ext_s", (0.0, -te, 0.0), (X, 0.0, C), "plaster", "world_plaster", "wall"))
     windows = []
     if p.windows:
         head = min(WINDOW_HEAD_M, C - 0.25)
@@ -345,14 +201,14 @@ def build_layout(p: OfficeParams) -> Layout:
     for u0, u1, z0, z1 in windows:
         name = names("window")
         ym = yo1 + te / 2
-        solids.append(_box(name, (u0, ym - p.glass_thickness_m / 2, z0), (u1, ym + p.glass_thickness_m / 2, z1),
+        solids.append(box(name, (u0, ym - p.glass_thickness_m / 2, z0), (u1, ym + p.glass_thickness_m / 2, z1),
                            p.facade_glass, "office_glass", "glass"))
-        objects.append({"name": name, "class": "window", "T_world_object": _T(0.5 * (u0 + u1), ym, z0),
+        objects.append({"name": name, "class": "window", "T_world_object": translation(0.5 * (u0 + u1), ym, z0),
                         "size_m": [u1 - u0, p.glass_thickness_m, z1 - z0], "geom_names": [name]})
-    solids.append(_box("core", (W, W, 0.0), (xm0, yn0, C), "plaster", "world_plaster", "wall"))
-    solids.append(_box("wall_meeting_e", (xm1, W, 0.0), (X - W, yn0, C), "plaster", "world_plaster", "wall"))
+    solids.append(box("core", (W, W, 0.0), (xm0, yn0, C), "plaster", "world_plaster", "wall"))
+    solids.append(box("wall_meeting_e", (xm1, W, 0.0), (X - W, yn0, C), "plaster", "world_plaster", "wall"))
     for k in range(n - 1):
-        solids.append(_box(f"wall_side{k}", (ox[k][1], yn1, 0.0), (ox[k + 1][0], yo1, C), "plaster", "world_plaster", "wall"))
+        solids.append(box(f"wall_side{k}", (ox[k][1], yn1, 0.0), (ox[k + 1][0], yo1, C), "plaster", "world_plaster", "wall"))
 
     def partition(idx: int, name: str, u0: float, u1: float, slot: tuple[float, float], clear0: float, hinge_west: bool,
                   into: int) -> tuple[list[Solid], float, float, tuple[float, float]]:
@@ -365,14 +221,14 @@ def build_layout(p: OfficeParams) -> Layout:
         if is_glass:
             s, panes = glass_partition(name, 0, u0, u1, mid, C, p.glass_thickness_m, opening, p.partition_glass)
             gname = names("glass_partition")
-            objects.append({"name": gname, "class": "glass_partition", "T_world_object": _T(0.5 * (u0 + u1), mid, 0.0),
+            objects.append({"name": gname, "class": "glass_partition", "T_world_object": translation(0.5 * (u0 + u1), mid, 0.0),
                             "size_m": [u1 - u0, MULLION_M, C], "geom_names": [g.name for g in s]})
             face = mid + into * MULLION_M / 2
         else:
             s = plaster_wall(name, 0, u0, u1, slot[0], slot[1], C, [(opening[0], opening[1], 0.0, DOOR_HEIGHT_M)])
             face = slot[1] if into > 0 else slot[0]
         hinge = opening[0] if hinge_west else opening[1]
-        leaf, obj = _door_leaf(names("door"), is_glass, hinge, 1 if hinge_west else -1, face, into, opening[1] - opening[0],
+        leaf, obj = door_leaf(names("door"), is_glass, hinge, 1 if hinge_west else -1, face, into, opening[1] - opening[0],
                                glass_material=p.partition_glass)
         objects.append(obj)
         return s + [leaf], face, hinge, opening
@@ -443,7 +299,3 @@ def build_layout(p: OfficeParams) -> Layout:
 def _first(order: np.ndarray, item: int) -> np.ndarray:
     """``order`` with ``item`` moved to the front (the other items keep their order)."""
     return np.concatenate([[item], order[order != item]])
-
-
-def _T(x: float, y: float, z: float) -> list[list[float]]:
-    return [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]]
