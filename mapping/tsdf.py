@@ -53,7 +53,7 @@ Ray casting (II-F, [19])
    trilinearly interpolated from a dense copy of the blocks in view, converges to the zero
    crossing of the trilinear field in one or two steps (``refine_steps`` = 2). No step where a
    corner voxel is unobserved or the value is saturated (outside the truncation band).
-Measured on the analytic staircases of tests/test_mapping_tsdf.py (one noise-free frame, away
+Measured on the analytic staircases of tests/mapping/test_mapping_tsdf.py (one noise-free frame, away
 from edges): median |error| 0.5-0.8 mm, 99th percentile < 1.5 cm (grazing far treads), versus
 ~1 cm RMS without step 2; planes extracted from the ray cast of 6 noisy frames (sigma 1 cm)
 are within 1.5 deg and 0.3 mm of the true treads and risers. A voxel needs

@@ -2,7 +2,7 @@
 
 All three are generated from one :class:`~exobench.models.exo_spec.ExoSpec` and one body table
 (:func:`body_table`), so MuJoCo's kinematics, pinocchio's (from :func:`exo_urdf`) and the sensor
-mounts of :func:`exo_calibration` agree by construction; ``tests/test_models_exo.py`` checks it.
+mounts of :func:`exo_calibration` agree by construction; ``tests/models/test_models_exo.py`` checks it.
 See ``models/README.md`` for sources, frames and joint signs.
 """
 

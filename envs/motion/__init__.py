@@ -1,6 +1,6 @@
 """How the exoskeleton moves: leg kinematics, then swings, then climbing and walking.
 
-The modules import in one direction only (a test checks it, tests/test_envs_motion_layers.py):
+The modules import in one direction only (a test checks it, tests/envs/test_envs_motion_layers.py):
 
 1. :mod:`.kinematics` (leg IK/FK within the joint limits, the sole footprint, double-stance
    pelvis poses) and :mod:`.route` (what the walker is asked to walk);

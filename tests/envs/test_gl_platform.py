@@ -5,7 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 TINY = ["--set", "width_px=64", "--set", "height_px=48", "--set", "rate_hz=5", "--set", "duration_cap_s=3"]
 
 

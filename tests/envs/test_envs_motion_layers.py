@@ -5,7 +5,7 @@ walking, then the locomotion track's additions. A module may import only modules
 import ast
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MOTION = ROOT / "envs" / "motion"
 PACKAGE = "exobench.envs.motion"
 LAYERS = (

@@ -254,7 +254,7 @@ def test_dropout_latency_and_unknown_camera():
 
 
 def _run(script, env):
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     return subprocess.run([sys.executable, "-c", script], env=env, cwd=root, capture_output=True, text=True, timeout=120)
 
 
