@@ -12,6 +12,12 @@ Details:
   is the LiDAR at ``sweep_start_s + max(time_offset_s)`` and that is the stamp stored. With
   ``deskew=False`` the scan is taken as instantaneous and stamped ``sweep_start_s``.
 - ``voxel_size_m = 0`` takes kiss-icp's own default (``max_range_m / 100``).
+- ``downsample``: ``"double"`` is kiss-icp as released (the scan voxelised at half the voxel size
+  for the map, that again at 1.5 voxels for registration); ``"single"`` registers the half-voxel
+  scan itself, the authors' fix for 16-beam LiDARs, whose double-downsampled scans keep too few
+  points (kiss-icp issues #128 and #240, ``voxelize`` returning ``frame_downsample`` twice). Table
+  5.4 of seeds/003 ran KISS-ICP this way ("remove one of the two downsampling filters ... as the
+  authors suggested", section 5.2.2).
 - ``filter``: the intensity filter stage run before odometry, as Table 5.4 does
   (:class:`~exobench.perception.lidar_filter.FilterStageConfig`: ``filter.kind`` is ``"none"``
   (default), ``"threshold"``, ``"naive-ground"``, ``"normal-ground"`` or ``"floor-ground"``,
@@ -45,6 +51,8 @@ from exobench.core.limits import RangeLimits, scrub_points
 from exobench.core.pipeline import check_frame
 from exobench.perception.lidar_filter.config import FilterStageConfig
 
+DOWNSAMPLE = ("double", "single")
+
 __all__ = ["KissConfig", "KissIcpPipeline", "KissOdometry", "run_kiss_icp"]
 
 
@@ -55,6 +63,7 @@ class KissConfig:
     Attributes:
         max_range_m / min_range_m: ``data.max_range`` / ``data.min_range``, m.
         voxel_size_m: ``mapping.voxel_size``, m (0: ``max_range_m / 100``, kiss-icp's default).
+        downsample: ``"double"`` (kiss-icp as released) or ``"single"`` (module docstring).
         deskew: ``data.deskew``.
         max_points_per_voxel: ``mapping.max_points_per_voxel``.
         max_threads: ``registration.max_num_threads`` (0 = automatic).
@@ -66,6 +75,7 @@ class KissConfig:
     max_range_m: float = 100.0
     min_range_m: float = 0.3
     voxel_size_m: float = 0.0
+    downsample: str = "double"
     deskew: bool = True
     max_points_per_voxel: int = 20
     max_threads: int = 1
@@ -79,6 +89,8 @@ class KissConfig:
         check_range("voxel_size_m", self.voxel_size_m, 0.0, 10.0)
         for name, lo, hi in (("max_points_per_voxel", 1, 1000), ("max_threads", 0, 64), ("min_points", 1, 10**6)):
             object.__setattr__(self, name, check_int(name, getattr(self, name), lo, hi))
+        if self.downsample not in DOWNSAMPLE:
+            raise ConfigError("downsample", self.downsample, " or ".join(repr(d) for d in DOWNSAMPLE))
         if not isinstance(self.deskew, bool):
             raise ConfigError("deskew", self.deskew, "True or False")
         if not isinstance(self.filter, FilterStageConfig):
@@ -98,6 +110,19 @@ class KissConfig:
         return cfg
 
 
+def _single_downsample_class() -> type:
+    """kiss-icp's ``KissICP`` registering the map's half-voxel scan (``downsample="single"``)."""
+    from kiss_icp.kiss_icp import KissICP
+    from kiss_icp.voxelization import voxel_down_sample
+
+    class SingleDownsampleKissICP(KissICP):
+        def voxelize(self, iframe: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            frame_downsample = voxel_down_sample(iframe, self.config.mapping.voxel_size * 0.5)
+            return frame_downsample, frame_downsample
+
+    return SingleDownsampleKissICP
+
+
 class KissOdometry:
     """Scan-by-scan kiss-icp with the fault handling of the module docstring."""
 
@@ -114,7 +139,8 @@ class KissOdometry:
     def _new_odometry(self, pose: np.ndarray) -> Any:
         from kiss_icp.kiss_icp import KissICP
 
-        odom = KissICP(config=self.config.kiss_config())
+        cls = _single_downsample_class() if self.config.downsample == "single" else KissICP
+        odom = cls(config=self.config.kiss_config())
         odom.last_pose = pose.copy()
         return odom
 

@@ -170,6 +170,26 @@ def test_kiss_icp_on_a_short_corridor(walk):
     assert naive["odom_ate_m"] < 0.3, naive["odom_ate_m"]
 
 
+@pytest.mark.parametrize("mode", ["single", "double"])
+def test_table_5_4_odometry_uses_the_scenarios_downsampling(walk, mode):
+    """The filters' KISS-ICP scores are kiss-icp run with the scenario's odometry_downsample
+    (single by default: Table 5.4's protocol) on the filter's own masks, recomputed here."""
+    import dataclasses
+
+    from exobench.benchmarks.tracks.lidar_filter.metrics import score_filter
+    from exobench.mapping.odometry.kiss_icp import KissConfig, run_kiss_icp
+
+    assert walk.episode.scenario["odometry_downsample"] == "single"
+    ep = dataclasses.replace(walk.episode, scenario={**walk.episode.scenario, "odometry_downsample": mode})
+    est = walk.est["filter-naive-ground"]
+    scans = [s for s, _ in lidar_pairs(ep)]
+    direct = score_trajectory(ep, run_kiss_icp(scans, list(est.keep), KissConfig(downsample=mode)))
+    scored = score_filter(ep, est, odometry=True)
+    assert scored["odom_ate_m"] == direct["ate_m"] and scored["odom_rpe_m"] == direct["rpe_m"]
+    other = "double" if mode == "single" else "single"
+    assert direct["ate_m"] != score_trajectory(ep, run_kiss_icp(scans, list(est.keep), KissConfig(downsample=other)))["ate_m"]
+
+
 def test_leo_slam_beats_kiss_icp_on_the_same_scans(walk):
     """The odometry target: the SLAM pipeline's ATE at most 0.7 times KISS-ICP's."""
     leo, kiss = walk.metrics["leo-slam"], walk.metrics["kiss-icp"]

@@ -205,3 +205,43 @@ def test_kiss_icp_keeps_last_pose_on_empty_scans(calibration):
     assert est.stats["empty_scans"] == 1 and est.T_world_sensor.shape == (4, 4, 4)
     np.testing.assert_array_equal(est.T_world_sensor[2], est.T_world_sensor[1])
     assert np.abs(est.T_world_sensor[:, :3, 3]).max() < 0.05
+
+
+def _ring_scan_of_box(x_sensor: float) -> np.ndarray:
+    """A 16-ring, 1-degree sweep of the walls of a 10 x 6 m room (floor and ceiling out of reach) from (x_sensor, 0, 0), sensor frame."""
+    el = np.deg2rad(np.arange(-15.0, 16.0, 2.0))
+    az = np.deg2rad(np.arange(0.0, 360.0, 1.0))
+    E, A = np.meshgrid(el, az, indexing="ij")
+    d = np.column_stack([(np.cos(E) * np.cos(A)).ravel(), (np.cos(E) * np.sin(A)).ravel(), np.sin(E).ravel()])
+    o = np.array([x_sensor, 0.0, 0.0])
+    lo, hi = np.array([-5.0, -3.0, -3.0]), np.array([5.0, 3.0, 3.0])
+    with np.errstate(divide="ignore"):
+        t = np.where(d > 0, (hi - o) / d, np.where(d < 0, (lo - o) / d, np.inf)).min(axis=1)
+    return t[:, None] * d
+
+
+def test_kiss_icp_single_downsample_registers_the_half_voxel_scan():
+    """downsample="single" (Table 5.4's KISS-ICP): the registration source is the scan at half the
+    voxel size, one point per occupied voxel, where kiss-icp as released keeps one per 1.5 voxels."""
+    from kiss_icp.kiss_icp import KissICP
+
+    from exobench.mapping.odometry.kiss_icp import KissConfig, _single_downsample_class
+
+    voxel = 0.6
+    frame = _ring_scan_of_box(0.0)
+    sizes = {}
+    for mode, cls in (("double", KissICP), ("single", _single_downsample_class())):
+        odom = cls(KissConfig(voxel_size_m=voxel, deskew=False, downsample=mode).kiss_config())
+        _, source = odom.register_frame(frame, np.zeros(len(frame)))
+        sizes[mode] = len(source)
+    half_voxels = len(np.unique(np.floor(frame / (0.5 * voxel)).astype(np.int64), axis=0))
+    assert sizes["single"] == half_voxels
+    assert sizes["double"] < 0.5 * sizes["single"]
+
+
+def test_kiss_icp_downsample_must_be_named():
+    from exobench.core.errors import ConfigError
+    from exobench.mapping.odometry.kiss_icp import KissConfig
+
+    with pytest.raises(ConfigError, match="downsample"):
+        KissConfig(downsample="triple")

@@ -21,7 +21,9 @@ e.g. ``n_nan_points`` and ``n_absurd_points``) are reported as ``stat_*``.
 
 Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
 :func:`..lidar_trajectory.score_trajectory` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
-``odom_tve_{x,y,z}_m``, ``odom_ate_m``, ``odom_rpe_m``, ...).
+``odom_tve_{x,y,z}_m``, ``odom_ate_m``, ``odom_rpe_m``, ...). KISS-ICP registers as the thesis ran it,
+with one of its two downsamplings removed (the scenario's ``odometry_downsample``, ``"single"`` by
+default; :class:`~exobench.mapping.odometry.kiss_icp.KissConfig`).
 """
 
 from __future__ import annotations
@@ -101,12 +103,12 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
 def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tuple[dict[str, Any], Any]:
     """kiss-icp on the kept points of every scan, scored as the odometry track does: (``odom_``
     metrics, the :class:`TrajectoryEstimate`)."""
-    from exobench.mapping.odometry.kiss_icp import run_kiss_icp
+    from exobench.mapping.odometry.kiss_icp import KissConfig, run_kiss_icp
 
     from ..lidar_trajectory import score_trajectory
 
     scans = [s for s, _ in lidar_pairs(episode)]
-    est = run_kiss_icp(scans, keep)
+    est = run_kiss_icp(scans, keep, KissConfig(downsample=episode.scenario.get("odometry_downsample", "single")))
     m = score_trajectory(episode, est)
     out = {f"odom_{k}": m.get(k, math.nan) for k in ("te_m", "oe_rad", "tve_x_m", "tve_y_m", "tve_z_m", "ate_m", "rpe_m",
                                                      "drift_per_m", "time_per_scan_ms")}  # fmt: skip

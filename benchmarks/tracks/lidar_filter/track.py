@@ -51,6 +51,10 @@ def _extra() -> dict[str, Any]:
     return {
         "score_odometry": ParamSpec(False, None, None, "", "also score each filter through KISS-ICP odometry (Tab. 5.4)",
                                     choices=(False, True)),
+        "odometry_downsample": ParamSpec("single", None, None, "",
+                                         "KISS-ICP's downsampling before registration for Tab. 5.4: single (the thesis', "
+                                         "as kiss-icp's authors advise for 16-beam LiDARs) or double (as released)",
+                                         choices=("single", "double")),
     }  # fmt: skip
 
 
