@@ -36,6 +36,7 @@ Details:
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -110,6 +111,7 @@ class KissConfig:
         return cfg
 
 
+@functools.cache
 def _single_downsample_class() -> type:
     """kiss-icp's ``KissICP`` registering the map's half-voxel scan (``downsample="single"``)."""
     from kiss_icp.kiss_icp import KissICP
