@@ -21,8 +21,9 @@ nearer the room's side wall; the clear width beside the open leaf is ``door_widt
 Floors and ceilings are one plane per area (corridor, room), split under the walls.
 
 With ``facade="windows"`` the south, west and east exterior walls get a row of windows along the
-corridors (bays of :data:`~exobench.models.office_params.FACADE_BAY_M`, sill and head as the
-offices' windows), of ``facade_glass``, with nothing outside: a window-lined building at night,
+corridors (bays of :data:`~exobench.models.office_params.FACADE_BAYS`, sill and head as the
+offices' windows), with ``facade="curtain"`` glazing from the floor between slim mullions (a
+curtain wall), of ``facade_glass``, with nothing outside: a window-lined building at night,
 whose panes mirror the corridor (:mod:`exobench.models.materials`). ``partition_glass`` is the
 material of the glass partitions and glass door leaves.
 
@@ -60,6 +61,7 @@ from .office_params import (
     DOOR_HEIGHT_M,
     DOOR_JAMB_M,
     EXT_WALL_T_M,
+    FACADE_BAYS,
     GLASS_LEAF_T_M,
     MULLION_M,
     WALL_T_M,
@@ -184,19 +186,20 @@ def build_layout(p: OfficeParams) -> Layout:
 
     objects: list[dict] = []
     # exterior walls (north one with windows), service core, east wall of the meeting room
-    if p.facade == "windows":
+    if p.facade != "plain":
         solids += facade_walls(p, names, objects, (yn1, yo1))
     else:
         solids.append(box("wall_ext_w", (-te, -te, 0.0), (0.0, yo1 + te, C), "plaster", "world_plaster", "wall"))
         solids.append(box("wall_ext_e", (X, -te, 0.0), (X + te, yo1 + te, C), "plaster", "world_plaster", "wall"))
         solids.append(box("wall_ext_s", (0.0, -te, 0.0), (X, 0.0, C), "plaster", "world_plaster", "wall"))
     windows = []
-    if p.windows:
-        head = min(WINDOW_HEAD_M, C - 0.25)
+    if p.windows:  # a curtain-walled building is glazed from the floor on the north side too
+        head = min(WINDOW_HEAD_M, C - 0.25) if p.facade != "curtain" else C - 0.25
+        sill = WINDOW_SILL_M if p.facade != "curtain" else FACADE_BAYS["curtain"][2]
         for a, b in ox:
             ww = min(0.6 * (b - a), 2.4)
             c = 0.5 * (a + b)
-            windows.append((c - ww / 2, c + ww / 2, WINDOW_SILL_M, head))
+            windows.append((c - ww / 2, c + ww / 2, sill, head))
     solids += plaster_wall("wall_ext_n", 0, 0.0, X, yo1, yo1 + te, C, windows)
     for u0, u1, z0, z1 in windows:
         name = names("window")

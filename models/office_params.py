@@ -30,10 +30,13 @@ MULLION_M = 0.05  # aluminium profiles of glass partitions, square section
 OFFICE_MIN_WIDTH_M = 2.4  # narrowest cellular office [A: a desk, a chair and a door side by side]
 ROOM_DEPTH_SPARE_M = 0.6  # room depth beyond the open door leaf, to step past it
 
-FACADES = ("plain", "windows")
+FACADES = ("plain", "windows", "curtain")
 FACADE_GLASSES = ("glass", "float_glass", "lowe_glass", "igu_float", "igu_lowe")
-FACADE_BAY_M = 1.5  # façade window bays: a window 1.2 m wide and a 0.3 m pier [A: typical ribbon glazing]
-FACADE_PIER_M = 0.3
+# façade bays (bay, pier, sill; the head is the offices' window head): ``windows`` are punched
+# windows 1.2 m wide between 0.3 m plaster piers [A: typical ribbon glazing], sill 0.9 m;
+# ``curtain`` is glazing from the floor between slim mullions, 60 mm face width at 1.35 m centres
+# (stick curtain walls: Schüco FW 50+ / FW 60+ face widths 50 / 60 mm; modules 1.2-1.5 m [A])
+FACADE_BAYS = {"windows": (1.5, 0.3, 0.9), "curtain": (1.35, 0.06, 0.05)}
 
 OFFICE_PARAMS: dict[str, ParamSpec] = {
     "seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the layout (office widths, door sides, glass, floors, furniture)"),
@@ -49,8 +52,9 @@ OFFICE_PARAMS: dict[str, ParamSpec] = {
     "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas (rooms and corridors) with a polished floor"),
     "furniture_density": ParamSpec(0.8, 0.0, 1.0, "", "probability that each optional piece of furniture is placed (a room's desk or meeting table is there whenever > 0)"),
     "windows": ParamSpec(True, None, None, "", "one window per office in the north facade", choices=(False, True)),
-    "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, or windows (a row of "
-                        "windows along the south, west and east walls, as in a window-lined building)",
+    "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain; windows (a row of "
+                        "windows along the south, west and east walls, as in a window-lined building); or curtain "
+                        "(glazed from the floor between slim mullions, a curtain wall)",
                         choices=FACADES),
     "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (models.materials: glass, "
                               "float_glass: Fresnel float glass, lowe_glass: coated low-e glazing; igu_float, igu_lowe: "

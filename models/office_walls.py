@@ -15,8 +15,7 @@ from .office_furniture import Solid
 from .office_params import (
     DOOR_HEIGHT_M,
     EXT_WALL_T_M,
-    FACADE_BAY_M,
-    FACADE_PIER_M,
+    FACADE_BAYS,
     GLASS_LEAF_T_M,
     MULLION_M,
     WOOD_LEAF_T_M,
@@ -24,7 +23,7 @@ from .office_params import (
 )
 
 MAX_PANE_M = 1.2  # widest glass pane between mullions [A]
-WINDOW_SILL_M, WINDOW_HEAD_M = 0.9, 2.2  # [A]
+WINDOW_SILL_M, WINDOW_HEAD_M = 0.9, 2.2  # offices' windows [A]; façade sills: office_params.FACADE_BAYS
 
 
 class Names:
@@ -118,22 +117,25 @@ def glass_partition(name: str, axis: int, u0: float, u1: float, w_mid: float, he
     return solids, panes
 
 
-def window_bays(u0: float, u1: float) -> list[tuple[float, float]]:
+def window_bays(u0: float, u1: float, facade: str = "windows") -> list[tuple[float, float]]:
     """Window openings (a, b) of a row of façade bays from u0 to u1, a pier at both ends."""
-    n = int((u1 - u0 - FACADE_PIER_M) // FACADE_BAY_M)
+    bay, pier, _ = FACADE_BAYS[facade]
+    n = int((u1 - u0 - pier) // bay)
     if n < 1:
         return []
-    w = (u1 - u0 - (n + 1) * FACADE_PIER_M) / n
-    return [(u0 + FACADE_PIER_M + k * (w + FACADE_PIER_M), u0 + (k + 1) * (w + FACADE_PIER_M)) for k in range(n)]
+    w = (u1 - u0 - (n + 1) * pier) / n
+    return [(u0 + pier + k * (w + pier), u0 + (k + 1) * (w + pier)) for k in range(n)]
 
 
 def facade_walls(p: OfficeParams, names: Names, objects: list[dict], office_y: tuple[float, float]) -> list[Solid]:
-    """South, west and east exterior walls with a row of windows (``facade="windows"``) along the
-    corridors: windows of ``p.facade_glass`` between plaster piers, sill and head as the offices'
-    windows, nothing outside (a dark outside). The west and east walls keep no windows along the
+    """South, west and east exterior walls with a row of windows (``facade="windows"``: sill and
+    head as the offices' windows, between plaster piers; ``"curtain"``: from the floor to the
+    head, between mullions the wall's depth) along the corridors, of ``p.facade_glass``, nothing
+    outside (a dark outside). The west and east walls keep no windows along the
     offices (``office_y``: y from the north corridor's partition to the exterior wall)."""
     X, C, te, t = p.corridor_length_m, p.ceiling_m, EXT_WALL_T_M, p.glass_thickness_m
-    head = min(WINDOW_HEAD_M, C - 0.25)
+    head = min(WINDOW_HEAD_M if p.facade == "windows" else C - 0.25, C - 0.25)
+    sill = FACADE_BAYS[p.facade][2]
     out: list[Solid] = []
     # (name, axis, wall from u0 to u1, w0..w1 thick, glazed from g0 to g1, yaw of the window frames:
     # x along the window, y outwards as the north windows')
@@ -141,18 +143,18 @@ def facade_walls(p: OfficeParams, names: Names, objects: list[dict], office_y: t
              ("wall_ext_w", 1, -te, office_y[1] + te, -te, 0.0, 0.0, office_y[0], 0.5 * math.pi),
              ("wall_ext_e", 1, -te, office_y[1] + te, X, X + te, 0.0, office_y[0], -0.5 * math.pi)]
     for wname, axis, u0, u1, w0, w1, g0, g1, yaw in walls:
-        bays = window_bays(g0, g1)
-        out += plaster_wall(wname, axis, u0, u1, w0, w1, C, [(a, b, WINDOW_SILL_M, head) for a, b in bays])
+        bays = window_bays(g0, g1, p.facade)
+        out += plaster_wall(wname, axis, u0, u1, w0, w1, C, [(a, b, sill, head) for a, b in bays])
         wm = 0.5 * (w0 + w1)
         for a, b in bays:
             name = names("window")
-            lo, hi = along(axis, a, b, wm - t / 2, wm + t / 2, WINDOW_SILL_M, head)
+            lo, hi = along(axis, a, b, wm - t / 2, wm + t / 2, sill, head)
             out.append(box(name, lo, hi, p.facade_glass, "office_glass", "glass"))
             c = 0.5 * (a + b)
-            T = translation(c, wm, WINDOW_SILL_M) if axis == 0 else translation(wm, c, WINDOW_SILL_M)
+            T = translation(c, wm, sill) if axis == 0 else translation(wm, c, sill)
             cy, sy = round(math.cos(yaw), 12) + 0.0, round(math.sin(yaw), 12) + 0.0
             T[0][:2], T[1][:2] = [cy, 0.0 - sy], [sy, cy]
-            objects.append({"name": name, "class": "window", "T_world_object": T, "size_m": [b - a, t, head - WINDOW_SILL_M],
+            objects.append({"name": name, "class": "window", "T_world_object": T, "size_m": [b - a, t, head - sill],
                             "geom_names": [name]})
     return out
 

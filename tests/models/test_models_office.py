@@ -439,3 +439,23 @@ def test_surface_samples_lie_on_visible_surfaces(scene) -> None:
     glass = sample_surface_points(truth, spacing, kinds=("glass",))
     if any(s.kind == "glass" for s in truth.surfaces):
         assert len(glass) > 0 and len(glass) < len(pts)
+
+
+@pytest.mark.parametrize("facade, bay, pier, sill", [("windows", 1.5, 0.3, 0.9), ("curtain", 1.35, 0.06, 0.05)])
+def test_facade_glazing_spans_its_bays_and_heights(facade: str, bay: float, pier: float, sill: float) -> None:
+    """Rays from the south corridor at the façade: the glazed share of the 14 m wall at each height is
+    the stated bays' (``windows``: 1.2 m windows, sill 0.9 m, head 2.2 m, between 0.3 m piers;
+    ``curtain``: glazing from 0.05 m to 0.25 m under the ceiling between 60 mm mullions at 1.35 m)."""
+    p = OfficeParams(n_offices=2, corridor_length_m=14.0, meeting_room_m=4.0, facade=facade, facade_glass="float_glass")
+    sc = compose(build_office(p), ExoSpec())
+    data = mujoco.MjData(sc.model)
+    mujoco.mj_forward(sc.model, data)
+    n = math.floor((14.0 - pier) / bay)
+    glazed_share = (14.0 - (n + 1) * pier) / 14.0
+    head = 2.2 if facade == "windows" else p.ceiling_m - 0.25
+    xs = np.arange(0.0025, 14.0, 0.005)
+    for z in (0.3, 1.5, 2.4):
+        hits = [_ray(sc.model, data, [x, 0.5 * p.corridor_width_m, z], [0.0, -1.0, 0.0])[1] for x in xs]
+        share = float(np.mean([h.startswith("window") for h in hits]))
+        expected = glazed_share if sill < z < head else 0.0
+        assert share == pytest.approx(expected, abs=0.005), (z, share)

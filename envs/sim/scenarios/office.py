@@ -37,7 +37,7 @@ import numpy as np
 
 from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
 from exobench.models.exo_spec import ExoSpec
-from exobench.models.office_params import FACADE_GLASSES
+from exobench.models.office_params import FACADE_GLASSES, FACADES
 from exobench.models.world_params import ParamSpec
 
 from ...motion import Motion, Route, plan_walk
@@ -71,8 +71,9 @@ PARAMS: dict[str, ParamSpec] = {
     "n_offices": ParamSpec(3, 1, 24, "", "cellular offices along the north corridor"),
     "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass (the meeting room's south one first)"),
     "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished stone (the south corridor first)"),
-    "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, or a row of windows "
-                        "against a dark outside (models.office: a window-lined building)", choices=("plain", "windows")),
+    "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, a row of windows "
+                        "(windows) or glazing from the floor between slim mullions (curtain), against a dark outside "
+                        "(models.office: a window-lined building)", choices=FACADES),
     "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (glass; float_glass, lowe_glass: "
                               "Fresnel reflectance rising towards grazing incidence; igu_float, igu_lowe: double-glazed "
                               "units of them and a float pane; models.materials)", choices=FACADE_GLASSES),
