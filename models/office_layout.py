@@ -61,7 +61,6 @@ from .office_params import (
     DOOR_HEIGHT_M,
     DOOR_JAMB_M,
     EXT_WALL_T_M,
-    FACADE_BAYS,
     GLASS_LEAF_T_M,
     MULLION_M,
     WALL_T_M,
@@ -69,13 +68,12 @@ from .office_params import (
     OfficeParams,
 )
 from .office_walls import (
-    WINDOW_HEAD_M,
-    WINDOW_SILL_M,
     Names,
     box,
     door_leaf,
     facade_walls,
     glass_partition,
+    glazing_heights,
     plaster_wall,
     translation,
 )
@@ -194,8 +192,7 @@ def build_layout(p: OfficeParams) -> Layout:
         solids.append(box("wall_ext_s", (0.0, -te, 0.0), (X, 0.0, C), "plaster", "world_plaster", "wall"))
     windows = []
     if p.windows:  # a curtain-walled building is glazed from the floor on the north side too
-        head = min(WINDOW_HEAD_M, C - 0.25) if p.facade != "curtain" else C - 0.25
-        sill = WINDOW_SILL_M if p.facade != "curtain" else FACADE_BAYS["curtain"][2]
+        sill, head = glazing_heights(p.facade, C)
         for a, b in ox:
             ww = min(0.6 * (b - a), 2.4)
             c = 0.5 * (a + b)

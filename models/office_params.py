@@ -32,11 +32,12 @@ ROOM_DEPTH_SPARE_M = 0.6  # room depth beyond the open door leaf, to step past i
 
 FACADES = ("plain", "windows", "curtain")
 FACADE_GLASSES = ("glass", "float_glass", "lowe_glass", "igu_float", "igu_lowe")
-# façade bays (bay, pier, sill; the head is the offices' window head): ``windows`` are punched
-# windows 1.2 m wide between 0.3 m plaster piers [A: typical ribbon glazing], sill 0.9 m;
-# ``curtain`` is glazing from the floor between slim mullions, 60 mm face width at 1.35 m centres
-# (stick curtain walls: Schüco FW 50+ / FW 60+ face widths 50 / 60 mm; modules 1.2-1.5 m [A])
-FACADE_BAYS = {"windows": (1.5, 0.3, 0.9), "curtain": (1.35, 0.06, 0.05)}
+# façade bays (bay, pier): ``windows`` are windows 1.2 m wide between 0.3 m plaster piers [A: typical
+# ribbon glazing]; ``curtain`` is glazing from CURTAIN_SILL_M between slim mullions, 60 mm face width
+# at 1.35 m centres (stick curtain walls: Schüco FW 50+ / FW 60+ face widths 50 / 60 mm; modules
+# 1.2-1.5 m [A])
+FACADE_BAYS = {"windows": (1.5, 0.3), "curtain": (1.35, 0.06)}
+CURTAIN_SILL_M = 0.05
 
 OFFICE_PARAMS: dict[str, ParamSpec] = {
     "seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the layout (office widths, door sides, glass, floors, furniture)"),

@@ -13,6 +13,7 @@ import math
 
 from .office_furniture import Solid
 from .office_params import (
+    CURTAIN_SILL_M,
     DOOR_HEIGHT_M,
     EXT_WALL_T_M,
     FACADE_BAYS,
@@ -23,7 +24,7 @@ from .office_params import (
 )
 
 MAX_PANE_M = 1.2  # widest glass pane between mullions [A]
-WINDOW_SILL_M, WINDOW_HEAD_M = 0.9, 2.2  # offices' windows [A]; façade sills: office_params.FACADE_BAYS
+WINDOW_SILL_M, WINDOW_HEAD_M = 0.9, 2.2  # [A]
 
 
 class Names:
@@ -117,9 +118,16 @@ def glass_partition(name: str, axis: int, u0: float, u1: float, w_mid: float, he
     return solids, panes
 
 
+def glazing_heights(facade: str, ceiling: float) -> tuple[float, float]:
+    """Sill and head of every window: the offices' windows', or from the floor in a curtain wall."""
+    if facade == "curtain":
+        return CURTAIN_SILL_M, ceiling - 0.25
+    return WINDOW_SILL_M, min(WINDOW_HEAD_M, ceiling - 0.25)
+
+
 def window_bays(u0: float, u1: float, facade: str = "windows") -> list[tuple[float, float]]:
     """Window openings (a, b) of a row of façade bays from u0 to u1, a pier at both ends."""
-    bay, pier, _ = FACADE_BAYS[facade]
+    bay, pier = FACADE_BAYS[facade]
     n = int((u1 - u0 - pier) // bay)
     if n < 1:
         return []
@@ -134,8 +142,7 @@ def facade_walls(p: OfficeParams, names: Names, objects: list[dict], office_y: t
     outside (a dark outside). The west and east walls keep no windows along the
     offices (``office_y``: y from the north corridor's partition to the exterior wall)."""
     X, C, te, t = p.corridor_length_m, p.ceiling_m, EXT_WALL_T_M, p.glass_thickness_m
-    head = min(WINDOW_HEAD_M if p.facade == "windows" else C - 0.25, C - 0.25)
-    sill = FACADE_BAYS[p.facade][2]
+    sill, head = glazing_heights(p.facade, C)
     out: list[Solid] = []
     # (name, axis, wall from u0 to u1, w0..w1 thick, glazed from g0 to g1, yaw of the window frames:
     # x along the window, y outwards as the north windows')
