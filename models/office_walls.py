@@ -125,7 +125,7 @@ def glazing_heights(facade: str, ceiling: float) -> tuple[float, float]:
     return WINDOW_SILL_M, min(WINDOW_HEAD_M, ceiling - 0.25)
 
 
-def window_bays(u0: float, u1: float, facade: str = "windows") -> list[tuple[float, float]]:
+def window_bays(u0: float, u1: float, facade: str) -> list[tuple[float, float]]:
     """Window openings (a, b) of a row of façade bays from u0 to u1, a pier at both ends."""
     bay, pier = FACADE_BAYS[facade]
     n = int((u1 - u0 - pier) // bay)
