@@ -26,6 +26,8 @@ class Route:
         stairs: ``"step-over"`` or ``"step-to"``. max_turn_deg: heading change per step, deg.
         still_s: standing still at the start and at the end, s. clearance_m: toe clearance, m.
         start_yaw_deg: initial heading, deg (default: towards the second waypoint).
+        start_lean_deg: forward trunk lean while standing at the start, deg (0: upright; the
+            walker takes up its walking lean during the first step).
         end_yaw_deg: heading turned to on the spot at the end, deg (default: none).
         turn_in_place_deg: waypoints where the route turns by more than this are walked to and
             turned at on the spot, deg. max_steps: steps allowed (GaitError beyond).
@@ -43,6 +45,7 @@ class Route:
     still_s: float = 0.3
     clearance_m: float = 0.04
     start_yaw_deg: float | None = None
+    start_lean_deg: float = 0.0
     max_steps: int = 200
     end_yaw_deg: float | None = None
     turn_in_place_deg: float = 45.0
@@ -64,6 +67,7 @@ class Route:
         check_range("route.clearance_m", self.clearance_m, 0.0, 0.2)
         if self.start_yaw_deg is not None:
             check_range("route.start_yaw_deg", self.start_yaw_deg, -360.0, 360.0)
+        check_range("route.start_lean_deg", self.start_lean_deg, -5.0, 10.0)
         object.__setattr__(self, "max_steps", check_int("route.max_steps", self.max_steps, 1, 10000))
         if self.end_yaw_deg is not None:
             check_range("route.end_yaw_deg", self.end_yaw_deg, -360.0, 360.0)

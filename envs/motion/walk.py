@@ -67,7 +67,7 @@ def plan_walk(exo: ExoSpec, truth: SceneTruth, route: Route) -> Motion:
     h_stand = leg_length_for_knee(exo, STAND_KNEE_RAD)
     pelvis = 0.5 * (feet["l"].ankle + feet["r"].ankle)
     pelvis[2] = min(feet["l"].ankle[2], feet["r"].ankle[2]) + h_stand
-    pitch = 0.0
+    pitch = float(np.radians(route.start_lean_deg))
     segs: list[Segment] = []
     steps: list[Footstep] = []
     t = 0.0

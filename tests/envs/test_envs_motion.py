@@ -7,7 +7,16 @@ import pytest
 
 from exobench.core import ConfigError
 from exobench.core.transforms import rot_y, rot_z
-from exobench.envs.motion import GaitError, Route, climb_step, leg_fk, leg_ik, plan_walk, sole_grid_f
+from exobench.envs.motion import (
+    LEVEL_LEAN_RAD,
+    GaitError,
+    Route,
+    climb_step,
+    leg_fk,
+    leg_ik,
+    plan_walk,
+    sole_grid_f,
+)
 from exobench.envs.sim import PAPER_CASES, StairScenario
 from exobench.envs.sim.scenarios.stairs import compiled_staircase
 from exobench.envs.terrain import Terrain
@@ -247,3 +256,23 @@ def test_walk_down_steep_stairs_lands_on_every_tread_without_penetration(height_
     for k, name in enumerate(LEG_JOINTS):
         lo, hi = JOINT_RANGES_RAD[name[:-2]]
         assert lo - 1e-9 <= q[:, k].min() and q[:, k].max() <= hi + 1e-9
+
+
+def test_walk_starts_with_the_route_start_lean_and_takes_up_the_walking_lean():
+    exo = ExoSpec()
+    world = build_level()
+    wps = ((0.0, 0.0), (1.2, 0.0))
+    upright = plan_walk(exo, world.truth, Route(wps))
+    leaned = plan_walk(exo, world.truth, Route(wps, start_lean_deg=3.0))
+    t_still = np.array([0.0, 0.5 * Route(wps).still_s])
+    assert np.allclose(upright.state(t_still).pitch, 0.0)
+    assert np.allclose(leaned.state(t_still).pitch, np.radians(3.0))
+    # after the first swing both lean as walkers do on level ground
+    t_walk = upright.events["liftoff_s"] + Route(wps).swing_s + 0.05
+    assert upright.state(t_walk).pitch[0] == pytest.approx(LEVEL_LEAN_RAD)
+    assert leaned.state(t_walk).pitch[0] == pytest.approx(LEVEL_LEAN_RAD)
+    t = np.arange(0.0, leaned.duration_s, 0.01)
+    assert leaned.max_penetration_m(world.truth, t) < 1e-9
+    with pytest.raises(ConfigError) as e:
+        Route(wps, start_lean_deg=20.0)
+    assert e.value.field == "route.start_lean_deg"

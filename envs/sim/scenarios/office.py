@@ -92,6 +92,8 @@ PARAMS: dict[str, ParamSpec] = {
     "step_length_m": ParamSpec(0.35, 0.1, 0.8, "m", "nominal step length"),
     "swing_s": ParamSpec(0.8, 0.3, 5.0, "s", "duration of one swing"),
     "max_turn_deg": ParamSpec(30.0, 5.0, 60.0, "deg", "largest heading change per step (sharper corners are turned on the spot over several steps)"),
+    "start_lean_deg": ParamSpec(0.0, -5.0, 10.0, "deg", "forward trunk lean while standing at the start (0: upright, the walking "
+                                "lean of 2 deg taken up during the first step)"),
     "lidar": ParamSpec("vlp16", None, None, "", "LiDAR scan pattern", choices=LIDAR_PATTERNS),
     "lidar_rate_hz": ParamSpec(10.0, 5.0, 20.0, "Hz", "LiDAR sweeps per second"),
     "lidar_return": ParamSpec("sampled", None, None, "", "echo reported where a pulse splits at glass: sampled "
@@ -195,7 +197,7 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
     turning_steps = int(np.sum(np.abs((np.diff(turns) + np.pi) % (2 * np.pi) - np.pi)) / np.radians(scenario.max_turn_deg))
     route = Route(
         wps, step_length_m=scenario.step_length_m, swing_s=scenario.swing_s, max_turn_deg=scenario.max_turn_deg,
-        start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None,
+        start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None, start_lean_deg=scenario.start_lean_deg,
         max_steps=min(10000, int(3.0 * length / scenario.step_length_m) + 2 * turning_steps + 100),
     )  # fmt: skip
     return scene, plan_walk(exo, scene.truth, route)
