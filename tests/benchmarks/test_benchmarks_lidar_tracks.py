@@ -3,6 +3,7 @@ through the runner (every filter and kiss-icp), and bad --set values on the comm
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -62,6 +63,33 @@ def _poses(rows):
     T[:, :3, 3] = rows[:, 1:4]
     T[:, :3, :3] = [quat_wxyz_to_matrix(q) for q in rows[:, 4:8]]
     return T
+
+
+def test_table_5_4_report_groups_loops_and_compares_as_the_thesis():
+    """One table per set of loops; the unfiltered / ground-aware ratio and the z ordering are RMSEs
+    over that set's episodes, computed here by hand."""
+    from exobench.benchmarks.tracks.lidar_filter.report import table_5_4_ordering
+    from exobench.benchmarks.tracks.lidar_filter.track import LidarFilterTrack
+
+    te = {("ring-windows-lowe", "filter-none"): 0.3, ("ring-windows-igu-lowe", "filter-none"): 0.1,
+          ("ring-windows-lowe", "filter-naive-ground"): 0.02, ("ring-windows-igu-lowe", "filter-naive-ground"): 0.04,
+          ("ring-windows-lowe", "filter-threshold"): 0.05, ("ring-windows-igu-lowe", "filter-threshold"): 0.07,
+          ("ring", "filter-none"): 17.0, ("ring", "filter-naive-ground"): 0.01}  # fmt: skip
+    records = [{"case": c, "pipeline": p, "metrics": {"failed": False, "odom_te_m": v, "odom_tve_z_m": -v / 2}}
+               for (c, p), v in te.items()]  # fmt: skip
+    records.append({"case": "ring-windows-lowe", "pipeline": "filter-none", "metrics": {"failed": True, "odom_te_m": 0.0}})
+    glazed = [r for r in records if r["case"] != "ring"]
+    o = table_5_4_ordering(glazed)
+    assert o["te_ratio"] == pytest.approx(np.sqrt((0.3**2 + 0.1**2) / 2) / np.sqrt((0.02**2 + 0.04**2) / 2))
+    assert o["z_threshold"] == pytest.approx(np.sqrt((0.025**2 + 0.035**2) / 2))
+    assert o["z_ground"] == pytest.approx(np.sqrt((0.01**2 + 0.02**2) / 2))
+    lines = LidarFilterTrack().report_sections(records, ["filter-none", "filter-naive-ground"], Path("/nonexistent"))
+    text = "\n".join(lines)
+    assert "### Reflective loops" in text and "### Plain ring" in text and "### Control" not in text
+    assert f"{o['te_ratio']:.1f}x" in text
+    ring_row = next(ln for ln in lines[lines.index(next(x for x in lines if x.startswith("### Plain ring"))):]
+                    if ln.startswith("| filter-none |"))  # fmt: skip
+    assert "| 1 | 17.000 |" in ring_row
 
 
 def test_trajectory_metrics_on_a_constructed_loop():

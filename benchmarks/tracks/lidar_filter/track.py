@@ -189,7 +189,9 @@ class LidarFilterTrack:
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
         from .report import filter_table
 
-        return filter_table(records, pipelines) + trajectory_sections(out)
+        sets = [("Reflective loops", tuple(REFLECTIVE_CASES)), ("Control, clear float windows", tuple(CONTROL_CASES)),
+                ("Plain ring", ("ring",))]
+        return filter_table(records, pipelines, sets) + trajectory_sections(out)
 
     def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
         extra = self._kiss_trajectories(estimates_by_pipeline) if self._episode_id == id(episode) else {}
