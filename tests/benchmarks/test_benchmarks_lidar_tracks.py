@@ -83,6 +83,7 @@ def test_table_5_4_report_groups_loops_and_compares_as_the_thesis():
     assert o["te_ratio"] == pytest.approx(np.sqrt((0.3**2 + 0.1**2) / 2) / np.sqrt((0.02**2 + 0.04**2) / 2))
     assert o["z_threshold"] == pytest.approx(np.sqrt((0.025**2 + 0.035**2) / 2))
     assert o["z_ground"] == pytest.approx(np.sqrt((0.01**2 + 0.02**2) / 2))
+    assert o["te_median_ratio"] == pytest.approx(0.2 / 0.03)
     lines = LidarFilterTrack().report_sections(records, ["filter-none", "filter-naive-ground"], Path("/nonexistent"))
     text = "\n".join(lines)
     assert "### Reflective loops" in text and "### Plain ring" in text and "### Control" not in text
