@@ -133,3 +133,10 @@ def test_office_loop_plan_is_deterministic():
     assert len(a.footsteps) == len(b.footsteps)
     for fa, fb in zip(a.footsteps, b.footsteps):
         assert np.array_equal(fa.sole_w, fb.sole_w) and fa.yaw_rad == fb.yaw_rad and fa.touchdown_s == fb.touchdown_s
+
+
+def test_office_walk_stands_with_the_scenario_start_lean():
+    """The scenario's start_lean_deg reaches the walk: the trunk leans by it while standing at the start."""
+    for lean in (0.0, 2.5):
+        _, motion = plan_office_walk(OfficeScenario(route="corridor", max_distance_m=1.0, start_lean_deg=lean))
+        assert motion.state(np.array([0.0])).pitch[0] == pytest.approx(np.radians(lean))

@@ -45,7 +45,7 @@ def _filter_rows(records: list[dict[str, Any]], pipelines: list[str]) -> list[st
     def f(x: float, d: int) -> str:
         return "–" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{d}f}"
 
-    lines = ["| filter | episodes | TE (m) | OE (rad) | TVE x y z (m) | spurious removed (%) | ground kept (%) | time/scan (ms) "
+    lines = ["| filter | loops | TE (m) | OE (rad) | TVE x y z (m) | spurious removed (%) | ground kept (%) | time/scan (ms) "
              "| paper TE / OE / TVE |", "|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for p in pipelines:
         rs = [r["metrics"] for r in records if r["pipeline"] == p and not r["metrics"].get("failed")]
@@ -104,10 +104,10 @@ def filter_table(
         lines += [f"### {title}: {', '.join(f'`{n}`' for n in names)}", ""] + _filter_rows(rs, pipelines) + [""]
         o = table_5_4_ordering(rs)
         if not all(math.isnan(v) for v in o.values()):
-            lines += [f"Unfiltered TE / naive ground-aware TE: {o['te_ratio']:.1f}x (thesis 20.3x; medians "
-                      f"{o['te_median_ratio']:.1f}x); TVE z, intensity-only "
-                      f"{o['z_threshold']:.3f} m against naive ground-aware {o['z_ground']:.3f} m (thesis 2.297 against 0.187).",
-                      ""]  # fmt: skip
+            g = {k: "–" if math.isnan(v) else f"{v:.{1 if 'ratio' in k else 3}f}" for k, v in o.items()}
+            lines += [f"Unfiltered TE / naive ground-aware TE: {g['te_ratio']}x (thesis 20.3x; medians "
+                      f"{g['te_median_ratio']}x); TVE z, intensity-only {g['z_threshold']} m against naive ground-aware "
+                      f"{g['z_ground']} m (thesis 2.297 against 0.187).", ""]  # fmt: skip
     rest = [r for r in records if r.get("case") not in placed]
     if rest:
         lines += ["### Other cases", ""] + _filter_rows(rest, pipelines) + [""]
