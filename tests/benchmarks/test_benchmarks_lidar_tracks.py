@@ -91,6 +91,8 @@ def test_table_5_4_report_groups_loops_and_compares_as_the_thesis():
     ring_row = next(ln for ln in lines[lines.index(next(x for x in lines if x.startswith("### Plain ring"))):]
                     if ln.startswith("| filter-none |"))  # fmt: skip
     assert "| 1 | 17.000 |" in ring_row
+    quick = LidarFilterTrack().report_sections([dict(r, case="corridor-4m") for r in records], ["filter-none"], Path("/nonexistent"))
+    assert not any(ln.startswith("###") for ln in quick) and any(ln.startswith("| filter-none |") for ln in quick)
 
 
 def test_trajectory_metrics_on_a_constructed_loop():

@@ -110,5 +110,6 @@ def filter_table(
                       f"{g['z_ground']} m (thesis 2.297 against 0.187).", ""]  # fmt: skip
     rest = [r for r in records if r.get("case") not in placed]
     if rest:
-        lines += ["### Other cases", ""] + _filter_rows(rest, pipelines) + [""]
+        heading = ["### Other cases", ""] if len(rest) < len(records) else []  # no heading when no set is in the run
+        lines += heading + _filter_rows(rest, pipelines) + [""]
     return lines
