@@ -69,17 +69,17 @@ def table_5_4_ordering(records: list[dict[str, Any]]) -> dict[str, float]:
     episode does not sway (loop errors can be bimodal, docs/tracks/lidar-filter.md). NaN where a
     filter has no loop."""
 
-    def rmse(pipe: str, key: str) -> float:
-        return _rmse([r["metrics"].get(key) for r in records if r["pipeline"] == pipe and not r["metrics"].get("failed")])
+    def values(pipe: str, key: str) -> list[Any]:
+        return [r["metrics"].get(key) for r in records if r["pipeline"] == pipe and not r["metrics"].get("failed")]
 
-    def median(pipe: str) -> float:
-        return _median([r["metrics"].get("odom_te_m") for r in records if r["pipeline"] == pipe and not r["metrics"].get("failed")])
+    def ratio(a: float, b: float) -> float:
+        return a / b if b > 0 else math.nan
 
-    none, ground = rmse("filter-none", "odom_te_m"), rmse("filter-naive-ground", "odom_te_m")
-    m_none, m_ground = median("filter-none"), median("filter-naive-ground")
-    return {"te_ratio": none / ground if ground > 0 else math.nan,
-            "te_median_ratio": m_none / m_ground if m_ground > 0 else math.nan,
-            "z_threshold": rmse("filter-threshold", "odom_tve_z_m"), "z_ground": rmse("filter-naive-ground", "odom_tve_z_m")}  # fmt: skip
+    te_none, te_ground = values("filter-none", "odom_te_m"), values("filter-naive-ground", "odom_te_m")
+    return {"te_ratio": ratio(_rmse(te_none), _rmse(te_ground)),
+            "te_median_ratio": ratio(_median(te_none), _median(te_ground)),
+            "z_threshold": _rmse(values("filter-threshold", "odom_tve_z_m")),
+            "z_ground": _rmse(values("filter-naive-ground", "odom_tve_z_m"))}  # fmt: skip
 
 
 def filter_table(
