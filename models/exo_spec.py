@@ -72,6 +72,10 @@ class ExoSpec:
         tof_pitch_deg: beam pitch below the shank's forward horizontal, deg.
         tof_toe_out_deg: each beam turned outwards (away from the other) by this yaw, deg.
         camera_pitch_deg: downward pitch of the chest and head camera mounts, deg [A].
+        lidar_height_m: None: the trunk LiDAR on a backpack mast above the head (the default);
+            else on the front of the pelvis frame at this height above the floor when standing,
+            0.4-1.2 m (a VLP-16 on a Unitree B1, the robot of seeds/003's Table 5.4, is at about
+            0.68 m).
     """
 
     user_height_m: float = 1.75
@@ -83,6 +87,7 @@ class ExoSpec:
     tof_pitch_deg: float = 46.0
     tof_toe_out_deg: float = 4.0
     camera_pitch_deg: float = 30.0
+    lidar_height_m: float | None = None
 
     def __post_init__(self) -> None:
         check_range("exo.user_height_m", self.user_height_m, 1.55, 1.95)
@@ -94,6 +99,8 @@ class ExoSpec:
         check_range("exo.tof_pitch_deg", self.tof_pitch_deg, -30.0, 80.0)
         check_range("exo.tof_toe_out_deg", self.tof_toe_out_deg, -20.0, 20.0)
         check_range("exo.camera_pitch_deg", self.camera_pitch_deg, -10.0, 80.0)
+        if self.lidar_height_m is not None:
+            check_range("exo.lidar_height_m", self.lidar_height_m, 0.4, 1.2)
 
     @classmethod
     def from_dict(cls, values: dict) -> ExoSpec:
@@ -218,8 +225,12 @@ class ExoSpec:
         return "pelvis", make_T(np.eye(3), np.array([-0.12, 0.0, 0.45 * self.trunk_m]))
 
     def lidar_mount(self) -> tuple[str, np.ndarray]:
-        """Trunk LiDAR: on a backpack mast 10 cm above the top of the head, level, z up [A]
-        (lower, the user's head blocks a fifth of a VLP-16's beams)."""
+        """Trunk LiDAR, level, z up [A]: on a backpack mast 10 cm above the top of the head (lower,
+        the user's head blocks a fifth of a VLP-16's beams); with ``lidar_height_m``, on the front
+        of the pelvis frame, 0.20 m ahead of the hip joints (the legs and trunk, nearer than the
+        VLP-16's 0.9 m minimum range, return nothing but shadow the sector behind)."""
+        if self.lidar_height_m is not None:
+            return "pelvis", make_T(np.eye(3), np.array([0.20, 0.0, self.lidar_height_m - self.leg_m]))
         return "pelvis", make_T(np.eye(3), np.array([-0.12, 0.0, self.trunk_m + self.head_m + 0.10]))
 
     def rgbd_mount(self, sensor_id: str) -> tuple[str, np.ndarray]:

@@ -64,6 +64,7 @@ MIN_SEGMENT_M = 0.3  # shorter route segments are merged into the next one
 LIDAR_PATTERNS = ("vlp16", "vlp32", "ouster64", "livox")
 ROUTES = ("loop", "ring", "corridor")
 LIDAR_TRUTHS = ("full", "labels")
+LIDAR_MOUNTS = ("mast", "pelvis")
 RETURN_MODES = ("sampled", "strongest", "last")
 
 PARAMS: dict[str, ParamSpec] = {
@@ -95,6 +96,10 @@ PARAMS: dict[str, ParamSpec] = {
     "start_lean_deg": ParamSpec(0.0, -5.0, 10.0, "deg", "forward trunk lean while standing at the start (0: upright, the walking "
                                 "lean of 2 deg taken up during the first step)"),
     "lidar": ParamSpec("vlp16", None, None, "", "LiDAR scan pattern", choices=LIDAR_PATTERNS),
+    "lidar_mount": ParamSpec("mast", None, None, "", "where the LiDAR sits: mast (on a backpack mast above the head) "
+                             "or pelvis (on the front of the pelvis frame at lidar_height_m)", choices=LIDAR_MOUNTS),
+    "lidar_height_m": ParamSpec(0.68, 0.4, 1.2, "m", "height above the floor of the pelvis-mounted LiDAR, standing "
+                                "(lidar_mount=pelvis; 0.68 m: a VLP-16 on a Unitree B1, the thesis' robot)"),
     "lidar_rate_hz": ParamSpec(10.0, 5.0, 20.0, "Hz", "LiDAR sweeps per second"),
     "lidar_return": ParamSpec("sampled", None, None, "", "echo reported where a pulse splits at glass: sampled "
                               "(one path drawn per beam), strongest (the VLP-16 default) or last", choices=RETURN_MODES),
@@ -120,7 +125,8 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
     """One office-walk episode; see :data:`PARAMS` for units, ranges and meaning."""
 
     def exo_spec(self) -> ExoSpec:
-        return ExoSpec(user_height_m=self.user_height_m, user_mass_kg=self.user_mass_kg)
+        lidar_height_m = self.lidar_height_m if self.lidar_mount == "pelvis" else None
+        return ExoSpec(user_height_m=self.user_height_m, user_mass_kg=self.user_mass_kg, lidar_height_m=lidar_height_m)
 
     def office_params(self) -> object:
         from exobench.models.office import OfficeParams
