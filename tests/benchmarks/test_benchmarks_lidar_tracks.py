@@ -74,6 +74,7 @@ def test_table_5_4_report_groups_loops_and_compares_as_the_thesis():
     te = {("ring-windows-lowe", "filter-none"): 0.3, ("ring-windows-igu-lowe", "filter-none"): 0.1,
           ("ring-windows-lowe", "filter-naive-ground"): 0.02, ("ring-windows-igu-lowe", "filter-naive-ground"): 0.04,
           ("ring-windows-lowe", "filter-threshold"): 0.05, ("ring-windows-igu-lowe", "filter-threshold"): 0.07,
+          ("ring-windows-lowe", "filter-floor-ground"): 0.01, ("ring-windows-igu-lowe", "filter-floor-ground"): 0.005,
           ("ring", "filter-none"): 17.0, ("ring", "filter-naive-ground"): 0.01}  # fmt: skip
     records = [{"case": c, "pipeline": p, "metrics": {"failed": False, "odom_te_m": v, "odom_tve_z_m": -v / 2}}
                for (c, p), v in te.items()]  # fmt: skip
@@ -84,10 +85,16 @@ def test_table_5_4_report_groups_loops_and_compares_as_the_thesis():
     assert o["z_threshold"] == pytest.approx(np.sqrt((0.025**2 + 0.035**2) / 2))
     assert o["z_ground"] == pytest.approx(np.sqrt((0.01**2 + 0.02**2) / 2))
     assert o["te_median_ratio"] == pytest.approx(0.2 / 0.03)
+    floor = table_5_4_ordering(glazed, "filter-floor-ground")
+    assert floor["te_ratio"] == pytest.approx(np.sqrt((0.3**2 + 0.1**2) / 2) / np.sqrt((0.01**2 + 0.005**2) / 2))
+    assert floor["z_ground"] == pytest.approx(np.sqrt((0.005**2 + 0.0025**2) / 2))
     lines = LidarFilterTrack().report_sections(records, ["filter-none", "filter-naive-ground"], Path("/nonexistent"))
     text = "\n".join(lines)
     assert "### Reflective loops" in text and "### Plain ring" in text and "### Control" not in text
-    assert f"{o['te_ratio']:.1f}x" in text
+    assert f"naive ground-aware TE: {o['te_ratio']:.1f}x" in text and "floor-plane" not in text
+    both = "\n".join(LidarFilterTrack().report_sections(records, ["filter-none", "filter-naive-ground", "filter-floor-ground"],
+                                                        Path("/nonexistent")))  # fmt: skip
+    assert f"naive ground-aware TE: {o['te_ratio']:.1f}x" in both and f"floor-plane ground-aware TE: {floor['te_ratio']:.1f}x" in both
     ring_row = next(ln for ln in lines[lines.index(next(x for x in lines if x.startswith("### Plain ring"))):]
                     if ln.startswith("| filter-none |"))  # fmt: skip
     assert "| 1 | 17.000 |" in ring_row

@@ -61,13 +61,17 @@ def _filter_rows(records: list[dict[str, Any]], pipelines: list[str]) -> list[st
     return lines
 
 
-def table_5_4_ordering(records: list[dict[str, Any]]) -> dict[str, float]:
-    """Table 5.4's two comparisons over the records' loops (RMSE over episodes): ``te_ratio``, the
-    unfiltered TE over the naive ground-aware filter's (thesis 22.529 / 1.112 = 20x), and the TVE z
-    of the intensity-only filter (``z_threshold``) and of the naive ground-aware one (``z_ground``;
-    thesis 2.297 and 0.187); ``te_median_ratio``, the same ratio of medians, which one outlying
-    episode does not sway (loop errors can be bimodal, docs/tracks/lidar-filter.md). NaN where a
-    filter has no loop."""
+GROUND_AWARE = {"filter-naive-ground": "naive ground-aware", "filter-floor-ground": "floor-plane ground-aware",
+                "filter-normal-ground": "normal ground-aware"}  # fmt: skip
+
+
+def table_5_4_ordering(records: list[dict[str, Any]], ground: str = "filter-naive-ground") -> dict[str, float]:
+    """Table 5.4's two comparisons over the records' loops (RMSE over episodes) for the ground-aware
+    filter ``ground`` (the thesis ran the naive one): ``te_ratio``, the unfiltered TE over the
+    ground-aware filter's (thesis 22.529 / 1.112 = 20x), and the TVE z of the intensity-only filter
+    (``z_threshold``) and of the ground-aware one (``z_ground``; thesis 2.297 and 0.187);
+    ``te_median_ratio``, the same ratio of medians, which one outlying episode does not sway (loop
+    errors can be bimodal, docs/tracks/lidar-filter.md). NaN where a filter has no loop."""
 
     def values(pipe: str, key: str) -> list[Any]:
         return [r["metrics"].get(key) for r in records if r["pipeline"] == pipe and not r["metrics"].get("failed")]
@@ -75,11 +79,11 @@ def table_5_4_ordering(records: list[dict[str, Any]]) -> dict[str, float]:
     def ratio(a: float, b: float) -> float:
         return a / b if b > 0 else math.nan
 
-    te_none, te_ground = values("filter-none", "odom_te_m"), values("filter-naive-ground", "odom_te_m")
+    te_none, te_ground = values("filter-none", "odom_te_m"), values(ground, "odom_te_m")
     return {"te_ratio": ratio(_rmse(te_none), _rmse(te_ground)),
             "te_median_ratio": ratio(_median(te_none), _median(te_ground)),
             "z_threshold": _rmse(values("filter-threshold", "odom_tve_z_m")),
-            "z_ground": _rmse(values("filter-naive-ground", "odom_tve_z_m"))}  # fmt: skip
+            "z_ground": _rmse(values(ground, "odom_tve_z_m"))}  # fmt: skip
 
 
 def filter_table(
@@ -100,13 +104,15 @@ def filter_table(
         if not rs:
             continue
         lines += [f"### {title}: {', '.join(f'`{n}`' for n in names)}", ""] + _filter_rows(rs, pipelines) + [""]
-        o = table_5_4_ordering(rs)
-        if not all(math.isnan(v) for v in o.values()):
+        none, thr, naive = (TABLE_5_4[p] for p in ("filter-none", "filter-threshold", "filter-naive-ground"))
+        for ground, label in GROUND_AWARE.items():
+            o = table_5_4_ordering(rs, ground) if ground in pipelines else {}
+            if all(math.isnan(v) for v in o.values()):
+                continue
             g = {k: "–" if math.isnan(v) else f"{v:.{1 if 'ratio' in k else 3}f}" for k, v in o.items()}
-            none, thr, ground = (TABLE_5_4[p] for p in ("filter-none", "filter-threshold", "filter-naive-ground"))
-            lines += [f"Unfiltered TE / naive ground-aware TE: {g['te_ratio']}x (thesis {none[0] / ground[0]:.1f}x; medians "
-                      f"{g['te_median_ratio']}x); TVE z, intensity-only {g['z_threshold']} m against naive ground-aware "
-                      f"{g['z_ground']} m (thesis {thr[4]:.3f} against {ground[4]:.3f}).", ""]  # fmt: skip
+            lines += [f"Unfiltered TE / {label} TE: {g['te_ratio']}x (thesis, naive: {none[0] / naive[0]:.1f}x; medians "
+                      f"{g['te_median_ratio']}x); TVE z, intensity-only {g['z_threshold']} m against {label} "
+                      f"{g['z_ground']} m (thesis {thr[4]:.3f} against {naive[4]:.3f}).", ""]  # fmt: skip
     rest = [r for r in records if r.get("case") not in placed]
     if rest:
         heading = ["### Other cases", ""] if len(rest) < len(records) else []  # no heading when no set is in the run
