@@ -160,7 +160,8 @@ def _add_visuals(bodies: dict[str, mujoco.MjsBody], exo: ExoSpec) -> None:
     _visual(p, "exo_shoulders", "capsule", "user_shirt", size=[0.06], fromto=[0, -0.16, 0.9 * t, 0, 0.16, 0.9 * t])
     _visual(p, "exo_backpack", "box", "exo_frame", size=[0.04, 0.16, 0.09], pos=[-0.14, 0.0, 0.10])
     _visual(p, "exo_hipbar", "box", "exo_frame", size=[0.03, 0.5 * exo.hip_width_m + 0.08, 0.025], pos=[-0.06, 0.0, 0.0])
-    _visual(p, "exo_mast", "capsule", "exo_frame", size=[0.012], fromto=[-0.15, 0, 0.19, -0.15, 0, t + 0.11])
+    if exo.lidar_height_m is None:  # the LiDAR's mast
+        _visual(p, "exo_mast", "capsule", "exo_frame", size=[0.012], fromto=[-0.15, 0, 0.19, -0.15, 0, t + 0.11])
     _, T_lidar = exo.lidar_mount()
     _visual(p, "exo_lidar", "cylinder", "exo_cuff", size=[0.0515, 0.036], pos=T_lidar[:3, 3])
     for s, y in (("l", 0.20), ("r", -0.20)):  # arms hang forward to the crutch handles [A]
