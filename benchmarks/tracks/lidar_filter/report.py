@@ -97,6 +97,7 @@ def filter_table(
              "RMSE over the episodes that returned to their start (the thesis: over its runs). Paper: KISS-ICP on a "
              "Unitree B1 with a VLP-16 (only the naive ground-aware filter was run there). "
              + _downsampling(records), ""]  # fmt: skip
+    none, thr, naive = (TABLE_5_4[p] for p in ("filter-none", "filter-threshold", "filter-naive-ground"))
     placed: set[str] = set()
     for title, names in loop_sets:
         rs = [r for r in records if r.get("case") in names]
@@ -104,7 +105,6 @@ def filter_table(
         if not rs:
             continue
         lines += [f"### {title}: {', '.join(f'`{n}`' for n in names)}", ""] + _filter_rows(rs, pipelines) + [""]
-        none, thr, naive = (TABLE_5_4[p] for p in ("filter-none", "filter-threshold", "filter-naive-ground"))
         for ground, label in GROUND_AWARE.items():
             o = table_5_4_ordering(rs, ground) if ground in pipelines else {}
             if all(math.isnan(v) for v in o.values()):
