@@ -229,7 +229,8 @@ class ExoSpec:
         the user's head blocks a fifth of a VLP-16's beams); with ``lidar_height_m``, on the front
         of the pelvis frame, 0.20 m ahead of the hip joints (the legs, nearer than the VLP-16's 0.9 m
         minimum range, return nothing but shadow beams behind and below; the trunk and arms are on
-        the LiDAR's own body, which its rays do not meet, wherever it is mounted)."""
+        the LiDAR's own body, which its direct rays do not meet wherever it is mounted, though beams
+        mirrored back by glass do)."""
         if self.lidar_height_m is not None:
             return "pelvis", make_T(np.eye(3), np.array([0.20, 0.0, self.lidar_height_m - self.leg_m]))
         return "pelvis", make_T(np.eye(3), np.array([-0.12, 0.0, self.trunk_m + self.head_m + 0.10]))
