@@ -95,12 +95,13 @@ def test_table_5_4_report_groups_loops_and_compares_as_the_thesis():
     both = "\n".join(LidarFilterTrack().report_sections(records, ["filter-none", "filter-naive-ground", "filter-floor-ground"],
                                                         Path("/nonexistent")))  # fmt: skip
     assert f"naive ground-aware TE: {o['te_ratio']:.1f}x" in both and f"floor-plane ground-aware TE: {floor['te_ratio']:.1f}x" in both
-    ring_row = next(ln for ln in lines[lines.index(next(x for x in lines if x.startswith("### Plain ring"))):]
-                    if ln.startswith("| filter-none |"))  # fmt: skip
-    assert "| 1 | 1 | 17.000 |" in ring_row  # one loop, ending more than 0.1 m off
-    glazed_rows = lines[lines.index(next(x for x in lines if x.startswith("### Reflective loops"))):]
-    assert "| filter-none | 2 | 1 | " in next(ln for ln in glazed_rows if ln.startswith("| filter-none |"))  # 0.3 m; 0.1 m is not off
-    assert "| filter-naive-ground | 2 | 0 | " in next(ln for ln in glazed_rows if ln.startswith("| filter-naive-ground |"))
+    def row(section: str, pipe: str) -> str:
+        rest = lines[next(i for i, x in enumerate(lines) if x.startswith(f"### {section}")):]
+        return next(ln for ln in rest if ln.startswith(f"| {pipe} |"))
+
+    assert "| 1 | 1 | 17.000 |" in row("Plain ring", "filter-none")  # one loop, ending more than 0.1 m off
+    assert "| filter-none | 2 | 1 | " in row("Reflective loops", "filter-none")  # 0.3 m; 0.1 m is not off
+    assert "| filter-naive-ground | 2 | 0 | " in row("Reflective loops", "filter-naive-ground")
     quick = LidarFilterTrack().report_sections([dict(r, case="corridor-4m") for r in records], ["filter-none"], Path("/nonexistent"))
     assert not any(ln.startswith("###") for ln in quick) and any(ln.startswith("| filter-none |") for ln in quick)
 
