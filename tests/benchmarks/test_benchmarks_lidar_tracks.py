@@ -281,3 +281,42 @@ def test_nan_points_are_counted_not_scored_as_removed():
     pipe.process(LidarScan(0.1, "lidar", pts, np.full(4, 50, np.uint8), np.zeros(4, int), np.zeros(4), 0.0))
     est = pipe.finalize()
     assert est.stats["n_nan_points"] == 2 and est.keep[0].tolist() == [False, True, True, False]
+
+
+def test_glazed_loops_have_matt_floors_that_mirror_nothing_below_them():
+    """The paper suite's glazed loops model the thesis' building, whose floors left its naive filter
+    few reflections below the footprint (seeds/003 4.2.2, Fig. 2.2): one VLP-16 sweep at the B1's
+    0.68 m in the south corridor returns no ghost below the floor; with the offices' polished floors
+    (``polished_fraction=0.3``) the same sweep has hundreds, mirrored walls under the floor."""
+    import dataclasses
+
+    import mujoco
+
+    from exobench.benchmarks.tracks.lidar_filter.track import LidarFilterTrack
+    from exobench.core import ReturnKind
+    from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
+    from exobench.envs.sim.scenarios.office import OfficeScenario
+    from exobench.models.exo_spec import ExoSpec
+    from exobench.models.office import build_office
+    from exobench.models.office_layout import build_layout
+    from exobench.models.worlds import compose
+
+    def ghosts_below_floor(scenario: dict) -> int:
+        keys = {f.name for f in dataclasses.fields(OfficeScenario)}
+        params = OfficeScenario.from_dict({k: v for k, v in scenario.items() if k in keys}).office_params()
+        x0, x1, y0, y1 = next(r["rect"] for r in build_layout(params).regions if r["name"] == "corridor_s")
+        scene = compose(build_office(params), ExoSpec())
+        data = mujoco.MjData(scene.model)
+        mujoco.mj_forward(scene.model, data)
+        T = np.eye(4)
+        T[:3, 3] = (x0 + 6.0, 0.5 * (y0 + y1), 0.68)
+        sensor = LidarSensor("lidar", LidarConfig(return_mode=scenario["lidar_return"]), scene.model, 0)
+        scan, truth = sensor.scan(scene.model, data, T, 0.0, scene.truth)
+        z = np.asarray(scan.points_xyz)[:, 2] + 0.68  # sensor axes = world axes here
+        return int(np.sum((np.asarray(truth.kind) == ReturnKind.GHOST) & (z < -0.05)))
+
+    glazed = [c for c in LidarFilterTrack().cases("paper") if c.name.startswith("ring-windows")]
+    assert [c.name for c in glazed] == ["ring-windows-lowe", "ring-windows-igu-lowe", "ring-windows-float"]
+    for case in glazed:
+        assert ghosts_below_floor(case.scenario) == 0, case.name
+    assert ghosts_below_floor({**glazed[0].scenario, "polished_fraction": 0.3}) > 100
