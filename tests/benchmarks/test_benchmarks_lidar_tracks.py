@@ -288,23 +288,20 @@ def test_glazed_loops_have_matt_floors_that_mirror_nothing_below_them():
     few reflections below the footprint (seeds/003 4.2.2, Fig. 2.2): one VLP-16 sweep at the B1's
     0.68 m in the south corridor returns no ghost below the floor; with the offices' polished floors
     (``polished_fraction=0.3``) the same sweep has hundreds, mirrored walls under the floor."""
-    import dataclasses
-
     import mujoco
 
     from exobench.benchmarks.tracks.lidar_filter.track import LidarFilterTrack
     from exobench.core import ReturnKind
     from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
-    from exobench.envs.sim.scenarios.office import OfficeScenario
+    from exobench.envs.sim.scenarios.office import PARAMS, OfficeScenario
     from exobench.models.exo_spec import ExoSpec
     from exobench.models.office import build_office
     from exobench.models.office_layout import build_layout
     from exobench.models.worlds import compose
 
     def ghosts_below_floor(scenario: dict) -> int:
-        keys = {f.name for f in dataclasses.fields(OfficeScenario)}
-        params = OfficeScenario.from_dict({k: v for k, v in scenario.items() if k in keys}).office_params()
-        x0, x1, y0, y1 = next(r["rect"] for r in build_layout(params).regions if r["name"] == "corridor_s")
+        params = OfficeScenario.from_dict({k: v for k, v in scenario.items() if k in PARAMS}).office_params()
+        x0, _, y0, y1 = next(r["rect"] for r in build_layout(params).regions if r["name"] == "corridor_s")
         scene = compose(build_office(params), ExoSpec())
         data = mujoco.MjData(scene.model)
         mujoco.mj_forward(scene.model, data)
