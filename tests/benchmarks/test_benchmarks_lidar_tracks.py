@@ -296,20 +296,21 @@ def test_glazed_loops_have_matt_floors_that_mirror_nothing_below_them():
     from exobench.envs.sim.scenarios.office import PARAMS, OfficeScenario
     from exobench.models.exo_spec import ExoSpec
     from exobench.models.office import build_office
-    from exobench.models.office_layout import build_layout
     from exobench.models.worlds import compose
 
     def ghosts_below_floor(scenario: dict) -> int:
         params = OfficeScenario.from_dict({k: v for k, v in scenario.items() if k in PARAMS}).office_params()
-        x0, _, y0, y1 = next(r["rect"] for r in build_layout(params).regions if r["name"] == "corridor_s")
-        scene = compose(build_office(params), ExoSpec())
+        office = build_office(params)
+        x0, _, y0, y1 = next(r["rect"] for r in office.truth.params["regions"] if r["name"] == "corridor_s")
+        scene = compose(office, ExoSpec())
         data = mujoco.MjData(scene.model)
         mujoco.mj_forward(scene.model, data)
         T = np.eye(4)
-        T[:3, 3] = (x0 + 6.0, 0.5 * (y0 + y1), 0.68)
+        height = scenario["lidar_height_m"]
+        T[:3, 3] = (x0 + 6.0, 0.5 * (y0 + y1), height)
         sensor = LidarSensor("lidar", LidarConfig(return_mode=scenario["lidar_return"]), scene.model, 0)
         scan, truth = sensor.scan(scene.model, data, T, 0.0, scene.truth)
-        z = np.asarray(scan.points_xyz)[:, 2] + 0.68  # sensor axes = world axes here
+        z = np.asarray(scan.points_xyz)[:, 2] + height  # sensor axes = world axes here
         return int(np.sum((np.asarray(truth.kind) == ReturnKind.GHOST) & (z < -0.05)))
 
     glazed = [c for c in LidarFilterTrack().cases("paper") if c.name.startswith("ring-windows")]
