@@ -6,12 +6,8 @@ foot lands relative to the stance foot. The step is planned by the walker's step
 (:func:`exobench.envs.motion.plan_step`) from the command alone; the true staircase only judges the
 outcome (foothold, toe clearance over the nosings, foot-world penetration). See :class:`StairClimbEnv`.
 
-It runs on the simulation core, as the stairs track does: the world is the stairs scenario's
-(:class:`~exobench.envs.sim.scenarios.stairs.StairScenario`) composed with the rig by
-:func:`~exobench.envs.sim.compose.compose_rig`; the rig is :func:`~exobench.envs.sim.rig.calf_tof_rig`;
-the motion is the walker's segments; and the sensors are sampled by the recorder stepped as the
-motion grows (:meth:`exobench.envs.sim.recorder.Recorder.advance_to`), so the frames of an episode
-are those :func:`~exobench.envs.sim.recorder.record` gives over its motion with the same seed.
+It runs on the simulation core (:mod:`exobench.envs.gym`): the stairs scenario's world composed
+with the rig, the walker's segments, the recorder stepped as the motion grows.
 """
 
 from __future__ import annotations
@@ -57,7 +53,7 @@ from ..sim.recorder import Recorder
 from ..sim.rig import calf_tof_rig
 from ..sim.scenarios.stairs import StairScenario
 from ..terrain import Terrain
-from .stair_footing import Outcome, belief_terrain, judge_swing
+from .stair_footing import Outcome, belief_terrain, judge_swing, placement_error_m
 
 K_READINGS = 16  # readings kept per ToF sensor in the observation
 FORWARD_RANGE_M = (0.10, 0.70)  # action 0 maps [-1, 1] onto this
@@ -556,19 +552,10 @@ class StairClimbEnv(gymnasium.Env):
 
     def _placement_error(self, st: Any, swing: str, surface_id: int) -> float:
         """Signed distance along the heading from the tread's centre line to the foot centre, m."""
-        s = self._surfaces.get(surface_id)
-        if s is None or s.kind not in ("tread", "landing"):
-            return 0.0
-        T = self._T_world_stairs
-        R, o = T[:3, :3], T[:3, 3]
-        lx = (s.polygon_w - o) @ R[:, 0]
-        lo, hi = float(lx.min()), float(lx.max())
-        if s.kind == "landing":
-            hi = lo + self._stairs["tread_m"]
         ends = st.sole_points_w(swing, np.array([[0.0, 0.0, -self._exo.sole_height_m], self._toe_f]))[-1]
-        c = float((ends.mean(axis=0) - o) @ R[:, 0])
-        x, _, _ = self._heading_axes()
-        return (c - 0.5 * (lo + hi)) / float(x @ R[:, 0])
+        return placement_error_m(
+            ends, self._surfaces.get(surface_id), self._T_world_stairs, self._stairs["tread_m"], self._heading_axes()[0]
+        )
 
     def _sense(self) -> list[Any]:
         """The recorder's frames delivered by now (instants up to now, the motion so far); each
