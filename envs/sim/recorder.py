@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from exobench.core import ConfigError, Frame, SceneTruth
+from exobench.core import ConfigError, ExobenchError, Frame, SceneTruth
 from exobench.models.exo_spec import ExoSpec
 
 from ..motion import Motion
@@ -138,6 +138,7 @@ class Recorder:
         self._data: Any = None
         self._tracks: dict[str, list[np.ndarray]] = {b: [] for b in self.track_bodies}
         self._pending: list[tuple[float, int, Frame, Any]] = []
+        self._stepped = False
 
     def __enter__(self) -> Recorder:
         return self
@@ -201,6 +202,8 @@ class Recorder:
 
     def finish(self) -> Recording:
         """Every frame and truth of the instants observed (each adapter's ``finish``), merged."""
+        if self._stepped:
+            raise ExobenchError("finish() after advance_to(): the frames were delivered step by step")
         outputs = {s.sensor_id: a.finish() for s, a in zip(self.ctx.rig, self._adapters)}
         merged = [(f.stamp_s, self._rank[sid], f) for sid in self._rank for f in outputs[sid].frames]
         merged.sort(key=lambda x: (x[0], x[1]))  # stable: each stream is already in time order
@@ -223,6 +226,7 @@ class Recorder:
         t_s = float(t_s)
         if not (max(self._observed_s, 0.0) <= t_s <= self.ctx.duration_s):
             raise ConfigError("t_s", t_s, f"[{max(self._observed_s, 0.0)}, {self.ctx.duration_s}] s (time runs forward, within the motion)")
+        self._stepped = True
         self.observe(t_s)
         for s, a in zip(self.ctx.rig, self._adapters):
             out = a.take()

@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from exobench.core import ConfigError
+from exobench.core import ConfigError, ExobenchError
 from exobench.envs.motion import Motion
 from exobench.envs.sensors import ImuConfig, ToFConfig
 from exobench.envs.sensors.adapter import MountedSensor
@@ -96,3 +96,5 @@ def test_stepping_refuses_kinds_that_cannot_stream_time_going_back_and_other_mot
         with pytest.raises(ConfigError) as e:
             rec.advance_to(0.5, other)
         assert e.value.field == "motion"
+        with pytest.raises(ExobenchError, match="step by step"):
+            rec.finish()  # the frames went out with advance_to; finish() would give only the rest
