@@ -5,6 +5,9 @@ recent points of the four calf ToF sensors and the leg joint angles, and chooses
 foot lands relative to the stance foot. The step is planned by the walker's step planner
 (:func:`exobench.envs.motion.plan_step`) from the command alone; the true staircase only judges the
 outcome (foothold, toe clearance over the nosings, foot-world penetration). See :class:`StairClimbEnv`.
+
+It runs on the simulation core (:mod:`exobench.envs.gym`): the stairs scenario's world composed
+with the rig, the walker's segments, the recorder stepped as the motion grows.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ from exobench.core import (
     check_int,
     check_range,
 )
-from exobench.models.exo_spec import JOINT_RANGES_RAD, LEG_JOINTS, TOF_IDS, ExoSpec
+from exobench.models.exo_spec import JOINT_RANGES_RAD, LEG_JOINTS, TOF_IDS
 
 from ..motion import (
     STAND_KNEE_RAD,
@@ -35,6 +38,7 @@ from ..motion import (
     Segment,
     StepPlan,
     StepStart,
+    SwingPlan,
     heel_rises,
     leg_length_for_knee,
     plan_step,
@@ -42,11 +46,14 @@ from ..motion import (
     sole_grid_f,
     still_segment,
 )
-from ..sensors import ToFConfig, ToFSensor
-from ..sim.scenarios.stairs import PARAMS as SCENARIO_PARAMS
-from ..sim.scenarios.stairs import staircase_params_for_case
+from ..sensors import ToFConfig
+from ..sensors.adapter import MountedSensor
+from ..sim.compose import attached_sites, compose_rig
+from ..sim.recorder import Recorder
+from ..sim.rig import calf_tof_rig
+from ..sim.scenarios.stairs import StairScenario
 from ..terrain import Terrain
-from .stair_footing import Outcome, belief_terrain, judge_swing
+from .stair_footing import Outcome, belief_terrain, judge_swing, placement_error_m
 
 K_READINGS = 16  # readings kept per ToF sensor in the observation
 FORWARD_RANGE_M = (0.10, 0.70)  # action 0 maps [-1, 1] onto this
@@ -65,7 +72,7 @@ class _Foot:
 
 
 def _range_pair(name: str, value: tuple[float, float], spec_name: str) -> tuple[float, float]:
-    spec = SCENARIO_PARAMS[spec_name]
+    spec = StairScenario.PARAMS[spec_name]
     try:
         lo, hi = (float(v) for v in value)
     except (TypeError, ValueError):
@@ -99,11 +106,14 @@ class StairClimbEnv(gymnasium.Env):
     lowest apex, :func:`~exobench.envs.motion.swing_apex_m`): the controller assumes that between two
     footholds the ground is no higher than the higher of them (the swing foot's support up to
     its toe, stance and target beyond) and keeps ``clearance_m`` over that. The foot goes where
-    it is told; only the judge of the touch-down sees the true staircase. The ToF sensors
-    (:class:`~exobench.envs.sensors.tof.ToFSensor` with its noise, quantisation, dropout, latency and
-    seeded streams; measurement times ``k / rate_hz`` as in :mod:`exobench.envs.sim.recorder`) measure
-    during the ``standing_s`` of :meth:`reset` (seeing the ground or the first riser ahead) and
-    during every swing and settling.
+    it is told; only the judge of the touch-down sees the true staircase. The four calf ToF
+    sensors (the rig :attr:`rig`: :class:`~exobench.envs.sensors.tof.ToFSensor` with its noise,
+    quantisation, dropout, latency and seeded streams) are sampled by the simulation core's
+    recorder (:class:`~exobench.envs.sim.recorder.Recorder`) at ``k / rate_hz`` during the
+    ``standing_s`` of :meth:`reset` (seeing the ground or the first riser ahead) and during every
+    swing and settling: an observation holds the readings measured from the previous decision
+    time up to, not including, its own (a measurement at a decision instant belongs to the
+    motion that starts there) and delivered (stamped) by it.
 
     ## Action Space
     ``Box(-1, 1, (2,), float32)``, mapped affinely onto the target of the swing foot's sole point
@@ -127,7 +137,9 @@ class StairClimbEnv(gymnasium.Env):
     time (the device's kinematics from the stance foot, exact encoders), so range noise is the
     only error. Invalid readings (no target, out of range) are zeros with ``valid = 0``, as are
     the slots before the first reading; dropped frames are absent (the last 16 delivered are
-    shown). Then the six true leg joint angles at the decision time.
+    shown). Then the six true leg joint angles at the decision time. The readings are the
+    frames of ``info["frames"]``: for the episode's :attr:`motion`, :attr:`rig` and
+    :attr:`sensor_seed`, :func:`exobench.envs.sim.recorder.record` gives the same frames bit for bit.
 
     | Num             | Observation                                       | Min   | Max   | Unit |
     |-----------------|---------------------------------------------------|-------|-------|------|
@@ -176,7 +188,9 @@ class StairClimbEnv(gymnasium.Env):
     ``reset`` and ``step``: ``riser_m, tread_m, yaw_deg, distance_m, user_height_m, n_steps``
     (the truth), ``T_world_stairs`` (4x4, the staircase's local frame: origin at the bottom
     centre of the first riser, x up the flight), ``stance_side``, ``stance_sole_w``,
-    ``stance_surface_id``, ``heading_rad``, ``time_s``, ``climbed`` (safe climbing steps so far).
+    ``stance_surface_id``, ``heading_rad``, ``time_s``, ``climbed`` (safe climbing steps so far),
+    ``frames`` (the :class:`~exobench.core.ToFReading` frames delivered since the previous
+    observation, in time order, ties in the rig's order: what a stairs pipeline would be fed).
     ``step`` also: ``safe``, ``failure`` ("" when safe), ``touched_surface_id`` (surface under
     the landing sole point, -1 none), ``penetration_m``, ``nosing_clearance_m`` (inf if no
     nosing was crossed), ``drop_m`` (height of the landing sole above the surface under it,
@@ -196,10 +210,18 @@ class StairClimbEnv(gymnasium.Env):
     (``gymnasium.make`` itself may instead wrap the ``rgb_array`` mode in its pygame
     ``HumanRendering`` wrapper, with a warning).
 
+    ## Attributes
+    After :meth:`reset` (read-only): :attr:`scene` (the compiled world), :attr:`motion` (the
+    motion so far), :attr:`sensor_seed` (of the rig's noise streams, drawn from
+    ``self.np_random``); any time: :attr:`rig` (the mounted sensors).
+
     ## Version History
     - v0: initial version. Its steps are planned by the walker's step planner with the walker's
       constants (before, by a copy whose constants had drifted: heel rise on long level steps,
-      swings ordered by apex height and capped at 0.5 m, the apex sampled less exactly).
+      swings ordered by apex height and capped at 0.5 m, the apex sampled less exactly). Its
+      sensors are sampled by the simulation core's recorder (before, by a loop of its own that
+      also delivered a reading measured exactly at the decision instant, e.g. at ``standing_s``;
+      such a reading now arrives with the next step).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 1}
@@ -259,6 +281,8 @@ class StairClimbEnv(gymnasium.Env):
 
         self._renderer: Any = None
         self._renderer_model: Any = None
+        self._render_data: Any = None
+        self._recorder: Recorder | None = None
         self._ready = False
 
     # --- action mapping ---------------------------------------------------------------------
@@ -279,9 +303,9 @@ class StairClimbEnv(gymnasium.Env):
     # --- gymnasium API ----------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
         super().reset(seed=seed)
-        import mujoco
+        from exobench.models.worlds import build_staircase
 
-        from exobench.models.worlds import build_staircase, compose
+        self._ready = False  # until the new episode is built
 
         rng = self.np_random
         draw = {
@@ -295,27 +319,21 @@ class StairClimbEnv(gymnasium.Env):
         for k, v in (options or {}).items():
             if k not in RESET_OPTIONS:
                 raise UnknownNameError("StairClimb reset option", str(k), RESET_OPTIONS)
-            spec = SCENARIO_PARAMS[k]
+            spec = StairScenario.PARAMS[k]
             draw[k] = check_range(k, v, spec.low, spec.high, low_open=spec.low_open)
         self._stairs = {k: float(v) for k, v in draw.items()}
-        exo = ExoSpec(user_height_m=self._stairs["user_height_m"])
-        params = staircase_params_for_case(
-            self._stairs["riser_m"], self._stairs["tread_m"], self._stairs["distance_m"], self._stairs["yaw_deg"],
-            exo, n_steps=self.n_steps,
-        )  # fmt: skip
-        scene = compose(build_staircase(params), exo)
-        self._exo, self._model, self._truth = exo, scene.model, scene.truth
+        # the stairs track's world: its scenario's staircase and body, composed with the rig
+        scenario = StairScenario.from_dict({**self._stairs, "n_steps": self.n_steps})
+        exo = scenario.exo_spec()
+        scene = compose_rig(build_staircase(scenario.staircase_params(exo)), exo, attached_sites(self.rig))
+        self._exo, self._scene, self._model = exo, scene, scene.model
         self._terrain = Terrain(scene.truth)
         self._T_world_stairs = np.asarray(scene.truth.params["T_world_local"], dtype=float)
         self._surfaces = {s.surface_id: s for s in scene.truth.surfaces}
         self._landing_id = 2 * self.n_steps
         self._grid = sole_grid_f(exo)
         self._toe_f = np.array([exo.foot_m - exo.heel_to_ankle_m, 0.0, -exo.sole_height_m])
-        self._data = mujoco.MjData(self._model)
-        self._tofs = [ToFSensor(sid, self.tof_config, self._model, sensor_seed) for sid in TOF_IDS]
         self._readings: dict[str, deque] = {sid: deque(maxlen=K_READINGS) for sid in TOF_IDS}
-        self._pending: list[tuple[float, str, np.ndarray, bool]] = []
-        self._tof_k = 0
 
         w, sole_h = exo.hip_width_m, exo.sole_height_m
         h_stand = leg_length_for_knee(exo, STAND_KNEE_RAD)
@@ -331,13 +349,17 @@ class StairClimbEnv(gymnasium.Env):
         self._stance = "l"
         self._pelvis = np.array([0.0, 0.0, sole_h + h_stand])
         t1 = max(self.standing_s, 1e-3)
-        self._segments: list[Segment] = [
-            Segment(0.0, t1, "l", tuple(self._feet["l"].ankle_w), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0),
-                    (h_stand, h_stand), (0.0, 0.0), (sole_h, sole_h), 0.0, (0.0, 0.0))
-        ]  # fmt: skip
+        standing = SwingPlan(
+            stance="l", A=self._feet["l"].ankle_w, stance_pitch=(0.0, 0.0), yaw=(0.0, 0.0), pitch=(0.0, 0.0),
+            f=(0.0, 0.0), h=(h_stand, h_stand), a=(0.0, 0.0), z=(sole_h, sole_h), swing_pitch=(0.0, 0.0),
+        )  # fmt: skip
+        self._segments: list[Segment] = [still_segment(exo, standing, 0.0, t1, at_end=False)]
         self._t = t1
         self._motion = Motion(exo, self._segments)
-        self._run_sensors(self._t)
+        self._close_recorder()
+        self._sensor_seed = sensor_seed
+        self._recorder = Recorder(self._model, scene.truth, exo, self._motion, self.rig, sensor_seed)
+        self._frames = self._sense()
         self._climbed = 0
         self._done = False
         self._ready = True
@@ -363,6 +385,7 @@ class StairClimbEnv(gymnasium.Env):
         if plan is None:
             out = Outcome(False, "unreachable", -1, 0.0, float("inf"), 0.0)
             self._done = True
+            self._frames = []  # no time passed
             return self._observation(), -1.0, True, False, self._info(out, 0.0, step_info)
 
         step, st = plan
@@ -379,7 +402,7 @@ class StairClimbEnv(gymnasium.Env):
         self._segments += [seg, settle]
         self._t = settle.t1
         self._motion = Motion(exo, self._segments)
-        self._run_sensors(self._t)
+        self._frames = self._sense()
 
         if not out.safe:
             self._done = True
@@ -418,7 +441,8 @@ class StairClimbEnv(gymnasium.Env):
             except Exception as e:  # no GL context: EGL/OSMesa missing or MUJOCO_GL unset
                 raise RenderError(f"cannot render off-screen ({e}); set MUJOCO_GL=egl or osmesa before mujoco is imported, or leave it unset and let exobench choose") from e
             self._renderer_model = self._model
-        d = self._data
+            self._render_data = mujoco.MjData(self._model)
+        d = self._render_data
         d.qpos[:] = self._motion.sample(self._model, self._t).qpos[0]
         mujoco.mj_forward(self._model, d)
         cam = mujoco.MjvCamera()
@@ -430,12 +454,46 @@ class StairClimbEnv(gymnasium.Env):
 
     def close(self) -> None:
         self._close_renderer()
+        self._close_recorder()
+
+    # --- the simulation behind the episode (read-only) -----------------------------------------
+    @property
+    def rig(self) -> tuple[MountedSensor, ...]:
+        """The sensors of the episode: the four calf ToF sensors with the ``tof`` config."""
+        return calf_tof_rig(self.tof_config)
+
+    @property
+    def scene(self) -> Any:
+        """The compiled world of the episode (``models.worlds.CompiledScene``)."""
+        self._require_reset()
+        return self._scene
+
+    @property
+    def motion(self) -> Motion:
+        """The motion so far (from 0 to ``info["time_s"]``)."""
+        self._require_reset()
+        return self._motion
+
+    @property
+    def sensor_seed(self) -> int:
+        """The seed of the rig's noise streams (drawn from ``np_random`` at reset)."""
+        self._require_reset()
+        return self._sensor_seed
 
     # --- internals --------------------------------------------------------------------------
+    def _require_reset(self) -> None:
+        if not self._ready:
+            raise ExobenchError("call reset() first")
+
     def _close_renderer(self) -> None:
         if self._renderer is not None:
             self._renderer.close()
-        self._renderer, self._renderer_model = None, None
+        self._renderer, self._renderer_model, self._render_data = None, None, None
+
+    def _close_recorder(self) -> None:
+        if self._recorder is not None:
+            self._recorder.close()
+        self._recorder = None
 
     def _heading_axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         c, s = np.cos(self._yaw), np.sin(self._yaw)
@@ -494,51 +552,21 @@ class StairClimbEnv(gymnasium.Env):
 
     def _placement_error(self, st: Any, swing: str, surface_id: int) -> float:
         """Signed distance along the heading from the tread's centre line to the foot centre, m."""
-        s = self._surfaces.get(surface_id)
-        if s is None or s.kind not in ("tread", "landing"):
-            return 0.0
-        T = self._T_world_stairs
-        R, o = T[:3, :3], T[:3, 3]
-        lx = (s.polygon_w - o) @ R[:, 0]
-        lo, hi = float(lx.min()), float(lx.max())
-        if s.kind == "landing":
-            hi = lo + self._stairs["tread_m"]
         ends = st.sole_points_w(swing, np.array([[0.0, 0.0, -self._exo.sole_height_m], self._toe_f]))[-1]
-        c = float((ends.mean(axis=0) - o) @ R[:, 0])
-        x, _, _ = self._heading_axes()
-        return (c - 0.5 * (lo + hi)) / float(x @ R[:, 0])
+        return placement_error_m(
+            ends, self._surfaces.get(surface_id), self._T_world_stairs, self._stairs["tread_m"], self._heading_axes()[0]
+        )
 
-    def _run_sensors(self, t_end: float) -> None:
-        """ToF measurements at k / rate_hz up to ``t_end``; readings delivered by then are kept."""
-        import mujoco
-
-        rate = self.tof_config.rate_hz
-        k1 = int(np.floor(t_end * rate + 1e-9))
-        ks = np.arange(self._tof_k, k1 + 1)
-        self._tof_k = k1 + 1
-        if len(ks):
-            ts = ks / rate
-            qpos = self._motion.sample(self._model, ts).qpos
-            for q, t in zip(qpos, ts):
-                self._data.qpos[:] = q
-                mujoco.mj_kinematics(self._model, self._data)
-                for s in self._tofs:
-                    s.observe(self._model, self._data, float(t))
-            for s in self._tofs:
-                for reading, truth in s.frames(self._model, self._truth):
-                    T = truth.T_world_sensor
-                    ok = reading.valid
-                    p = T[:3, 3] + reading.range_m * T[:3, 2] if ok else np.zeros(3)
-                    self._pending.append((reading.stamp_s, s.sensor_id, p, ok))
-                s.obs.clear()
-        self._pending.sort(key=lambda r: (r[0], TOF_IDS.index(r[1])))
-        keep = []
-        for stamp, sid, p, ok in self._pending:
-            if stamp <= t_end + 1e-12:
-                self._readings[sid].append((p, ok))
-            else:
-                keep.append((stamp, sid, p, ok))
-        self._pending = keep
+    def _sense(self) -> list[Any]:
+        """The recorder's frames delivered by now (instants up to now, the motion so far); each
+        kept as a point (the measured range along the beam from the true sensor pose) or invalid."""
+        got = self._recorder.advance_to(self._t, self._motion)
+        for reading, truth in got:
+            T = truth.T_world_sensor
+            ok = reading.valid
+            p = T[:3, 3] + reading.range_m * T[:3, 2] if ok else np.zeros(3)
+            self._readings[reading.sensor_id].append((p, ok))
+        return [reading for reading, _ in got]
 
     def _observation(self) -> np.ndarray:
         x, y, z = self._heading_axes()
@@ -567,6 +595,7 @@ class StairClimbEnv(gymnasium.Env):
             "heading_rad": float(self._yaw),
             "time_s": float(self._t),
             "climbed": int(self._climbed),
+            "frames": tuple(self._frames),
         })  # fmt: skip
         if out is not None:
             info.update({

@@ -6,6 +6,7 @@ touch-down is *safe* when no sole point goes more than ``penetration_tol_m`` int
 ("collision"), the swing toe passes every nosing it crosses at least ``min_nosing_clearance_m``
 above it ("scuff"), the sole from the ankle to the toe rests on one walkable surface
 ("no_foothold") and the foot lands at most ``max_drop_m`` above it ("drop").
+:func:`placement_error_m` measures how far a landed foot is from the centre of its tread.
 """
 
 from __future__ import annotations
@@ -103,3 +104,21 @@ def judge_swing(
     if supported:
         touched = int(ids[front][0])
     return Outcome(failure == "", failure, touched, pen, clearance, drop)
+
+
+def placement_error_m(
+    ends_w: np.ndarray, surface: PlanarSurface | None, T_world_stairs: np.ndarray, tread_m: float, heading_x: np.ndarray
+) -> float:
+    """Signed distance along the heading ``heading_x`` from the centre line of the tread (or of a
+    virtual tread ``tread_m`` deep at the landing's front edge) to the foot centre (the midpoint
+    of ``ends_w``: the landed sole point below the ankle and the toe tip), m; + beyond the centre;
+    0 off the treads and landing. ``T_world_stairs``: the staircase frame, x up the flight."""
+    if surface is None or surface.kind not in ("tread", "landing"):
+        return 0.0
+    R, o = T_world_stairs[:3, :3], T_world_stairs[:3, 3]
+    lx = (surface.polygon_w - o) @ R[:, 0]
+    lo, hi = float(lx.min()), float(lx.max())
+    if surface.kind == "landing":
+        hi = lo + tread_m
+    c = float((ends_w.mean(axis=0) - o) @ R[:, 0])
+    return (c - 0.5 * (lo + hi)) / float(heading_x @ R[:, 0])

@@ -5,7 +5,11 @@ recorder builds the kind's adapter (a :class:`SensorAdapter`, registered in :mod
 asks it three things: the instants at which it needs MuJoCo's state (:meth:`~SensorAdapter.instants`,
 with velocities and accelerations when ``needs_dynamics``), to observe the state there
 (:meth:`~SensorAdapter.observe`), and at the end its frames and truth
-(:meth:`~SensorAdapter.finish`, a :class:`SensorOutput`). The calibration builder asks the adapter
+(:meth:`~SensorAdapter.finish`, a :class:`SensorOutput`). A kind whose noise is drawn reading by
+reading in time order may also stream (``streams``): :meth:`~SensorAdapter.take` gives the frames
+of the instants observed since the last call, so a recording stepped while its motion grows
+(:meth:`exobench.envs.sim.recorder.Recorder.advance_to`) gives the frames of one ``finish``.
+The calibration builder asks the adapter
 class for the parameters a pipeline may know (:meth:`~SensorAdapter.calibration_params`) and any
 calibration ``extra`` entries. What an adapter may read while recording is a :class:`RecordContext`.
 """
@@ -115,6 +119,7 @@ class SensorAdapter(Protocol):
     needs_dynamics: ClassVar[bool]  # its instants need qvel/qacc and mj_rnePostConstraint
     calibration_shared: ClassVar[bool]  # its params also describe the device's unmounted sensors of the kind
     has_mount: ClassVar[bool]  # it appears in Calibration.mounts
+    streams: ClassVar[bool]  # take() gives its frames step by step, equal to those of one finish()
 
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None: ...
 
@@ -126,6 +131,10 @@ class SensorAdapter(Protocol):
 
     def finish(self) -> SensorOutput: ...
 
+    def take(self) -> SensorOutput:
+        """The frames and truth of the instants observed since the last call (kinds that stream)."""
+        ...
+
     def close(self) -> None: ...
 
     @staticmethod
@@ -136,11 +145,12 @@ class SensorAdapter(Protocol):
 
 
 class BaseAdapter:
-    """Defaults of :class:`SensorAdapter`: no instants, no calibration extra, nothing to close."""
+    """Defaults of :class:`SensorAdapter`: no instants, no streaming, no calibration extra, nothing to close."""
 
     needs_dynamics: ClassVar[bool] = False
     calibration_shared: ClassVar[bool] = False
     has_mount: ClassVar[bool] = True
+    streams: ClassVar[bool] = False
 
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
         self.sensor, self.ctx = sensor, ctx
@@ -154,6 +164,9 @@ class BaseAdapter:
 
     def finish(self) -> SensorOutput:
         raise NotImplementedError(type(self).__name__)
+
+    def take(self) -> SensorOutput:
+        raise NotImplementedError(f"{type(self).__name__} does not stream")
 
     def close(self) -> None:
         return None

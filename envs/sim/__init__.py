@@ -3,8 +3,10 @@
 - :mod:`.rig`: rigs (sequences of :class:`~exobench.envs.sensors.adapter.MountedSensor`) and
   named sensor presets that any world can carry (``extra_sensors``).
 - :mod:`.hooks`: view joints and pedestrians as recorder hooks.
-- :mod:`.recorder`: :func:`record`, one loop scheduling every mounted sensor at its rate over a
-  motion and merging the frames in time order; :class:`Hook` adds view joints and pedestrians.
+- :mod:`.recorder`: :class:`Recorder`, one loop scheduling every mounted sensor at its rate over a
+  motion and merging the frames in time order, run over a whole motion by :func:`record` or
+  stepped while the motion grows by :meth:`Recorder.advance_to` (the gymnasium environment);
+  :class:`Hook` adds view joints and pedestrians.
 - :mod:`.calibration`: :func:`build_calibration`, the one calibration builder.
 - :mod:`.compose`: the world with the exoskeleton and what the rig needs beyond the device.
 - :mod:`.scenario`: scenario dataclasses generated from their parameter tables.
@@ -12,7 +14,7 @@
 """
 
 from .calibration import build_calibration
-from .recorder import Hook, Recording, record
+from .recorder import Hook, Recorder, Recording, record
 from .rig import PRESETS, Rig, camera_rig, scalar_rig, with_presets
 from .scenarios.course import LocomotionScenario, plan_locomotion, simulate_locomotion
 from .scenarios.office import OfficeScenario, plan_office_walk, simulate_office
@@ -30,6 +32,7 @@ __all__ = [
     "OfficeScenario",
     "Hook",
     "LocomotionScenario",
+    "Recorder",
     "Recording",
     "Rig",
     "StairScenario",

@@ -46,8 +46,13 @@ def scalar_rig(config: SensorsConfig, *, tof: bool = True) -> Rig:
         *(MountedSensor(pid, "contact", config.contact) for pid in CONTACT_IDS),
     ]
     if tof:
-        out += [MountedSensor(sid, "tof", config.tof) for sid in TOF_IDS]
+        out += calf_tof_rig(config.tof)
     return tuple(out)
+
+
+def calf_tof_rig(config: ToFConfig) -> Rig:
+    """The four calf ToF sensors (``tof_l_med, tof_l_lat, tof_r_med, tof_r_lat``), one config."""
+    return tuple(MountedSensor(sid, "tof", config) for sid in TOF_IDS)
 
 
 def camera_rig(mount: str, camera: RgbdConfig, imu: ImuConfig | None = CAMERA_IMU, odometry: object | None = None) -> Rig:
@@ -72,7 +77,7 @@ PRESETS: dict[str, Callable[[], Rig]] = {
     "rgbd_chest": lambda: camera_rig("chest", RgbdConfig(width_px=424, height_px=240)),
     "rgbd_thigh": lambda: camera_rig("thigh", RgbdConfig(width_px=424, height_px=240)),
     "imu_trunk": lambda: (MountedSensor(IMU_TRUNK, "imu", ImuConfig()),),
-    "tof_calves": lambda: tuple(MountedSensor(sid, "tof", ToFConfig()) for sid in TOF_IDS),
+    "tof_calves": lambda: calf_tof_rig(ToFConfig()),
     "encoders": lambda: (MountedSensor(ENCODER_ID, "encoders", EncoderConfig()),),
     "contacts": lambda: tuple(MountedSensor(pid, "contact", ContactConfig()) for pid in CONTACT_IDS),
 }

@@ -5,6 +5,7 @@ parameters (riser, tread, the staircase frame) and the user's dimensions, indepe
 environment's own planning and judging code.
 """
 
+import dataclasses
 import subprocess
 import sys
 import warnings
@@ -254,4 +255,62 @@ def test_actions_outside_the_box_are_clipped_as_the_error_text_says():
         with pytest.raises(ConfigError) as err:
             env.step(np.array(bad, dtype=np.float32))
         assert "two finite numbers" in str(err.value) and "clipped" in str(err.value)
+    env.close()
+
+
+@pytest.mark.parametrize("latency", [0.0, 0.03])
+def test_observations_are_the_frames_the_recorder_produces(latency):
+    # the oracle: envs.sim's record() over the episode's motion with the episode's rig and seed
+    from exobench.envs.sensors import ToFConfig
+    from exobench.envs.sim import record
+
+    env = StairClimbEnv(tof=ToFConfig(latency_s=latency, dropout_prob=0.2))
+    steps = [env.reset(seed=4)]
+    for _ in range(6):
+        obs, _, terminated, truncated, info = env.step(StairClimbEnv.action_from_target(*oracle_target(steps[-1][1])))
+        steps.append((obs, info))
+        if terminated or truncated:
+            break
+    assert len(steps) >= 4
+    scene = env.scene
+    rec = record(scene.model, scene.truth, scene.exo, env.motion, env.rig, env.sensor_seed)
+    truth = rec.frame_truth([s.sensor_id for s in env.rig])
+    t_end = steps[-1][1]["time_s"]
+    assert env.motion.duration_s == t_end
+
+    def measured(frame):
+        """The measurement instant k / rate_hz of a frame, exactly as the sensors compute it."""
+        return round((frame.stamp_s - latency) * 50.0) / 50.0
+
+    def by(t):
+        """The frames (and truth) measured before t (a step observes [t_prev, t)) and stamped by t."""
+        return [(f, tr) for f, tr in zip(rec.frames, truth) if measured(f) < t and f.stamp_s <= t + 1e-12]
+
+    def fields(frames):
+        """Every field of every frame as bytes: equality bit for bit (NaN ranges included)."""
+        return [tuple((k, np.asarray(v).tobytes()) for k, v in dataclasses.asdict(f).items()) for f in frames]
+
+    delivered = [f for _, info in steps for f in info["frames"]]
+    assert len(delivered) > 200
+    assert fields(delivered) == fields(f for f, _ in by(t_end))
+    names = [s.sensor_id for s in env.rig]
+    n_before = 0
+    for obs, info in steps:
+        t = info["time_s"]
+        now = by(t)
+        assert fields(info["frames"]) == fields(f for f, _ in now[n_before:])  # what arrived during the step
+        n_before = len(now)
+        # each observation shows, per sensor, the last 16 readings delivered by its time, as
+        # points along the beam from the recorder's true sensor pose, in the stance ground frame
+        _, _, x, y = _frames(info)
+        axes = np.column_stack([x, y, [0.0, 0.0, 1.0]])
+        expected = np.zeros((4, 16, 4))
+        for i, sid in enumerate(names):
+            last = [(f, tr) for f, tr in now if f.sensor_id == sid][-16:]
+            for k, (f, tr) in enumerate(last, start=16 - len(last)):
+                if f.valid:
+                    T = tr.T_world_sensor
+                    expected[i, k, :3] = (T[:3, 3] + f.range_m * T[:3, 2] - info["stance_sole_w"]) @ axes
+                    expected[i, k, 3] = 1.0
+        np.testing.assert_array_equal(obs[:256], expected.reshape(-1).astype(np.float32))
     env.close()

@@ -13,6 +13,7 @@ from .model import ToFSensor
 
 class ToFAdapter(BaseAdapter):
     calibration_shared = True
+    streams = True  # noise and dropout are drawn reading by reading, in time order
 
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
         super().__init__(sensor, ctx)
@@ -27,6 +28,9 @@ class ToFAdapter(BaseAdapter):
     def finish(self) -> SensorOutput:
         pairs = self.model.frames(self.ctx.model, self.ctx.scene_truth)
         return SensorOutput([f for f, _ in pairs], [t for _, t in pairs])
+
+    def take(self) -> SensorOutput:
+        return self.finish()  # the sensor turns only the observations since its last call into frames
 
     @staticmethod
     def calibration_params(sensor: MountedSensor) -> dict[str, Any]:

@@ -50,7 +50,9 @@ class _Obs:
 
 class ToFSensor:
     """One calf ToF sensor. Call :meth:`observe` at each measurement time (after MuJoCo's
-    kinematics), then :meth:`frames` once to turn the observations into frames and truth."""
+    kinematics), then :meth:`frames` to turn the observations into frames and truth: once at the
+    end, or after every few observations (each call takes the observations since the last one and
+    the noise streams go on, so the frames are the same either way)."""
 
     def __init__(self, sensor_id: str, config: ToFConfig, model: object, seed: int) -> None:
         import mujoco
@@ -104,7 +106,8 @@ class ToFSensor:
         self.obs.append(_Obs(t, make_T(R, p), r0, hit_w, geom, mixed, spread))
 
     def frames(self, model: object, truth: SceneTruth) -> list[tuple[ToFReading, ToFTruth]]:
-        """Frames with noise, quantisation, latency and dropout, each with its truth."""
+        """Frames with noise, quantisation, latency and dropout, each with its truth, of the
+        observations since the last call."""
         import mujoco
 
         c = self.config
@@ -135,4 +138,5 @@ class ToFSensor:
                     ToFTruth(stamp, self.sensor_id, o.range_m, o.hit_w, sid, o.T_world_sensor),
                 )
             )
+        self.obs = []
         return out
