@@ -178,7 +178,7 @@ def run(
             folder = root / plan.track.name
             # tracks not started yet get their folders; finished and interrupted ones are continued
             started = resume and (folder / RUN_CONFIG_FILE).exists()
-            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint)
+            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, last=plan is plans[-1])
     _exit_on_harness_errors(errors)
 
 
@@ -235,18 +235,18 @@ def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160)
     sys.exit(EXIT_FAILED)
 
 
-def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool, hint: str) -> list[str]:
+def _run_plan(
+    plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool, hint: str, last: bool = True
+) -> list[str]:
     """Execute one validated plan with a progress bar; print its table and where it went.
-    ``hint`` is the command that continues the run. Returns the failures of the simulation or
-    the scorer (see :func:`runner.harness_errors`)."""
-    import shlex
-
+    ``hint`` is the command that continues the run; ``last``: no track of the run comes after
+    this one. Returns the failures of the simulation or the scorer (see
+    :func:`runner.harness_errors`)."""
     from tqdm import tqdm
 
     from exobench.core.errors import FolderError
 
-    from .report import summary_text, write_report
-    from .runner import execute, harness_errors, rerun_first_episode
+    from .runner import execute
 
     bar: dict[str, Any] = {}
 
@@ -260,18 +260,32 @@ def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str 
 
     try:
         outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode)
-    except KeyboardInterrupt:
-        if "tqdm" in bar:
+        bar["tqdm"].close()
+        bar["finished"] = True
+        return _finish_plan(plan, outcome, out_dir, rerun_path, no_report, hint, last)
+    except KeyboardInterrupt:  # while episodes run, or while the report or recording is written
+        if "tqdm" in bar and "finished" not in bar:
             bar["tqdm"].close()
         click.echo(f"exobench: interrupted; finished episodes are kept in {out_dir} (continue: {hint})", err=True)
         sys.exit(EXIT_INTERRUPTED)
     except FolderError as e:
-        if "tqdm" not in bar:
-            raise  # refused before anything ran
+        if "tqdm" not in bar or "finished" in bar:
+            raise  # refused before anything ran, or a report's error that says what to do
+
         bar["tqdm"].close()  # a write failed during the run (disk full)
         click.echo(f"exobench: error: {e}; finished episodes are kept in {out_dir} (continue: {hint})", err=True)
         sys.exit(EXIT_USAGE)
-    bar["tqdm"].close()
+
+
+def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, no_report: bool, hint: str, last: bool) -> list[str]:
+    """Print the table of a finished plan, write its report and rerun recording."""
+    import shlex
+
+    from exobench.core.errors import FolderError
+
+    from .report import summary_text, write_report
+    from .runner import harness_errors, rerun_first_episode
+
     if outcome.figure_errors:
         first = outcome.figure_errors[0]
         click.echo(f"exobench: warning: {len(outcome.figure_errors)} figures not saved ({first}); their records are kept", err=True)
@@ -282,8 +296,9 @@ def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str 
     if not no_report:
         try:
             click.echo(f"report: {write_report(outcome.out_dir)}")
-        except FolderError as e:
-            raise FolderError(f"{e}; the records are kept (write it later: exobench report {shlex.quote(out_dir)})") from None
+        except FolderError as e:  # the tracks after this one have not run: continuing runs them
+            later = f"write it later: exobench report {shlex.quote(out_dir)}" if last else f"continue: {hint}"
+            raise FolderError(f"{e}; the records are kept ({later})") from None
     if rerun_path:
         click.echo(f"rerun recording: {rerun_first_episode(plan, rerun_path)}")
     return harness_errors(outcome.records)

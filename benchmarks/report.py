@@ -147,17 +147,19 @@ def _files(out: Path) -> dict[Path, tuple[int, int]]:
 def write_report(out_dir: str | os.PathLike) -> Path:
     """Write ``report.md`` and its figures (PNG) into a run folder; returns the report's path.
 
-    A write that fails (disk full, read-only folder) raises FolderError and leaves no part of
-    the report behind: the files this call created or changed are removed (the run's records,
+    A write that fails (disk full, read-only folder) raises FolderError and, as Ctrl-C does,
+    leaves no part of the report behind: the files this call created or changed are removed (the run's records,
     configuration and figure data are never among them)."""
     out = Path(out_dir)
     before = _files(out)
     try:
         return _write_report(out)
-    except OSError as e:
+    except BaseException as e:  # disk full, or Ctrl-C while the figures are drawn
         for p, stamp in _files(out).items():
             if before.get(p) != stamp and p.name not in KEEP and p.suffix != ".npz":
                 p.unlink(missing_ok=True)
+        if not isinstance(e, OSError):
+            raise
         name = e.filename2 or e.filename or out / REPORT_FILE
         name = out / REPORT_FILE if Path(name).name == TMP_FILE else name
         raise FolderError(f"{name}: cannot be written ({e.strerror or e}); the report was not written") from None

@@ -331,7 +331,8 @@ def prepare_output(out_dir: str | os.PathLike, plan: RunPlan, *, resume: bool) -
         repair_results(results)
         return out
     if not _holds_only_lock(out):
-        raise ConfigError("--out", str(out), "a new or empty folder (or --resume to continue the run in it)")
+        again = " (or --resume to continue the run in it)" if (out / RUN_CONFIG_FILE).exists() else ""
+        raise ConfigError("--out", str(out), f"a new or empty folder{again}")
     write_json_atomic(out / RUN_CONFIG_FILE, plan.run_config())
     return out
 

@@ -496,3 +496,42 @@ def test_resume_with_a_results_file_that_cannot_be_written_runs_nothing(tmp_path
     result = _run(["run", "--resume", "--out", out])
     assert result.exit_code == 2 and str(results) in _one_error_line(result)
     assert len(results.read_text().splitlines()) == 2
+
+
+# ---------------------------------------------------------------- the other hints, run as printed
+
+
+def test_ctrl_c_while_the_report_is_written_leaves_none_of_it_and_the_hint_finishes_it(tmp_path, tracks, monkeypatch):
+    import matplotlib.figure
+
+    def savefig(self, path, *a, **kw):
+        Path(path).write_bytes(b"\x89PNG half")
+        raise KeyboardInterrupt
+
+    out = tmp_path / "all"
+    with monkeypatch.context() as m:
+        m.setattr(matplotlib.figure.Figure, "savefig", savefig)
+        stopped = _run(["run", "--out", out])
+    assert stopped.exit_code == 130
+    assert not list(out.rglob("*.png")) and not list(out.rglob("*.tmp")) and not (out / "stairs" / "report.md").exists()
+    assert not (out / "stairs2").exists()
+    resumed = _run(_printed_command(stopped.stderr))
+    assert resumed.exit_code == 0, resumed.stderr
+    assert (out / "stairs" / "report.md").exists() and (out / "stairs2" / "report.md").exists()
+
+
+def test_the_other_track_hint_of_replay_works_as_printed(tmp_path, tracks):
+    session = tmp_path / "s"
+    assert _run(["record", session]).exit_code == 0
+    wrong = _run(["replay", session, "--track", "stairs2"])
+    line = _one_error_line(wrong)
+    assert wrong.exit_code == 2 and line.endswith("replay it with --track stairs")
+    right = _run(["replay", session, *shlex.split(line.split("replay it with ", 1)[1])])
+    assert right.exit_code == 0, right.stderr
+
+
+def test_the_one_track_hint_of_a_run_of_every_track_works_as_printed(tmp_path, tracks):
+    wrong = _run(["run", "--set", "riser_m=0.2", "--out", tmp_path / "r", "--no-report"])
+    assert wrong.exit_code == 2 and "one track (--track NAME)" in _one_error_line(wrong)
+    right = _run(["run", "--track", "stairs", "--set", "riser_m=0.2", "--out", tmp_path / "r", "--no-report"])
+    assert right.exit_code == 0
