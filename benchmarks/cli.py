@@ -92,7 +92,7 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
 @click.option("--out", type=click.Path(), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
-@click.option("--resume", is_flag=True, help="Continue the run in --out, skipping finished episodes.")
+@click.option("--resume", is_flag=True, help="Continue the run in --out DIR with the settings stored there, skipping finished episodes.")
 @click.option("--rerun", "rerun_path", type=click.Path(), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and its plots.")
 def run(
