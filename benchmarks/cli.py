@@ -113,7 +113,7 @@ def run(
     \b
     --resume --out DIR continues the run in DIR with the settings stored there (one track's
     run_config.json, or run_all.json of a run of every track); options given with it must match."""
-    from exobench.core.errors import ConfigError
+    from exobench.core.errors import ConfigError, FolderError
 
     from .out_paths import check_out_dir, check_out_file, exclusive_lock
     from .overrides import parse_assignments
@@ -161,8 +161,11 @@ def run(
         check_out_file("--rerun", _rerun_path(rerun_path, plan.track.name))
     if resume:  # each track folder already there must be this run's, before any track runs
         for plan in plans:
-            if (root / plan.track.name / RUN_CONFIG_FILE).exists():
-                check_resume(root / plan.track.name, plan)
+            folder = root / plan.track.name
+            if (folder / RUN_CONFIG_FILE).exists():
+                check_resume(folder, plan)
+            elif folder.is_dir() and _has_files(folder):
+                raise FolderError(f"{folder}: not a run folder (no {RUN_CONFIG_FILE}) in the run being resumed")
     elif root.is_dir() and _has_files(root):
         again = " (or --resume to continue the run in it)" if _stored_settings(str(root), must=False) else ""
         raise ConfigError("--out", str(root), f"a new or empty folder{again}")

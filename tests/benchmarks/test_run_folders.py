@@ -114,7 +114,7 @@ def test_every_track_interrupted_and_resumed_as_printed_gives_the_records_of_an_
     whole = tmp_path / "whole"
     assert _run(["run", "--seeds", "2", "--out", whole, "--no-report"]).exit_code == 0
     for n in (3, 15):  # stopped in the first track, then in the second (the first finished)
-        part = tmp_path / f"part{n}"
+        part = tmp_path / f"part {n}"  # a space: the printed command quotes it
         with monkeypatch.context() as m:
             _interrupt_after(m, n)
             stopped = _run(["run", "--seeds", "2", "--out", part, "--no-report"])
@@ -535,3 +535,15 @@ def test_the_one_track_hint_of_a_run_of_every_track_works_as_printed(tmp_path, t
     assert wrong.exit_code == 2 and "one track (--track NAME)" in _one_error_line(wrong)
     right = _run(["run", "--track", "stairs", "--set", "riser_m=0.2", "--out", tmp_path / "r", "--no-report"])
     assert right.exit_code == 0
+
+
+def test_resuming_every_track_checks_every_track_folder_before_any_runs(tmp_path, tracks, monkeypatch):
+    out = tmp_path / "all"
+    with monkeypatch.context() as m:
+        _interrupt_after(m, 3)
+        assert _run(["run", "--out", out, "--no-report"]).exit_code == 130
+    (out / "stairs2").mkdir()
+    (out / "stairs2" / "notes.txt").write_text("not a run")
+    monkeypatch.setattr(FakeTrack, "simulate", lambda *a: pytest.fail("ran before every folder was checked"))
+    result = _run(["run", "--resume", "--out", out])
+    assert result.exit_code == 2 and str(out / "stairs2") in _one_error_line(result)
