@@ -34,6 +34,10 @@ class _Group(click.Group):
             if isinstance(e, ExobenchError):
                 click.echo(f"exobench: error: {e}", err=True)
                 ctx.exit(EXIT_USAGE)
+            if isinstance(e, OSError):  # the file system said no (disk full, read-only, ...)
+                name = e.filename2 or e.filename
+                click.echo(f"exobench: error: {name}: {e.strerror}" if name and e.strerror else f"exobench: error: {e}", err=True)
+                ctx.exit(EXIT_USAGE)
             raise
 
 
@@ -88,7 +92,7 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
 @click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
 @click.option("--out", type=click.Path(), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
-@click.option("--resume", is_flag=True, help="Continue the run in --out, skipping finished episodes.")
+@click.option("--resume", is_flag=True, help="Continue the run in --out DIR with the settings stored there, skipping finished episodes.")
 @click.option("--rerun", "rerun_path", type=click.Path(), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
 @click.option("--no-report", is_flag=True, help="Skip report.md and its plots.")
 def run(
@@ -104,12 +108,17 @@ def run(
     rerun_path: str | None,
     no_report: bool,
 ) -> None:
-    """Run SUITE (default: each track's quick suite) of one track or of all, and print the tables."""
-    from exobench.core.errors import ConfigError
+    """Run SUITE (default: each track's quick suite) of one track or of all, and print the tables.
 
-    from .out_paths import check_out_dir, check_out_file
+    \b
+    --resume --out DIR continues the run in DIR with the settings stored there (one track's
+    run_config.json, or run_all.json of a run of every track); options given with it must match."""
+    from exobench.core.errors import ConfigError, FolderError
+
+    from .out_paths import check_out_dir, check_out_file, exclusive_lock
     from .overrides import parse_assignments
-    from .runner import plan_run
+    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, run_all_config, write_json_atomic
+    from .runner import check_resume, plan_run
     from .tracks import track_names
 
     if jobs < 1:
@@ -117,32 +126,106 @@ def run(
     if resume and out is None:
         raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
     run_seeds = _seeds(seed, seeds)
-    overrides = parse_assignments(assignments)
+    overrides: dict[str, Any] = parse_assignments(assignments)
     if out is not None:
         check_out_dir("--out", out, existing=True if resume else None)
+    stored_tracks = None
+    if resume:
+        given = click.get_current_context().get_parameter_source
+        stored = _stored_settings(str(out))
+        if given("track") != click.core.ParameterSource.DEFAULT and track != stored.get("track", track):
+            raise ConfigError("--resume track", track, f"the value of the run being resumed: {stored['track']!r}")
+        track = stored.get("track", track)
+        suite = suite if suite is not None else stored.get("suite")
+        pipelines = pipelines or tuple(stored.get("pipelines", ()))
+        run_seeds = run_seeds if seed is not None or seeds is not None else stored.get("seeds", run_seeds)
+        overrides = overrides if assignments else stored.get("overrides", {})
+        stored_tracks = stored.get("tracks")
     if track != "all":
         plan = plan_run(track, suite, pipelines or None, run_seeds, overrides)
         out = out or _default_out(f"{plan.track.name}-{plan.suite}")
         check_out_dir("--out", out)
         if rerun_path is not None:
             check_out_file("--rerun", rerun_path)
-        errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report)
+        errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report))
         _exit_on_harness_errors(errors)
         return
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
-    plans = [plan_run(name, suite, None, run_seeds, {}) for name in track_names()]
-    root = out or _default_out(f"all-{suite or 'quick'}")
-    check_out_dir("--out", root)
+    names = stored_tracks or track_names()
+    plans = [plan_run(name, suite, None, run_seeds, {}) for name in names]
+    root = Path(out or _default_out(f"all-{suite or 'quick'}"))
+    check_out_dir("--out", str(root))
     for plan in plans if rerun_path is not None else ():
         check_out_file("--rerun", _rerun_path(rerun_path, plan.track.name))
+    if resume:  # each track folder already there must be this run's, before any track runs
+        for plan in plans:
+            folder = root / plan.track.name
+            if (folder / RUN_CONFIG_FILE).exists():
+                check_resume(folder, plan)
+            elif folder.is_dir() and _has_files(folder):
+                raise FolderError(f"{folder}: not a run folder (no {RUN_CONFIG_FILE}) in the run being resumed")
+    elif root.is_dir() and _has_files(root):
+        again = " (or --resume to continue the run in it)" if _stored_settings(str(root), must=False) else ""
+        raise ConfigError("--out", str(root), f"a new or empty folder{again}")
+    hint = _continue_command(str(root), jobs, rerun_path, no_report)
+    root.mkdir(parents=True, exist_ok=True)
     errors: list[str] = []
-    for plan in plans:
-        click.echo(f"\n== track {plan.track.name} / {plan.suite}")
-        rrd = _rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None
-        errors += _run_plan(plan, str(Path(root) / plan.track.name), jobs, resume, rrd, no_report)
+    with exclusive_lock(root, "run"):
+        if not resume:  # what `--resume --out ROOT` reads to continue every track
+            write_json_atomic(root / RUN_ALL_FILE, run_all_config(names, suite, run_seeds))
+        for plan in plans:
+            click.echo(f"\n== track {plan.track.name} / {plan.suite}")
+            rrd = _rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None
+            folder = root / plan.track.name
+            # tracks not started yet get their folders; finished and interrupted ones are continued
+            started = resume and (folder / RUN_CONFIG_FILE).exists()
+            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, last=plan is plans[-1])
     _exit_on_harness_errors(errors)
+
+
+def _has_files(folder: Path) -> bool:
+    from .out_paths import LOCK_FILE
+
+    return any(p.name != LOCK_FILE for p in folder.iterdir())
+
+
+def _stored_settings(out: str, *, must: bool = True) -> dict[str, Any]:
+    """The settings of the run in folder ``out``, as `run` takes them: one track's from its
+    run_config.json, a run of every track's from run_all.json ({"track": "all"} alone for such a
+    run written before run_all.json existed: its settings are the command line's). Not a run
+    folder: ConfigError, or {} when not ``must``."""
+    from exobench.core.errors import ConfigError
+
+    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, read_run_all, read_run_config
+    from .tracks import track_names
+
+    folder = Path(out)
+    if (folder / RUN_CONFIG_FILE).exists():
+        c = read_run_config(folder)
+        pipeline_sets = {f"{p}.{k}": v for p, d in c["pipeline_overrides"].items() for k, v in d.items()}
+        return {"track": c["track"], "suite": c["suite"], "pipelines": [p["name"] for p in c["pipelines"]],
+                "seeds": c["seeds"], "overrides": {**c["overrides"], **pipeline_sets}}  # fmt: skip
+    if (folder / RUN_ALL_FILE).exists():
+        c = read_run_all(folder)
+        return {"track": "all", "suite": c["suite"], "seeds": c["seeds"], "tracks": c["tracks"]}
+    if any((folder / name / RUN_CONFIG_FILE).exists() for name in track_names()):
+        return {"track": "all"}
+    if not must:
+        return {}
+    raise ConfigError("--out", out, f"a run folder to resume: with {RUN_CONFIG_FILE} (one track) or {RUN_ALL_FILE} (every track)")
+
+
+def _continue_command(out: str, jobs: int, rerun_path: str | None, no_report: bool) -> str:
+    """The command that continues this run: its settings are read back from the folder."""
+    import shlex
+
+    words = ["exobench", "run", "--resume", "--out", str(out)]
+    words += ["--jobs", str(jobs)] if jobs != 1 else []
+    words += ["--rerun", rerun_path] if rerun_path else []
+    words += ["--no-report"] if no_report else []
+    return shlex.join(words)
 
 
 def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160) -> None:
@@ -155,13 +238,18 @@ def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160)
     sys.exit(EXIT_FAILED)
 
 
-def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool) -> list[str]:
+def _run_plan(
+    plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool, hint: str, last: bool = True
+) -> list[str]:
     """Execute one validated plan with a progress bar; print its table and where it went.
-    Returns the failures of the simulation or the scorer (see :func:`runner.harness_errors`)."""
+    ``hint`` is the command that continues the run; ``last``: no track of the run comes after
+    this one. Returns the failures of the simulation or the scorer (see
+    :func:`runner.harness_errors`)."""
     from tqdm import tqdm
 
-    from .report import summary_text, write_report
-    from .runner import execute, harness_errors, rerun_first_episode
+    from exobench.core.errors import FolderError
+
+    from .runner import execute
 
     bar: dict[str, Any] = {}
 
@@ -175,18 +263,45 @@ def _run_plan(plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str 
 
     try:
         outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode)
-    except KeyboardInterrupt:
-        if "tqdm" in bar:
+        bar["tqdm"].close()
+        bar["finished"] = True
+        return _finish_plan(plan, outcome, out_dir, rerun_path, no_report, hint, last)
+    except KeyboardInterrupt:  # while episodes run, or while the report or recording is written
+        if "tqdm" in bar and "finished" not in bar:
             bar["tqdm"].close()
-        click.echo(f"exobench: interrupted; finished episodes are kept in {out_dir} (continue: --resume --out {out_dir})", err=True)
+        click.echo(f"exobench: interrupted; finished episodes are kept in {out_dir} (continue: {hint})", err=True)
         sys.exit(EXIT_INTERRUPTED)
-    bar["tqdm"].close()
+    except FolderError as e:
+        if "tqdm" not in bar or "finished" in bar:
+            raise  # refused before anything ran, or a report's error that says what to do
+
+        bar["tqdm"].close()  # a write failed during the run (disk full)
+        click.echo(f"exobench: error: {e}; finished episodes are kept in {out_dir} (continue: {hint})", err=True)
+        sys.exit(EXIT_USAGE)
+
+
+def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, no_report: bool, hint: str, last: bool) -> list[str]:
+    """Print the table of a finished plan, write its report and rerun recording."""
+    import shlex
+
+    from exobench.core.errors import FolderError
+
+    from .report import summary_text, write_report
+    from .runner import harness_errors, rerun_first_episode
+
+    if outcome.figure_errors:
+        first = outcome.figure_errors[0]
+        click.echo(f"exobench: warning: {len(outcome.figure_errors)} figures not saved ({first}); their records are kept", err=True)
     names = [p.name for p in plan.pipelines]
     click.echo(summary_text(outcome.records, plan.track, names, [e.key for e in plan.episodes]))
     failed = sum(bool(r["metrics"].get("failed")) for r in outcome.records)
     click.echo(f"\n{len(outcome.records)} records ({failed} failed) in {outcome.out_dir / 'results.jsonl'}")
     if not no_report:
-        click.echo(f"report: {write_report(outcome.out_dir)}")
+        try:
+            click.echo(f"report: {write_report(outcome.out_dir)}")
+        except FolderError as e:  # the tracks after this one have not run: continuing runs them
+            later = f"write it later: exobench report {shlex.quote(out_dir)}" if last else f"continue: {hint}"
+            raise FolderError(f"{e}; the records are kept ({later})") from None
     if rerun_path:
         click.echo(f"rerun recording: {rerun_first_episode(plan, rerun_path)}")
     return harness_errors(outcome.records)
@@ -314,7 +429,7 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
     from exobench.core.errors import ConfigError
     from exobench.envs.session import write_session
 
-    from .out_paths import check_out_dir
+    from .out_paths import check_out_dir, reserve_dir
     from .overrides import check_scenario_overrides, parse_assignments
     from .runner import load_case
     from .tracks import get_track
@@ -325,30 +440,45 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
     if seed < 0:
         raise ConfigError("--seed", seed, "--seed >= 0")
     check_out_dir("OUT_DIR", out_dir, existing=False)
-    episode = trk.simulate(scenario, seed)
-    path = write_session(episode, out_dir, track=trk.name)
+    with reserve_dir(out_dir, "record"):  # a second `record` into it is refused before simulating
+        episode = trk.simulate(scenario, seed)
+        path = write_session(episode, out_dir, track=trk.name)
     click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed}, track {trk.name})")
 
 
 @cli.command()
 @click.argument("run_dir", type=click.Path(file_okay=False))
 def report(run_dir: str) -> None:
-    """Rewrite report.md (and plots) of a run folder and print its summary."""
-    from pathlib import Path
-
+    """Rewrite report.md (and plots) of a run folder and print its summary (of a run of every
+    track: of each track's folder)."""
     from exobench.core.errors import ConfigError
 
-    from .report import summary_text, write_report
-    from .results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, sort_records
-    from .tracks import get_track
+    from .out_paths import check_out_dir
+    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, read_run_all
 
     folder = Path(run_dir)
-    if not (folder / RUN_CONFIG_FILE).exists():
-        raise ConfigError("RUN_DIR", run_dir, "a run folder with run_config.json")
-    config = json.loads((folder / RUN_CONFIG_FILE).read_text())
+    check_out_dir("RUN_DIR", run_dir, existing=True)  # it is written into: refused before anything
+    if (folder / RUN_CONFIG_FILE).exists():
+        _report_folder(folder)
+    elif (folder / RUN_ALL_FILE).exists():
+        for name in read_run_all(folder)["tracks"]:
+            if (folder / name / RUN_CONFIG_FILE).exists():
+                check_out_dir("RUN_DIR", str(folder / name), existing=True)
+                click.echo(f"\n== track {name}")
+                _report_folder(folder / name)
+    else:
+        raise ConfigError("RUN_DIR", run_dir, f"a run folder with {RUN_CONFIG_FILE} (or {RUN_ALL_FILE} of a run of every track)")
+
+
+def _report_folder(folder: Path) -> None:
+    from .report import summary_text, write_report
+    from .results import RESULTS_FILE, read_records, read_run_config, sort_records
+    from .tracks import get_track
+
+    config = read_run_config(folder)
     names = [p["name"] for p in config["pipelines"]]
     records = sort_records(read_records(folder / RESULTS_FILE), names)
-    click.echo(summary_text(records, get_track(config["track"]), names, config.get("episodes", [])))
+    click.echo(summary_text(records, get_track(config["track"]), names, config["episodes"]))
     click.echo(f"report: {write_report(folder)}")
 
 

@@ -16,10 +16,15 @@ from typing import Any
 
 import numpy as np
 
-from .results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, sort_records
+from exobench.core.errors import FolderError
+
+from .out_paths import LOCK_FILE
+from .results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, read_run_config, sort_records
 from .tracks.spec import Reference, SummaryRow
 
 REPORT_FILE = "report.md"
+TMP_FILE = f".{REPORT_FILE}.tmp"
+KEEP = {RESULTS_FILE, RUN_CONFIG_FILE, LOCK_FILE}  # never removed by a failed report
 DASH = "–"
 
 
@@ -135,12 +140,35 @@ def track_sections(track: Any, records: Sequence[dict[str, Any]], pipelines: Seq
     return list(track.report_sections(list(records), list(pipelines), out))
 
 
+def _files(out: Path) -> dict[Path, tuple[int, int]]:
+    return {p: (st.st_mtime_ns, st.st_size) for p in out.rglob("*") if p.is_file() and (st := p.stat())}
+
+
 def write_report(out_dir: str | os.PathLike) -> Path:
-    """Write ``report.md`` and its figures (PNG) into a run folder; returns the report's path."""
+    """Write ``report.md`` and its figures (PNG) into a run folder; returns the report's path.
+
+    A write that fails (disk full, read-only folder) raises FolderError and, as Ctrl-C does,
+    leaves no part of the report behind: the files this call created or changed are removed (the run's records,
+    configuration and figure data are never among them)."""
+    out = Path(out_dir)
+    before = _files(out)
+    try:
+        return _write_report(out)
+    except BaseException as e:  # disk full, or Ctrl-C while the figures are drawn
+        for p, stamp in _files(out).items():
+            if before.get(p) != stamp and p.name not in KEEP and p.suffix != ".npz":
+                p.unlink(missing_ok=True)
+        if not isinstance(e, OSError):
+            raise
+        name = e.filename2 or e.filename or out / REPORT_FILE
+        name = out / REPORT_FILE if Path(name).name == TMP_FILE else name
+        raise FolderError(f"{name}: cannot be written ({e.strerror or e}); the report was not written") from None
+
+
+def _write_report(out: Path) -> Path:
     from .tracks import get_track
 
-    out = Path(out_dir)
-    config = json.loads((out / RUN_CONFIG_FILE).read_text())
+    config = read_run_config(out)
     track = get_track(config["track"])
     pipelines = [p["name"] for p in config["pipelines"]]
     records = sort_records(read_records(out / RESULTS_FILE), pipelines)
@@ -164,7 +192,7 @@ def write_report(out_dir: str | os.PathLike) -> Path:
         lines += ["## Failures", "", *fails, ""]
     lines += ["## Configuration", "", "```json", json.dumps({k: config[k] for k in ("pipelines", "versions") if k in config}, indent=2), "```", ""]
     path = out / REPORT_FILE
-    tmp = out / f".{REPORT_FILE}.tmp"
+    tmp = out / TMP_FILE
     tmp.write_text("\n".join(lines))
     os.replace(tmp, path)
     return path

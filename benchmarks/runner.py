@@ -32,10 +32,11 @@ from typing import Any
 
 import numpy as np
 
-from exobench.core.errors import ConfigError, UnknownNameError
+from exobench.core.errors import ConfigError, FolderError, UnknownNameError
 from exobench.core.pipeline import coerce_like
 
 from .entry_points import load_entry_point
+from .out_paths import LOCK_FILE, exclusive_lock, probe_appendable, probe_writable
 from .overrides import check_scenario_overrides, split_overrides
 from .pool import run_pool
 from .registry import PipelineRegistry, default_registry
@@ -45,6 +46,7 @@ from .results import (
     append_records,
     json_safe,
     read_records,
+    read_run_config,
     repair_results,
     sort_records,
     versions,
@@ -103,6 +105,7 @@ class RunOutcome:
     ran: list[str] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
     records: list[dict[str, Any]] = field(default_factory=list)
+    figure_errors: list[str] = field(default_factory=list)  # "episode: reason" of figures not saved
 
 
 def episode_seed(run_seed: int, case_name: str) -> int:
@@ -292,40 +295,61 @@ def _records(
 # ---------------------------------------------------------------- the run
 
 
-def _check_resume(out: Path, plan: RunPlan) -> None:
-    import json
-
-    old = json.loads((out / RUN_CONFIG_FILE).read_text())
+def check_resume(out: str | os.PathLike, plan: RunPlan) -> None:
+    """ConfigError unless ``plan`` is the run whose folder ``out`` is (same track, suite,
+    pipelines and their configs, seeds, overrides); FolderError if the folder is damaged."""
+    old = read_run_config(out)
     new = json_safe(plan.run_config())
     for key in ("track", "suite", "pipelines", "seeds", "overrides", "pipeline_overrides"):
         if old.get(key) != new.get(key):
             raise ConfigError(f"--resume {key}", new.get(key), f"the value of the run being resumed: {old.get(key)!r}")
 
 
+def _holds_only_lock(out: Path) -> bool:
+    return all(p.name == LOCK_FILE for p in out.iterdir())
+
+
 def prepare_output(out_dir: str | os.PathLike, plan: RunPlan, *, resume: bool) -> Path:
-    """Create (or, resuming, check) the run folder and write run_config.json."""
+    """Check the run folder (resuming: its run_config.json matches the plan, its results can be
+    appended to; else: it is new or empty) and write run_config.json. Call it holding the
+    folder's lock (see :func:`execute`); it runs nothing."""
     out = Path(out_dir)
     if resume:
         if not (out / RUN_CONFIG_FILE).exists():
             raise ConfigError("--resume", str(out), "a run folder with run_config.json")
-        _check_resume(out, plan)
-        repair_results(out / RESULTS_FILE)
+        check_resume(out, plan)
+        results = out / RESULTS_FILE
+        if results.exists() or results.is_symlink():
+            if not results.is_file():
+                raise FolderError(f"{results}: not a file; a run folder's {RESULTS_FILE} is a file of records")
+            err = probe_appendable(results)
+            if err is not None:
+                raise FolderError(f"{results}: cannot be written ({err.strerror})")
+        err = probe_writable(out)
+        if err is not None:
+            raise FolderError(f"{out}: cannot be written ({err.strerror})")
+        repair_results(results)
         return out
-    if out.exists() and any(out.iterdir()):
-        raise ConfigError("--out", str(out), "a new or empty folder (or --resume to continue a run)")
-    out.mkdir(parents=True, exist_ok=True)
+    if not _holds_only_lock(out):
+        again = " (or --resume to continue the run in it)" if (out / RUN_CONFIG_FILE).exists() else ""
+        raise ConfigError("--out", str(out), f"a new or empty folder{again}")
     write_json_atomic(out / RUN_CONFIG_FILE, plan.run_config())
     return out
 
 
 def _save_figure(out: Path, key: str, figure: dict[str, Any]) -> None:
+    """Write an episode's figure data; on failure (disk full) nothing of it stays behind."""
     folder = out / FIGURES_DIR
     folder.mkdir(exist_ok=True)
     target = folder / (key.replace("/", "__") + ".npz")
     tmp = folder / (".tmp-" + target.name)
-    with open(tmp, "wb") as f:
-        np.savez(f, **figure)
-    os.replace(tmp, target)
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, **figure)
+        os.replace(tmp, target)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def execute(
@@ -339,13 +363,36 @@ def execute(
 ) -> RunOutcome:
     """Run the plan into ``out_dir`` (see the module docstring).
 
+    One writer per run folder: the folder's lock (:func:`.out_paths.exclusive_lock`) is held
+    for the whole run, and a second writer gets FolderError before anything runs.
     ``on_start(n_to_run, n_skipped)`` and ``on_episode(key, records)`` report progress.
-    KeyboardInterrupt propagates after the finished episodes are on disk.
+    KeyboardInterrupt propagates after the finished episodes are on disk; so does FolderError
+    when the records cannot be written (disk full), the file cut back to whole episodes. An
+    episode's figure is written after its records, and a figure that cannot be written costs
+    only itself (``RunOutcome.figure_errors``).
     """
     jobs = int(coerce_like("jobs", jobs, 1))
     if jobs < 1:
         raise ConfigError("jobs", jobs, "jobs >= 1")
-    out = prepare_output(out_dir, plan, resume=resume)
+    out = Path(out_dir)
+    if resume and not out.is_dir():
+        raise ConfigError("--resume", str(out), "a run folder with run_config.json")
+    if not resume:
+        if out.is_dir() and not _holds_only_lock(out):  # refused before the folder is touched
+            prepare_output(out, plan, resume=False)
+        out.mkdir(parents=True, exist_ok=True)
+    with exclusive_lock(out, "run"):
+        prepare_output(out, plan, resume=resume)
+        return _execute(plan, out, jobs, on_start, on_episode)
+
+
+def _execute(
+    plan: RunPlan,
+    out: Path,
+    jobs: int,
+    on_start: Callable[[int, int], None] | None,
+    on_episode: Callable[[str, list[dict[str, Any]]], None] | None,
+) -> RunOutcome:
     results = out / RESULTS_FILE
     done = {r["episode"] for r in read_records(results)}
     todo = [e for e in plan.episodes if e.key not in done]
@@ -356,10 +403,13 @@ def execute(
     job_list = [_Job(plan.track, e, tuple(plan.pipelines), vers) for e in todo]
 
     def finish(key: str, records: list[dict[str, Any]], figure: dict[str, Any] | None) -> None:
-        if figure is not None:
-            _save_figure(out, key, figure)
-        append_records(results, records)
+        append_records(results, records)  # the records first: a figure is a convenience
         outcome.ran.append(key)
+        if figure is not None:
+            try:
+                _save_figure(out, key, figure)
+            except OSError as e:
+                outcome.figure_errors.append(f"{key}: {e.strerror or e}")
         if on_episode:
             on_episode(key, records)
 
@@ -388,7 +438,11 @@ def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: floa
     episode = plan.track.simulate(first.scenario, first.seed)
     estimates, _, _, timelines = run_pipelines(plan.track, episode, plan.pipelines, timeline_every_s=every_s)
     series = {n: timelines[n] + [(float(episode.frames[-1].stamp_s), e)] for n, e in estimates.items()}
-    return plan.track.write_recording(episode, series, Path(path))
+    try:
+        return plan.track.write_recording(episode, series, Path(path))
+    except OSError as e:  # disk full: no half-written recording
+        Path(path).unlink(missing_ok=True)
+        raise FolderError(f"{path}: cannot be written ({e.strerror or e})") from None
 
 
 def load_case(track: Track, suite: str, name: str) -> Case:

@@ -96,6 +96,12 @@ class SessionError(ExobenchError):
     """A recorded session on disk is missing, malformed or of an unsupported version."""
 
 
+class FolderError(ExobenchError):
+    """A folder exobench writes or reads back (a run folder, a session being recorded) is
+    damaged, in use by another exobench process, or cannot be written (read-only, disk full).
+    The message starts with the path of the file or folder at fault."""
+
+
 class RenderError(ExobenchError):
     """Off-screen rendering is unavailable (neither EGL nor OSMesa could be initialised)."""
 

@@ -50,17 +50,20 @@ def write_session(
     track: str | None = None,
     compact: bool = True,
 ) -> Path:
-    """Write ``episode`` as a session directory at ``path`` (which must not exist yet);
+    """Write ``episode`` as a session directory at ``path`` (which must not exist yet, or be an
+    empty folder, which the session replaces);
     ``track`` (the track that simulated it) is recorded so a replay on another track is refused.
     ``compact`` writes format 5 (LiDAR scans and truths in one stream file each, see
     :mod:`.lidar_pack`); ``compact=False`` writes format 4 (one file per scan and per truth)."""
     from exobench import __version__
 
     final = Path(path)
-    if final.exists():
+    # an empty folder is taken: `exobench record` reserves (and locks) its folder before simulating
+    if final.exists() and not (final.is_dir() and not any(final.iterdir())):
         raise SessionError(f"session path {str(final)!r} exists already; choose a new directory")
     final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=final.parent))
+    # a short prefix: the temporary name must fit where the final one just fits
+    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name[:32]}.", dir=final.parent))
     try:
         counts: dict[str, int] = {}
         store = BinaryStore(tmp, streams=compact)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import subprocess
@@ -224,6 +225,22 @@ def test_unknown_names_list_the_closest_first_and_a_count():
     assert len(err) < 300 and "valid: riser_m, case000" in err and "(210 in all)" in err
 
 
+def refuse_writes_in(monkeypatch, folder: Path, err: int = errno.EACCES) -> None:
+    """Make os.open refuse to create or write any file in ``folder`` (and the folder itself), as
+    a read-only folder does to a user who is not root (the tests run as root, whom permissions
+    do not stop); os.access is left alone, so a check that only asks it is not fooled."""
+    real = os.open
+
+    def fake_open(path, flags, *args, **kw):
+        p = Path(os.fsdecode(path))
+        writes = flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_APPEND)
+        if writes and (p.parent == folder or p == folder):
+            raise PermissionError(err, os.strerror(err), str(p))
+        return real(path, flags, *args, **kw)
+
+    monkeypatch.setattr(os, "open", fake_open)
+
+
 def _a_file(tmp_path):
     f = tmp_path / "a-file"
     f.write_text("x")
@@ -256,11 +273,10 @@ def test_file_system_problems_are_one_line_and_exit_2_before_anything_runs(tmp_p
 @pytest.mark.parametrize("args", [["run", "--track", "stairs", "--out", "{ro}/run"], ["record", "{ro}/s"],
                                   ["run", "--track", "stairs", "--out", "{tmp}/run", "--rerun", "{ro}/x.rrd"]])  # fmt: skip
 def test_unwritable_folders_are_refused_before_anything_runs(tmp_path, args, fake_stairs, monkeypatch):
-    # root can write anywhere, so the permission answer is simulated: "ro" is not writable
+    # root can write anywhere, so the kernel's answer is simulated: nothing can be created in "ro"
     ro = tmp_path / "ro"
     ro.mkdir()
-    real = os.access
-    monkeypatch.setattr(os, "access", lambda p, mode, **kw: Path(p) != ro and real(p, mode, **kw))
+    refuse_writes_in(monkeypatch, ro)
     monkeypatch.setattr(FakeTrack, "simulate", lambda *a: pytest.fail("simulated before the paths were checked"))
     result = _run([a.format(ro=ro, tmp=tmp_path) for a in args])
     assert result.exit_code == 2
