@@ -100,12 +100,6 @@ class OfficeParams:
     def office_min_width_m(self) -> float:
         return max(OFFICE_MIN_WIDTH_M, self.door_opening_m + 2 * DOOR_JAMB_M)
 
-    @property
-    def core_length_m(self) -> float:
-        """Length of the blank service core beside the meeting room (the featureless stretch)."""
-        W, X = self.corridor_width_m, self.corridor_length_m
-        return X - 2 * W - WALL_T_M - self.meeting_room_m
-
     def _check_fit(self) -> None:
         W, X, n = self.corridor_width_m, self.corridor_length_m, self.n_offices
         swing = self.door_opening_m + ROOM_DEPTH_SPARE_M

@@ -28,7 +28,7 @@ from exobench.core.frames import LidarScan
 from .spec import ParamInfo, param_infos
 
 GROUND_KINDS = ("ground", "tread", "landing", "ramp")  # surfaces a walker stands on (SceneTruth kinds)
-KIND_NAMES = ("genuine", "glass", "ghost", "nan")  # class of a point: ReturnKind GENUINE/THROUGH_GLASS, GLASS, GHOST, NAN
+# class of a point: ReturnKind GENUINE/THROUGH_GLASS, GLASS, GHOST, NAN
 GENUINE, GLASS, GHOST, NAN_POINT = 0, 1, 2, 3
 
 

@@ -45,7 +45,6 @@ from ..spec import Case, ParamInfo, Reference, SummaryRow
 from .metrics import EXCLUDE_RECENT_S, REVISIT_M, failure_metrics, score_place_recognition
 from .report import figure_arrays
 
-PIPELINES = ("sc++", "gsc-height", "gsc-huber", "gsc-intensity")
 OFFICE_KEYS = ("corridor_length_m", "room_depth_m", "meeting_room_m", "glass_fraction", "polished_fraction")
 SCORING_KEYS = ("revisit_m", "exclude_recent_s")
 EXTRA: dict[str, ParamSpec] = {

@@ -48,7 +48,6 @@ CASES: dict[str, dict[str, float]] = {
 QUICK_POSES = 3
 USER_HEIGHTS_M = (1.60, 1.90)
 NOISE_OFF = {"tof_noise_m": 0.0, "tof_dropout": 0.0, "imu_noise_scale": 0.0, "imu_orientation_deg": 0.0, "encoder_noise_rad": 0.0}
-CASE_GROUPS = tuple(CASES)
 STAIR_GROUPS = tuple(f"{r:.3f}/{t:.3f}" for r, t in STAIRCASES)
 
 

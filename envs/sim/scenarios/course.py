@@ -328,7 +328,7 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
     def walker_heading(t: float) -> float:
         return float(motion.state(t, solve_legs=False).yaw[0])
 
-    peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, 0.5 * sc.width_m, dur, ped_rng)
+    peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, dur, ped_rng)
     chest = any(s.sensor_id == CHEST_CAMERA for s in rig)
     scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds))
     model = scene.model
