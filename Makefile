@@ -7,6 +7,15 @@ STAMP := $(VENV)/.installed
 export MUJOCO_GL ?= egl
 export PYOPENGL_PLATFORM ?= $(MUJOCO_GL)
 
+# Editable install in setuptools' strict mode: every module linked under build/ with a .pth to
+# that tree, which static analysers and editors follow (the default mode installs an import hook
+# they cannot see). A module added or removed needs new links: the install depends on the list
+# of modules, rewritten only when it changes.
+EDITABLE := --config-settings editable_mode=strict
+MODULES := $(VENV)/.modules
+$(shell mkdir -p $(VENV) && find core models envs perception mapping benchmarks -name '*.py' -not -path '*/__pycache__/*' \
+	| LC_ALL=C sort > $(MODULES).new && { cmp -s $(MODULES).new $(MODULES) || mv $(MODULES).new $(MODULES); }; rm -f $(MODULES).new)
+
 SYSTEM_LIBS := libusb-1.0.so.0 libEGL.so.1 libOSMesa.so libGL.so.1
 DEBIAN_PKGS := libusb-1.0-0 libegl1 libosmesa6 libgl1 libgomp1
 
@@ -18,7 +27,7 @@ test: $(STAMP)
 	$(VENV)/bin/python -m pytest
 
 bench: $(STAMP)
-	$(VENV)/bin/python -m pip install -q -e '.[test,bench]'
+	$(VENV)/bin/python -m pip install -q -e '.[test,bench]' $(EDITABLE)
 	$(VENV)/bin/exobench bench rtls
 	$(VENV)/bin/exobench bench sim
 	$(VENV)/bin/exobench bench lidar
@@ -44,8 +53,8 @@ $(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install -q --upgrade pip
 
-$(STAMP): pyproject.toml | $(VENV)/bin/python system
-	$(VENV)/bin/python -m pip install -q -e '.[test]'
+$(STAMP): pyproject.toml $(MODULES) | $(VENV)/bin/python system
+	$(VENV)/bin/python -m pip install -q -e '.[test]' $(EDITABLE)
 	@touch $(STAMP)
 
 clean:

@@ -379,7 +379,8 @@ def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
 @click.argument("session_dir", type=click.Path(file_okay=False))
 @click.option("--track", default=None, help="Track to score on (default: the track the session was recorded for; stairs for old sessions).")
 @click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
-@click.option("--set", "assignments", multiple=True, metavar="NAME.KEY=VALUE", help="Pipeline parameter.")
+@click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE",
+              help="Pipeline parameter (NAME.KEY=VALUE) or a scoring setting of the track (e.g. revisit_m).")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON record per pipeline.")
 def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assignments: tuple[str, ...], as_json: bool) -> None:
     """Score pipelines on a recorded session (SESSION_DIR written by `exobench record`), after
@@ -396,15 +397,21 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
     track = track or meta.get("track") or "stairs"
     overrides = parse_assignments(assignments)
     plan = plan_run(track, None, pipelines or None, [0], overrides)
-    if plan.scenario_overrides:
+    scoring_keys = plan.track.scoring_keys
+    recorded = [k for k in plan.scenario_overrides if k not in scoring_keys]
+    if recorded:
         from exobench.core.errors import ConfigError
 
-        raise ConfigError("--set", ",".join(plan.scenario_overrides), "pipeline parameters only (NAME.KEY=VALUE)")
+        allowed = "pipeline parameters (NAME.KEY=VALUE)" + (f" and scoring settings ({', '.join(sorted(scoring_keys))})" if scoring_keys else "")
+        raise ConfigError("--set", ",".join(recorded), allowed)
     if not content_checked(meta):
         click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its content is not verified", err=True)
     episode = read_session(session_dir, track=plan.track.name)
     scorer_errors: dict[str, str] = {}
-    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines, scorer_errors=scorer_errors)
+    # sessions recorded before scoring settings left the episode carry them in their scenario
+    scoring = {**{k: v for k, v in episode.scenario.items() if k in scoring_keys},
+               **{k: v for k, v in plan.scenario_overrides.items() if k in scoring_keys}}  # fmt: skip
+    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines, scoring=scoring, scorer_errors=scorer_errors)
     records = [
         {"episode": "session", "group": "session", "pipeline": p.name, "config": p.config_dict(), "metrics": metrics[p.name], "wall_s": walls[p.name]}
         for p in plan.pipelines
@@ -436,7 +443,11 @@ def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[s
 
     trk = get_track(track)
     base = load_case(trk, "paper", case_name).scenario if case_name else {}
-    scenario = trk.validate_scenario({**base, **check_scenario_overrides(trk, parse_assignments(assignments))})
+    given = check_scenario_overrides(trk, parse_assignments(assignments))
+    scoring = sorted(k for k in given if k in trk.scoring_keys)
+    if scoring:  # not part of the episode: they would be silently lost
+        raise ConfigError("--set", ",".join(scoring), "simulation parameters; scoring settings are given to `exobench replay`")
+    scenario = trk.validate_scenario({**base, **given})
     if seed < 0:
         raise ConfigError("--seed", seed, "--seed >= 0")
     check_out_dir("OUT_DIR", out_dir, existing=False)

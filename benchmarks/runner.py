@@ -53,7 +53,7 @@ from .results import (
     write_json_atomic,
 )
 from .tracks import get_track
-from .tracks.spec import Case, EpisodePlan, Track
+from .tracks.spec import Case, EpisodePlan, Track, scoring_of
 
 FIGURES_DIR = "figures"
 MAX_SEEDS = 10_000
@@ -181,15 +181,18 @@ def run_pipelines(
     episode: Any,
     pipelines: Sequence[PipelineRun],
     *,
+    scoring: Mapping[str, Any] | None = None,
     timeline_every_s: float | None = None,
     scorer_errors: dict[str, str] | None = None,
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]], dict[str, float], dict[str, list]]:
     """Feed the same frames to each pipeline; estimates, metrics, wall times and online timelines.
 
-    A pipeline that raises, or a scorer that raises, is scored with ``track.failed_metrics`` and
-    the error text; a scorer's reasons also go to ``scorer_errors`` (pipeline name -> reason)
-    when it is given. With ``timeline_every_s`` the online estimates are kept at most that often
-    (for rerun).
+    Estimates are scored under ``scoring`` (the track's scoring settings, see
+    :func:`~.tracks.spec.scoring_of`; None: their defaults). A pipeline that raises, or whose
+    ``finalize()`` returns anything but an instance of ``track.estimate_type``, is scored with
+    ``track.failed_metrics`` and the reason; so is a scorer that raises, whose reasons also go to
+    ``scorer_errors`` (pipeline name -> reason) when it is given. With ``timeline_every_s`` the
+    online estimates are kept at most that often (for rerun).
     """
     estimates: dict[str, Any] = {}
     metrics: dict[str, dict[str, Any]] = {}
@@ -212,8 +215,12 @@ def run_pipelines(
             metrics[p.name] = track.failed_metrics(episode, f"pipeline raised {type(e).__name__}: {e}")
         else:
             estimates[p.name] = est
+            if not isinstance(est, track.estimate_type):  # a missing estimate is never scored as one
+                reason = f"finalize() returned {type(est).__name__}, not {track.estimate_type.__name__}"
+                metrics[p.name] = track.failed_metrics(episode, reason)
+        if p.name not in metrics:
             try:
-                metrics[p.name] = track.score(episode, est)
+                metrics[p.name] = track.score(episode, est, scoring)
             except Exception as e:  # a failure of the benchmark, not of the pipeline
                 reason = f"scorer raised {type(e).__name__}: {e}"
                 metrics[p.name] = track.failed_metrics(episode, reason)
@@ -245,11 +252,12 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
     if episode is None:
         return _failed_job(job, sim_error, sim_wall)
     harness: dict[str, str] = {}
-    estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scorer_errors=harness)
+    scoring = scoring_of(track, plan.scenario)
+    estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scoring=scoring, scorer_errors=harness)
     figure = None
     if plan.case.figure:
         try:
-            figure = track.figure_data(episode, estimates)
+            figure = track.figure_data(episode, estimates, scoring)
         except Exception:  # a figure is a convenience; never lose the episode's scores to it
             figure = None
     return plan.key, _records(job, metrics, walls, sim_wall, harness), figure
@@ -436,10 +444,11 @@ def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: floa
 
     first = plan.episodes[0]
     episode = plan.track.simulate(first.scenario, first.seed)
-    estimates, _, _, timelines = run_pipelines(plan.track, episode, plan.pipelines, timeline_every_s=every_s)
+    scoring = scoring_of(plan.track, first.scenario)
+    estimates, _, _, timelines = run_pipelines(plan.track, episode, plan.pipelines, scoring=scoring, timeline_every_s=every_s)
     series = {n: timelines[n] + [(float(episode.frames[-1].stamp_s), e)] for n, e in estimates.items()}
     try:
-        return plan.track.write_recording(episode, series, Path(path))
+        return plan.track.write_recording(episode, series, Path(path), scoring)
     except OSError as e:  # disk full: no half-written recording
         Path(path).unlink(missing_ok=True)
         raise FolderError(f"{path}: cannot be written ({e.strerror or e})") from None

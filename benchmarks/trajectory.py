@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from exobench.core.errors import ConfigError
-from exobench.core.transforms import matrix_to_quat_wxyz
+from exobench.core.transforms import matrix_to_quat_wxyz, quat_multiply
 
 STAT_KEYS = ("rmse", "mean", "median", "std", "min", "max", "sse")
 
@@ -104,23 +104,8 @@ class Trajectory:
         """The trajectory mapped by ``p -> R (scale p) + t``, orientations ``R R_world_body``."""
         R = np.asarray(R, dtype=float)
         q_R = matrix_to_quat_wxyz(R)
-        q = _quat_mul(q_R, self.orientations_quat_wxyz)
+        q = quat_multiply(q_R, self.orientations_quat_wxyz)
         return Trajectory(self.stamps_s.copy(), (scale * self.positions_xyz) @ R.T + np.asarray(t, dtype=float), q)
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product of one ``wxyz`` quaternion ``a`` with each row of ``b`` (N, 4)."""
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = np.asarray(b, dtype=float).T
-    return np.stack(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ],
-        axis=1,
-    )
 
 
 def umeyama_alignment(src: np.ndarray, dst: np.ndarray, with_scale: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
@@ -340,7 +325,7 @@ def loop_errors(est: Trajectory, in_start_frame: bool = False) -> dict[str, floa
         tve = R[0].T @ tve
     q_i, q_f = (q / np.linalg.norm(q) for q in (est.orientations_quat_wxyz[0], est.orientations_quat_wxyz[-1]))
     q_i_inv = q_i * np.array([1.0, -1.0, -1.0, -1.0])
-    q_r = _quat_mul(q_i_inv, q_f[None, :])[0]
+    q_r = quat_multiply(q_i_inv, q_f)
     oe = 2.0 * math.atan2(float(np.linalg.norm(q_r[1:])), abs(float(q_r[0])))
     return {"te_m": float(np.linalg.norm(tve)), "oe_rad": oe,
             "tve_x_m": float(tve[0]), "tve_y_m": float(tve[1]), "tve_z_m": float(tve[2])}

@@ -65,16 +65,19 @@ def matrix_to_quat_wxyz(R: np.ndarray) -> np.ndarray:
 
 
 def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b`` of two ``wxyz`` quaternions."""
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array(
+    """Hamilton product ``a * b`` of ``wxyz`` quaternions: one (4,) or stacks (..., 4), broadcast
+    row by row (one quaternion times each row of a stack, or two stacks row by row)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    w1, x1, y1, z1 = (a[..., i] for i in range(4))
+    w2, x2, y2, z2 = (b[..., i] for i in range(4))
+    return np.stack(
         [
             w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
             w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
             w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
             w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
+        ],
+        axis=-1,
     )
 
 

@@ -96,7 +96,7 @@ def site_poses(exo: ExoSpec) -> tuple[tuple[str, str, np.ndarray], ...]:
 
 
 def default_sensor_params(kind: str) -> dict[str, Any]:
-    """Nominal parameters per sensor kind (SI units; see /work/shared/SENSORS.md for sources)."""
+    """Nominal parameters per sensor kind (SI units; see docs/sensor-reference.md for sources)."""
     if kind == "tof":  # ST VL53L1X as used by the staircase paper
         return {"rate_hz": 50.0, "min_range_m": 0.04, "max_range_m": 4.0, "noise_sigma_m": 0.0015, "fov_deg": 27.0}
     if kind == "imu":

@@ -3,7 +3,7 @@
 A piece of furniture is built in its own frame: origin on the floor at the centre of its
 footprint, x along its width, y from its back (the side that goes against a wall) to its front,
 z up. It is turned by a multiple of 90 deg about z, so every box stays axis-aligned in the
-world and every face is exact. Sizes follow ``/work/shared/SENSORS.md`` (Buildings): desks
+world and every face is exact. Sizes follow ``docs/sensor-reference.md`` (Buildings): desks
 0.73-0.76 m high and 1.2-1.8 x 0.6-0.9 m, chair seats 0.40-0.45 m, 3-seat sofas 1.8-2.2 x
 0.8-1.0 m; the rest are [A] typical catalogue sizes (cabinets 0.8 x 0.45 m, 0.75/1.2/1.9 m
 tall; plant pots 0.30-0.40 m wide, 0.35 m tall; bins 0.30-0.36 m wide).

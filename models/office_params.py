@@ -4,7 +4,7 @@
 the command line; :class:`OfficeParams` checks each value against its range and then the
 combinations a building cannot have (offices narrower than their door, a meeting room longer
 than the corridor, ...), raising ``ConfigError`` naming the field, the value and what fits.
-Sizes follow ``/work/shared/SENSORS.md`` (Buildings): clear door >= 0.81 m, corridor >= 1.12 m,
+Sizes follow ``docs/sensor-reference.md`` (Buildings): clear door >= 0.81 m, corridor >= 1.12 m,
 glass panes 8-12 mm and 2.4-3.0 m tall. ``facade``, ``facade_glass`` and ``partition_glass``
 build the thesis' window-lined setting (seeds/003 section 5.2.2; materials in
 :mod:`exobench.models.materials`); their defaults build the plain office.
@@ -99,12 +99,6 @@ class OfficeParams:
     @property
     def office_min_width_m(self) -> float:
         return max(OFFICE_MIN_WIDTH_M, self.door_opening_m + 2 * DOOR_JAMB_M)
-
-    @property
-    def core_length_m(self) -> float:
-        """Length of the blank service core beside the meeting room (the featureless stretch)."""
-        W, X = self.corridor_width_m, self.corridor_length_m
-        return X - 2 * W - WALL_T_M - self.meeting_room_m
 
     def _check_fit(self) -> None:
         W, X, n = self.corridor_width_m, self.corridor_length_m, self.n_offices

@@ -40,7 +40,7 @@ import pytest
 import exobench.envs  # noqa: F401  (registers the gymnasium environments)
 from exobench.benchmarks.registry import default_registry
 from exobench.benchmarks.results import json_safe
-from exobench.benchmarks.runner import PipelineRun, untimed_metrics
+from exobench.benchmarks.runner import PipelineRun, run_pipelines, untimed_metrics
 from exobench.benchmarks.tracks.registry import default_track_registry
 from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownNameError
 from exobench.core.faults import inject_absurd, inject_faults, n_absurd_points
@@ -289,8 +289,29 @@ def test_track_scores_failures_well_formed_with_the_reason(name):
         assert rows <= set(failed), f"{name}: failed metrics lack summary rows {sorted(rows - set(failed))}"
         keys.append(set(failed))
     assert keys[0] == keys[1], f"{name}: failed metrics differ in keys with and without an episode"
-    # an estimate of the wrong type is a failure, never an exception
-    _failed_with(track.score(episode, None), "NoneType", f"{name}.score(episode, None)")
+    # no estimate is a failure the runner records (the scorer never sees it), never an exception
+    _, metrics, _, _ = run_pipelines(track, episode, [PipelineRun("none", f"{__name__}:NoEstimate", NoEstimate.Config())])
+    _failed_with(metrics["none"], f"NoneType, not {track.estimate_type.__name__}", f"{name}: finalize() returned None")
+
+
+class NoEstimate:
+    """A pipeline whose ``finalize()`` returns None, whatever the track."""
+
+    @dataclasses.dataclass(frozen=True)
+    class Config:
+        pass
+
+    def __init__(self, config: Any) -> None:
+        pass
+
+    def reset(self, calibration: Any) -> None:
+        pass
+
+    def process(self, frame: Any) -> None:
+        return None
+
+    def finalize(self) -> None:
+        return None
 
 
 @pytest.mark.parametrize("name", TRACKS)

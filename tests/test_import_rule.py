@@ -1,4 +1,4 @@
-"""The import rule of ARCHITECTURE.md, checked on the source tree."""
+"""The import rule of docs/architecture.md ("Rules"), checked on the source tree."""
 
 import ast
 from pathlib import Path

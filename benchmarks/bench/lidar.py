@@ -42,8 +42,12 @@ def _throughput(n_rays: int, n_returns: int, wall_s: float) -> dict[str, float |
     }
 
 
-def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
+def bench_lidar(seed: int = 0, repeats: int = 5, *, office: Any = None, config: Any = None) -> dict[str, Any]:
     """Time one VLP-16 sweep of the default office: exobench's LiDAR vs mujoco-lidar's CPU backend.
+
+    ``office`` (an :class:`~exobench.models.office_params.OfficeParams`) and ``config`` (a
+    :class:`~exobench.envs.sensors.lidar.LidarConfig`) replace the default office and VLP-16,
+    e.g. a small office and a coarse pattern for a quick check.
 
     The exoskeleton stands at the office start; the sensor is the ``lidar_trunk`` site. Both
     simulators cast the same rays (``LidarPattern.vlp16().rays(0.0).dirs_s``, converted to
@@ -71,7 +75,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
     from exobench.models.office import build_office
     from exobench.models.worlds import compose
 
-    world = build_office()
+    world = build_office(office)
     scene = compose(world, ExoSpec())
     model, truth = scene.model, scene.truth
     data = mujoco.MjData(model)
@@ -90,7 +94,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
         T[:, :3, 3] += (WALK_SPEED_M_S * np.asarray(times_s, dtype=float))[:, None] * heading_w
         return T
 
-    config = LidarConfig()
+    config = config if config is not None else LidarConfig()
     pat = config.pattern
     dirs_s = pat.rays(0.0).dirs_s
     n_rays = len(dirs_s)
@@ -105,7 +109,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5) -> dict[str, Any]:
 
     fns = {name: exo_sweep(name) for name in poses}
     result: dict[str, Any] = {
-        "scene": "office (default OfficeParams), exoskeleton standing at the start",
+        "scene": f"office ({'default OfficeParams' if office is None else office}), exoskeleton standing at the start",
         "sensor": "lidar_trunk",
         "pattern": pat.name,
         "rays_per_sweep": n_rays,

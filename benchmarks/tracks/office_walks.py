@@ -3,8 +3,7 @@
 - Scenario parameters: :func:`office_params` (the :data:`exobench.envs.sim.scenarios.office.PARAMS` table
   as :class:`ParamInfo` rows, plus a track's own extra rows), :func:`validate_office_scenario`
   (typed values; the track's extra keys validated by the same ``ParamSpec`` rules),
-  :func:`simulate_office_episode` (drops the extra keys, runs ``simulate_office``) and
-  :func:`replace_scenario` (adds a track's own keys back to the episode's scenario record).
+  :func:`simulate_office_episode` (drops the extra keys, runs ``simulate_office``).
 - Ground truth per LiDAR point: :func:`lidar_pairs` (scans with their ``LidarTruth``),
   :func:`point_classes` (genuine / glass / ghost codes and whether the true surface is ground),
   :func:`points_world` (each measured point in the world: the true ray origin and direction of
@@ -17,7 +16,6 @@ Their rerun views are in :mod:`.office_recording`, the scoring of a LiDAR trajec
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
@@ -30,7 +28,7 @@ from exobench.core.frames import LidarScan
 from .spec import ParamInfo, param_infos
 
 GROUND_KINDS = ("ground", "tread", "landing", "ramp")  # surfaces a walker stands on (SceneTruth kinds)
-KIND_NAMES = ("genuine", "glass", "ghost", "nan")  # class of a point: ReturnKind GENUINE/THROUGH_GLASS, GLASS, GHOST, NAN
+# class of a point: ReturnKind GENUINE/THROUGH_GLASS, GLASS, GHOST, NAN
 GENUINE, GLASS, GHOST, NAN_POINT = 0, 1, 2, 3
 
 
@@ -79,11 +77,6 @@ def simulate_office_episode(scenario: Mapping[str, Any], seed: int, extra: Mappi
 
     office = {k: v for k, v in scenario.items() if k not in dict(extra or {})}
     return simulate_office(OfficeScenario.from_dict(office), seed)
-
-
-def replace_scenario(episode: Episode, extra: Mapping[str, Any]) -> Episode:
-    """The episode with ``extra`` keys added to its scenario record."""
-    return dataclasses.replace(episode, scenario={**episode.scenario, **dict(extra)})
 
 
 # ------------------------------------------------------------------------- truth per point

@@ -35,10 +35,22 @@ BUILTIN_TRACKS: dict[str, tuple[str, tuple[str, ...]]] = {
 }
 
 
+def track_members() -> tuple[str, ...]:
+    """The members of the :class:`~.spec.Track` protocol: its attributes, then its methods."""
+    attrs = [n for n in Track.__annotations__ if not n.startswith("_")]
+    methods = [n for n, v in vars(Track).items() if callable(v) and not n.startswith("_") and n not in attrs]
+    return (*attrs, *methods)
+
+
 def check_track_class(name: str, cls: Any) -> type:
-    """Raise ConfigError unless ``cls`` is a class with the members of the Track protocol."""
-    if not isinstance(cls, type) or not isinstance(cls, Track):
-        raise ConfigError(f"track {name!r}", cls, "a class with the members of exobench.benchmarks.tracks.spec.Track")
+    """Raise ConfigError unless ``cls`` is a class with the members of the Track protocol; the
+    message names the members it lacks."""
+    allowed = "a class with the members of exobench.benchmarks.tracks.spec.Track"
+    if not isinstance(cls, type):
+        raise ConfigError(f"track {name!r}", cls, allowed)
+    missing = [m for m in track_members() if not hasattr(cls, m)]
+    if missing or not isinstance(cls, Track):
+        raise ConfigError(f"track {name!r}", cls, f"{allowed}; it lacks {', '.join(missing)}")
     return cls
 
 

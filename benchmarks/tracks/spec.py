@@ -1,10 +1,12 @@
 """What a track is: the :class:`Track` protocol and the records it hands the harness.
 
-A track is one perception problem of the source papers (see TRACKS.md) and lives in its own
-folder, ``benchmarks/tracks/<name>/``: ``track.py`` (the class below: scenario type and how to
-simulate it, the streams its pipelines receive, the estimate type they return, the scorer, the published references, summary
-rows, timing metrics, suites and cases), ``metrics.py`` (pure scoring functions), ``report.py``
-(its report sections and figures) and, where it has one, ``recording.py`` (its rerun recording).
+A track is one perception problem of the source papers (the README's table of tracks; one page
+each in ``docs/tracks/``) and lives in its own folder, ``benchmarks/tracks/<name>/``:
+``track.py`` (the class below: scenario type and how to simulate it, the streams its pipelines
+receive, the estimate type they return, its scoring settings, the scorer, the published
+references, summary rows, timing metrics, suites and cases), ``metrics.py`` (pure scoring
+functions), ``report.py`` (its report sections and figures) and, where it has one,
+``recording.py`` (its rerun recording).
 The runner, the report writer and the command line know only this protocol; tracks are found
 through :mod:`exobench.benchmarks.tracks.registry`.
 """
@@ -50,6 +52,11 @@ def param_infos(table: Mapping[str, Any]) -> list[ParamInfo]:
             low_open = bool(getattr(row, "low_open", False))
             out.append(ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, low_open))
     return out
+
+
+def scoring_of(track: Any, scenario: Mapping[str, Any]) -> dict[str, Any]:
+    """The scoring settings of a validated scenario: its values of ``track.scoring_keys``."""
+    return {k: scenario[k] for k in sorted(track.scoring_keys) if k in scenario}
 
 
 @dataclass(frozen=True)
@@ -132,8 +139,15 @@ class Track(Protocol):
     streams: ClassVar[tuple[str, ...]]
     """Frame kinds its episodes carry (keys of ``exobench.core.frames.FRAME_TYPES``)."""
     estimate_type: ClassVar[type]
-    """The estimate class its pipelines return from ``finalize()`` (from ``exobench.core.estimates``);
-    :meth:`score` scores any other value as a failure."""
+    """The estimate class its pipelines return from ``finalize()`` (from ``exobench.core.estimates``).
+    The runner checks it once, before scoring: any other value (None included) is recorded as
+    failed with the type in its reason, and :meth:`score` only ever sees an instance."""
+    scoring_keys: ClassVar[frozenset[str]]
+    """Scenario keys that set how an estimate is scored, not what is simulated (loop-closure's
+    ``revisit_m``): listed and validated with the scenario, stored with the plan and every record
+    (``scenario``), handed by the runner to :meth:`score`, :meth:`figure_data` and
+    :meth:`write_recording` as ``scoring`` and never put into the simulated episode. Empty
+    when the track has none."""
     smoke_scenario: ClassVar[Mapping[str, Any]]
     """Scenario values (over the defaults) of a tiny episode that simulates in a few seconds: the
     episode every registered pipeline of the track is checked on (``tests/test_conformance.py``)."""
@@ -161,8 +175,10 @@ class Track(Protocol):
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         """Simulate one episode."""
 
-    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
-        """Metrics of one estimate against the episode's truth (never raises on a bad estimate)."""
+    def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Metrics of one estimate (an instance of :attr:`estimate_type`) against the episode's
+        truth, under the scoring settings ``scoring`` (values of :attr:`scoring_keys`; a key not
+        given, or None, takes its default). Never raises on a malformed estimate."""
 
     def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
         """Metrics of a pipeline that raised (or of every pipeline when the simulation raised,
@@ -174,8 +190,9 @@ class Track(Protocol):
     def summary_rows(self) -> list[SummaryRow]:
         """Metric rows of the summary table."""
 
-    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
-        """Arrays the report's per-case figure needs (saved as .npz)."""
+    def figure_data(self, episode: Episode, estimates: dict[str, Any],
+                    scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        """Arrays the report's per-case figure needs (saved as .npz); ``scoring`` as for :meth:`score`."""
 
     report_intro: ClassVar[str]
     """One line under the report's title: where the published figures come from."""
@@ -184,7 +201,9 @@ class Track(Protocol):
         """The track's report sections after the summary table: markdown lines; figures are
         written into ``out_dir`` (figure data saved by the runner is in ``out_dir/figures``)."""
 
-    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path,
+                        scoring: Mapping[str, Any] | None = None) -> Path:
         """Write a rerun recording (``.rrd``) of the episode and the estimates (a final estimate,
-        or a time series ``[(stamp_s, estimate), ...]`` per pipeline); returns the path."""
+        or a time series ``[(stamp_s, estimate), ...]`` per pipeline); returns the path.
+        ``scoring`` as for :meth:`score`."""
 

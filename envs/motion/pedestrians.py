@@ -26,7 +26,7 @@ class PedestrianPath:
         return float(np.arctan2(self.v_xy[1], self.v_xy[0]))
 
 
-def pedestrian_paths(n: int, walker_xy: object, heading: object, half_width_m: float, duration_s: float,
+def pedestrian_paths(n: int, walker_xy: object, heading: object, duration_s: float,
                      rng: np.random.Generator) -> list[PedestrianPath]:  # fmt: skip
     """``n`` people passing the walker: at a seeded time t_c a person is 1.2-2.5 m ahead of the
     walker, walking towards it or away from it at 0.8-1.4 m/s along its heading and drifting

@@ -39,14 +39,14 @@ from .kinematics import (
 from .motion import Motion, Segment
 from .swing import SWING_SHAPES, SwingPlan, heel_drop_segment, swing_apex_m
 
-DESCENT_KNEE_MAX_RAD = np.radians(100.0)  # stair descent flexes the stance knee to about 90 deg (SENSORS.md)
+DESCENT_KNEE_MAX_RAD = np.radians(100.0)  # stair descent flexes the stance knee to about 90 deg (docs/sensor-reference.md)
 HEEL_RISE_RAD = tuple(np.radians([15.0, 25.0, 5.0, 0.0, 35.0]))  # trailing heel rises tried on stairs [A]
 # Steep stairs down (risers 0.20-0.25 m), tried only when no flat landing works. The leading foot
 # lands forefoot first, as people do on stairs of every inclination (Riener et al., Gait Posture
 # 15 (2002) 32-44, 24-42 deg stairs), toes down by TOE_FIRST_RAD [A: within the model's 40 deg
 # plantarflexion], and lowers its heel in the double support (at least HEEL_DROP_S). The stance
 # knee may then flex to DESCENT_KNEE_DEEP_RAD: 15 deg beyond the ~100 deg of ordinary stairs
-# (SENSORS.md), for risers 40-50 % higher than the 0.17 m ones those figures come from (young
+# (docs/sensor-reference.md), for risers 40-50 % higher than the 0.17 m ones those figures come from (young
 # adults descend 0.255 m risers: Foster et al., Gait Posture 73 (2019) 305-314); still 15 deg
 # inside the model's 130 deg knee range [A].
 DESCENT_KNEE_DEEP_RAD = np.radians(115.0)

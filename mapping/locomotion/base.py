@@ -50,11 +50,12 @@ from exobench.core import (
 from exobench.core.errors import PipelineStateError
 from exobench.core.limits import FALLBACK_MAX_RANGE_M, absurd_depth, max_depth_m
 from exobench.core.pipeline import check_frame
+from exobench.core.transforms import invert_T
 from exobench.perception.terrain.footprint import GaitDivider
 from exobench.perception.terrain.plane_tracking import PlaneSet
 from exobench.perception.terrain.terrain_description import TerrainDescription, describe_terrain
 
-from .body import inverse_se3, mount_latency_s, odometry_of, tracked_point_neutral
+from .body import mount_latency_s, odometry_of, tracked_point_neutral
 from .config import STATUSES, LocomotionConfig
 from .depth import decimate
 from .predict import StepPredictor
@@ -111,7 +112,7 @@ class LocomotionPipeline(ABC):
         # parent link's origin: the neck for a head camera, the hip for a thigh one) unless the
         # camera sits on the base link, else the camera
         on_joint = c.track_point == "joint" and mount.parent_link != calibration.base_link
-        T_cam_track = inverse_se3(np.asarray(mount.T_parent_sensor, float)) if on_joint else np.eye(4)
+        T_cam_track = invert_T(np.asarray(mount.T_parent_sensor, float)) if on_joint else np.eye(4)
         self._tracked = "joint" if on_joint else "camera"
         neutral = tracked_point_neutral(calibration, self._rgbd_id, link_origin=on_joint)
         ahead = c.camera_ahead_m if c.camera_ahead_m is not None else None if neutral is None else neutral[0]
@@ -127,7 +128,7 @@ class LocomotionPipeline(ABC):
         if odom_mounts:
             om = odom_mounts[0]
             if om.parent_link == mount.parent_link:
-                self._T_body_cam = inverse_se3(np.asarray(om.T_parent_sensor, float)) @ np.asarray(mount.T_parent_sensor, float)
+                self._T_body_cam = invert_T(np.asarray(om.T_parent_sensor, float)) @ np.asarray(mount.T_parent_sensor, float)
                 self._odom_mount = "calibrated"
             else:
                 self._odom_mount = "unrelated_link_assumed_camera"

@@ -13,17 +13,9 @@ from typing import Any
 import numpy as np
 
 from exobench.core import Calibration, ConfigError
+from exobench.core.transforms import invert_T
 
-__all__ = ["inverse_se3", "mount_latency_s", "odometry_of", "tracked_point_neutral"]
-
-
-def inverse_se3(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid transform (4, 4)."""
-    out = np.eye(4)
-    out[:3, :3] = T[:3, :3].T
-    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
-    return out
-
+__all__ = ["mount_latency_s", "odometry_of", "tracked_point_neutral"]
 
 
 def mount_latency_s(params: dict[str, Any]) -> float:
@@ -67,7 +59,7 @@ def tracked_point_neutral(calibration: Calibration, sensor_id: str, *, link_orig
             return np.asarray(data.oMf[model.getFrameId(link, pin.BODY)].homogeneous, dtype=float)
 
         T_w_point = placement(mount.parent_link) @ (np.eye(4) if link_origin else np.asarray(mount.T_parent_sensor, dtype=float))
-        x = float((inverse_se3(placement(calibration.base_link)) @ T_w_point)[0, 3])
+        x = float((invert_T(placement(calibration.base_link)) @ T_w_point)[0, 3])
         feet = {m.parent_link for m in calibration.mounts_of_kind("contact")}
         sole = min(float(placement(f)[2, 3]) for f in feet) - float(calibration.sole_height_m)
         h = float(T_w_point[2, 3]) - sole

@@ -22,8 +22,9 @@ Details:
   (:class:`~exobench.perception.lidar_filter.FilterStageConfig`: ``filter.kind`` is ``"none"``
   (default), ``"threshold"``, ``"naive-ground"``, ``"normal-ground"`` or ``"floor-ground"``,
   each with its parameters nested, e.g. ``filter.naive_ground.ground_margin_m``), with
-  ``T_footprint_sensor`` from the exoskeleton's kinematics. :func:`run_kiss_icp` takes
-  precomputed keep masks instead.
+  ``T_footprint_sensor`` from the exoskeleton's kinematics. The stage is the filter's pipeline,
+  fed every frame; the mask of a scan is the one its ``process`` returns.
+  :func:`run_kiss_icp` takes precomputed keep masks instead.
 - Points at a distance the LiDAR cannot report (:class:`exobench.core.limits.RangeLimits`) are
   dropped as NaN ones and counted (``stats["n_absurd_points"]``).
 - Faults never raise: a scan with fewer than ``min_points`` usable points (empty, all NaN, or
@@ -256,8 +257,8 @@ class KissIcpPipeline:
             self._n_absurd += n_absurd
             frame = dataclasses.replace(frame, points_xyz=pts)
         if self._filter is not None:
-            self._filter.process(frame)
-            keep = self._filter.last_keep
+            online = self._filter.process(frame)  # the FilterEstimate of this scan alone
+            keep = online.keep[0] if online is not None else None
         t_filter = time.perf_counter() - t0
         self._odo.add(frame, keep)
         self._odo.times[-1] += t_filter

@@ -36,7 +36,6 @@ from typing import ClassVar
 import numpy as np
 
 from exobench.core.errors import ConfigError, UnknownNameError
-from exobench.core.frames import LidarScan
 
 from .config import (
     FloorGroundConfig,
@@ -184,9 +183,6 @@ class NoFilter:
         reason = np.where(finite, FilterReason.KEPT_NO_FILTER, FilterReason.DROPPED_INVALID).astype(np.uint8)
         return _finish(finite.copy(), reason, "ok")
 
-    def apply_scan(self, scan: LidarScan, T_footprint_sensor: np.ndarray | None = None) -> FilterResult:
-        return self.apply(scan.points_xyz, scan.intensity, T_footprint_sensor, ring=scan.ring)
-
 
 class IntensityThresholdFilter(NoFilter):
     """The plain band filter of eq. (4.15): keep ``psi in psi*``; the transform is not used."""
@@ -211,10 +207,6 @@ class NaiveGroundFilter(NoFilter):
 
     name: ClassVar[str] = "naive-ground"
     Config: ClassVar[type] = NaiveGroundConfig
-
-    def ground_mask(self, points_xyz: np.ndarray, T_footprint_sensor: np.ndarray) -> np.ndarray:
-        """The ground test alone (eq. 4.16 read as ``ground_test`` says), (N,) bool."""
-        return self.ground_mask_and_plane(points_xyz, T_footprint_sensor)[0]
 
     def ground_mask_and_plane(self, points_xyz: np.ndarray, T_footprint_sensor: np.ndarray) -> tuple[np.ndarray, str]:
         """The ground test, (N,) bool, and the plane it used: ``"refined"`` (the scan's floor

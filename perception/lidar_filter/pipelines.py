@@ -6,7 +6,10 @@ a band about the scan's own floor plane; not in the thesis) wrap the filters of
 :mod:`exobench.perception.lidar_filter.filters` unchanged (each scan's ``ring`` goes to the filter:
 the normal filter's range-image normals use it); each returns a
 :class:`~exobench.core.estimates.FilterEstimate` with one keep mask per LiDAR scan and the
-compute time per scan (kinematics + filter).
+compute time per scan (kinematics + filter). Online, ``process`` returns the
+:class:`FilterEstimate` of the scan it was given (one stamp, one mask; None for any other
+frame): how a pipeline that filters before its own work, such as ``kiss-icp``'s ``filter``
+stage, reads each mask through the pipeline protocol.
 
 The ground-aware filters need ``T_footprint_sensor`` per scan. It is taken from the
 exoskeleton's kinematics and trunk tilt, not assumed level (:class:`FootprintKinematics`):
@@ -150,6 +153,8 @@ class _FilterPipeline:
             if self.config.lidar_id and frame.sensor_id != self.config.lidar_id:
                 return None
             self._scan(frame)
+            return FilterEstimate(stamps_s=np.array(self._stamps[-1:], dtype=float), keep=(self._keep[-1],),
+                                  time_per_scan_s=np.array(self._times[-1:], dtype=float))  # fmt: skip
         elif self.uses_footprint and isinstance(frame, (JointState, ImuSample, ContactSample)):
             for kin in self._kin.values():
                 kin.update(frame)
@@ -204,11 +209,6 @@ class _FilterPipeline:
         self._T.append(np.full((4, 4), np.nan) if T is None else T)
         self._status.append(status)
         self._stance.append(stance)
-
-    @property
-    def last_keep(self) -> np.ndarray | None:
-        """The keep mask of the latest scan, None before the first."""
-        return self._keep[-1] if self._keep else None
 
     def finalize(self) -> FilterEstimate:
         stats: dict[str, Any] = dict(self._stats)

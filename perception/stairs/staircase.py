@@ -209,10 +209,6 @@ class StaircaseAlgorithm:
         """The surface under investigation (with ``per_sensor`` ids, the furthest of the two)."""
         return max(self._ids.values())
 
-    def sensor_id_of(self, flag: str) -> int:
-        """The surface under investigation for the sensor ``flag``."""
-        return self._ids[flag]
-
     @property
     def finished(self) -> bool:
         """True once a switch beyond the last surface happened (for every sensor)."""

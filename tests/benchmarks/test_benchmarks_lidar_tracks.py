@@ -12,9 +12,11 @@ from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
 from exobench.benchmarks.runner import plan_run, run_pipelines
+from exobench.benchmarks.tracks import get_track
 from exobench.benchmarks.tracks.lidar_filter.metrics import mask_fractions
 from exobench.benchmarks.tracks.lidar_trajectory import interpolate_poses, score_trajectory, true_track
 from exobench.benchmarks.tracks.office_walks import GENUINE, GHOST, GLASS, lidar_pairs, point_classes
+from exobench.benchmarks.tracks.spec import scoring_of
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.transforms import matrix_to_quat_wxyz, rot_z
 
@@ -140,10 +142,11 @@ def walk():
     plan = plan_run("lidar-filter", "quick", None, (0,), overrides)
     ep_plan = plan.episodes[0]
     episode = plan.track.simulate(ep_plan.scenario, ep_plan.seed)
-    est, metrics, _, _ = run_pipelines(plan.track, episode, plan.pipelines)
+    scoring = scoring_of(plan.track, ep_plan.scenario)
+    est, metrics, _, _ = run_pipelines(plan.track, episode, plan.pipelines, scoring=scoring)
     odo = plan_run("odometry", "quick", ["kiss-icp", "leo-slam"], (0,), {"route": "corridor", "max_distance_m": WALK_M})
     odo_est, odo_metrics, _, _ = run_pipelines(odo.track, episode, odo.pipelines)
-    return SimpleNamespace(episode=episode, est={**est, **odo_est}, metrics={**metrics, **odo_metrics})
+    return SimpleNamespace(episode=episode, est={**est, **odo_est}, metrics={**metrics, **odo_metrics}, scoring=scoring)
 
 
 def test_footprint_transform_matches_the_true_lidar_pose(walk):
@@ -214,22 +217,34 @@ def test_kiss_icp_on_a_short_corridor(walk):
 
 @pytest.mark.parametrize("mode", ["single", "double"])
 def test_table_5_4_odometry_uses_the_scenarios_downsampling(walk, mode):
-    """The filters' KISS-ICP scores are kiss-icp run with the scenario's odometry_downsample
+    """The filters' KISS-ICP scores are kiss-icp run with the scoring setting odometry_downsample
     (single by default: Table 5.4's protocol) on the filter's own masks, recomputed here."""
-    import dataclasses
-
-    from exobench.benchmarks.tracks.lidar_filter.metrics import score_filter
     from exobench.mapping.odometry.kiss_icp import KissConfig, run_kiss_icp
 
-    assert walk.episode.scenario["odometry_downsample"] == "single"
-    ep = dataclasses.replace(walk.episode, scenario={**walk.episode.scenario, "odometry_downsample": mode})
+    assert walk.scoring == {"odometry_downsample": "single", "score_odometry": True}
+    ep = walk.episode
     est = walk.est["filter-naive-ground"]
     scans = [s for s, _ in lidar_pairs(ep)]
     direct = score_trajectory(ep, run_kiss_icp(scans, list(est.keep), KissConfig(downsample=mode)))
-    scored = score_filter(ep, est, odometry=True)
+    scored = get_track("lidar-filter").score(ep, est, {**walk.scoring, "odometry_downsample": mode})
     assert scored["odom_ate_m"] == direct["ate_m"] and scored["odom_rpe_m"] == direct["rpe_m"]
     other = "double" if mode == "single" else "single"
     assert direct["ate_m"] != score_trajectory(ep, run_kiss_icp(scans, list(est.keep), KissConfig(downsample=other)))["ate_m"]
+
+
+def test_scoring_settings_stay_out_of_the_episode_and_figures_need_no_scorer_state(walk):
+    """score_odometry and odometry_downsample are scoring settings: not in the simulated episode.
+    A fresh track (no scorer ran on it) gives the figure the KISS-ICP trajectories the scores came from."""
+    from exobench.benchmarks.tracks.lidar_filter import LidarFilterTrack
+
+    assert not set(LidarFilterTrack.scoring_keys) & set(walk.episode.scenario)
+    filters = {n: e for n, e in walk.est.items() if n.startswith("filter-")}
+    data = LidarFilterTrack().figure_data(walk.episode, filters, walk.scoring)
+    for name in filters:
+        stamps, poses = data[f"est_stamps__kiss-icp+{name}"], data[f"est_poses__kiss-icp+{name}"]
+        traj = TrajectoryEstimate(stamps, poses, np.zeros(len(stamps)))
+        assert score_trajectory(walk.episode, traj)["ate_m"] == walk.metrics[name]["odom_ate_m"]
+    assert not any(k.startswith("est_") for k in LidarFilterTrack().figure_data(walk.episode, filters, {}))
 
 
 def test_leo_slam_beats_kiss_icp_on_the_same_scans(walk):

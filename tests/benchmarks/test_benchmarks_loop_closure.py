@@ -143,10 +143,15 @@ def test_office_walk_through_runner_detects_a_true_loop(short_run):
 def test_office_walk_is_deterministic_and_reports(short_run, tmp_path):
     from exobench.benchmarks.report import write_report
     from exobench.benchmarks.runner import run_pipelines
+    from exobench.benchmarks.tracks.spec import scoring_of
 
     plan, outcome = short_run
     episode = plan.track.simulate(plan.episodes[0].scenario, plan.episodes[0].seed)
-    est1, met1, _, _ = run_pipelines(plan.track, episode, plan.pipelines)
+    # the scoring settings (revisit_m 1.5, exclude_recent_s 5) are the plan's, not the episode's
+    assert not {"revisit_m", "exclude_recent_s"} & set(episode.scenario)
+    scoring = scoring_of(plan.track, plan.episodes[0].scenario)
+    assert scoring == {"exclude_recent_s": 5.0, "revisit_m": 1.5}
+    est1, met1, _, _ = run_pipelines(plan.track, episode, plan.pipelines, scoring=scoring)
     est2, _, _, _ = run_pipelines(plan.track, episode, plan.pipelines)
     for name in PIPES:
         a, b = est1[name], est2[name]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any, ClassVar
 
 import pytest
 from test_benchmarks_support import FakeStairs, FakeTrack, RaisingStairs
@@ -11,7 +12,7 @@ from exobench.benchmarks.overrides import split_overrides
 from exobench.benchmarks.registry import PipelineRegistry
 from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE, read_records, repair_results
 from exobench.benchmarks.runner import episode_seed, execute, plan_run, untimed_metrics
-from exobench.core import ConfigError, UnknownNameError
+from exobench.core import ConfigError, StaircaseEstimate, UnknownNameError
 
 
 @pytest.fixture
@@ -80,6 +81,34 @@ def test_failing_pipeline_is_recorded_and_run_goes_on(reg, tmp_path):
     assert config["suite"] == "quick" and [p["name"] for p in config["pipelines"]] == ["fake", "fake-raise"]
     # figures are kept for cases A, B, C only
     assert sorted(p.name for p in (tmp_path / "run" / "figures").glob("*.npz")) == ["A__s0.npz", "B__s0.npz", "C__s0.npz"]
+
+
+class NoEstimateStairs(FakeStairs):
+    name: ClassVar[str] = "fake-none"
+
+    def finalize(self) -> Any:
+        return None
+
+
+class TrustingTrack(FakeTrack):
+    """A track whose scorer trusts the protocol: it is only ever given a StaircaseEstimate."""
+
+    scored: ClassVar[list[str]] = []
+
+    def score(self, episode: Any, estimate: Any, scoring: Any = None) -> dict[str, Any]:
+        TrustingTrack.scored.append(type(estimate).__name__)
+        return super().score(episode, estimate, scoring) if isinstance(estimate, StaircaseEstimate) else {"failed": False}
+
+
+def test_the_runner_fails_an_estimate_of_the_wrong_type_before_any_scorer_sees_it(reg, tmp_path):
+    reg.register("fake-none", NoEstimateStairs)
+    TrustingTrack.scored.clear()
+    out = execute(_plan(reg, track=TrustingTrack(), pipelines=["fake", "fake-none"]), tmp_path / "run")
+    none = [r["metrics"] for r in out.records if r["pipeline"] == "fake-none"]
+    assert len(none) == 6 and all(m["failed"] for m in none)
+    assert {m["failed_reason"] for m in none} == {"finalize() returned NoneType, not StaircaseEstimate"}
+    assert set(none[0]) == set(FakeTrack().failed_metrics(None, "x"))  # the track's failure record
+    assert TrustingTrack.scored == ["StaircaseEstimate"] * 6  # only the real estimates were scored
 
 
 def test_jobs_two_gives_the_same_results_as_jobs_one(reg, tmp_path):

@@ -77,6 +77,7 @@ class ToyTrack:
     estimate_type: ClassVar[type] = float
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"noise_m": 0.0}
     timing_metrics: ClassVar[frozenset[str]] = frozenset()
+    scoring_keys: ClassVar[frozenset[str]] = frozenset()
     report_intro: ClassVar[str] = "Toy figures, invented for the test."
 
     def params(self) -> list[ParamInfo]:
@@ -102,9 +103,7 @@ class ToyTrack:
         frames = tuple(ToyFrame(0.1 * k, "toy", float(v)) for k, v in enumerate(values))
         return ToyEpisode(dict(scenario), seed, None, frames, float(scenario["level_m"]))
 
-    def score(self, episode: ToyEpisode, estimate: Any) -> dict[str, Any]:
-        if not isinstance(estimate, float):
-            return self.failed_metrics(episode, f"finalize() returned {type(estimate).__name__}")
+    def score(self, episode: ToyEpisode, estimate: float, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         return {"failed": False, "level_error_m": estimate - episode.truth}
 
     def failed_metrics(self, episode: ToyEpisode | None, reason: str) -> dict[str, Any]:
@@ -116,14 +115,15 @@ class ToyTrack:
     def summary_rows(self) -> list[SummaryRow]:
         return [SummaryRow("level_error_m", "level error (mm)", scale=1000, absolute=True)]
 
-    def figure_data(self, episode: ToyEpisode, estimates: dict[str, Any]) -> dict[str, Any]:
+    def figure_data(self, episode: ToyEpisode, estimates: dict[str, Any], scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         return {"readings": np.array([f.value_m for f in episode.frames])}
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
         figures = sorted((out / "figures").glob("*.npz"))
         return ["## Toy levels", "", f"{len(records)} records, {len(figures)} figure files", ""]
 
-    def write_recording(self, episode: ToyEpisode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+    def write_recording(self, episode: ToyEpisode, estimates_by_pipeline: dict[str, Any], path: Path,
+                        scoring: Mapping[str, Any] | None = None) -> Path:
         Path(path).write_text(json.dumps(sorted(estimates_by_pipeline)))
         return Path(path)
 
@@ -222,8 +222,14 @@ def test_duplicate_and_malformed_tracks_are_refused(monkeypatch):
     with pytest.raises(ConfigError, match="not-a-track"):
         reg.load("not-a-track")
     no_smoke = type("NoSmoke", (), {k: v for k, v in vars(ToyTrack).items() if k != "smoke_scenario"})
-    with pytest.raises(ConfigError, match="no-smoke"):
+    with pytest.raises(ConfigError, match="no-smoke.*lacks smoke_scenario$"):
         reg.register("no-smoke", no_smoke)
+    # each missing member is named, methods included (the docs once forgot group_label)
+    partial = type("Partial", (), {k: v for k, v in vars(ToyTrack).items() if k not in ("group_label", "scoring_keys")})
+    with pytest.raises(ConfigError, match="lacks scoring_keys, group_label$"):
+        reg.register("partial", partial)
+    assert set(track_registry.track_members()) == {
+        n for n in dir(ToyTrack) if not n.startswith("_")}  # the toy has every member and nothing else
     reg.register("missing", "no_such_module_xyz:Track")
     with pytest.raises(ConfigError, match="importable"):
         reg.load("missing")

@@ -162,7 +162,7 @@ def test_run_whose_simulation_or_scorer_fails_exits_1_with_the_first_reasons(tmp
     assert "simulation raised RuntimeError: sim exploded" in last and "more" in last and len(last) < 600
     monkeypatch.setattr(FakeTrack, "simulate", real)
 
-    def score(self, episode, estimate):
+    def score(self, episode, estimate, scoring=None):
         raise ValueError("scorer exploded")
 
     monkeypatch.setattr(FakeTrack, "score", score)

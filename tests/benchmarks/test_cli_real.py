@@ -74,3 +74,25 @@ def test_interrupted_run_says_how_to_resume(tmp_path, monkeypatch):
     result = CliRunner().invoke(cli, ["run", "--track", "stairs", "--out", str(tmp_path / "run"), "--pipeline", "rtls"])
     assert result.exit_code == 130 and "--resume" in result.stderr
     assert read_records(tmp_path / "run" / "results.jsonl") == []
+
+
+def test_scoring_settings_are_given_to_replay_not_to_record(tmp_path):
+    """revisit_m and exclude_recent_s score a loop-closure session; they are not part of it."""
+    refused = CliRunner().invoke(cli, ["record", str(tmp_path / "no"), "--track", "loop-closure", "--set", "revisit_m=2"])
+    assert refused.exit_code == 2 and "revisit_m" in refused.stderr and "replay" in refused.stderr
+    assert not (tmp_path / "no").exists()
+    session = tmp_path / "session"
+    _invoke(["record", str(session), "--track", "loop-closure", "--set", "max_distance_m=1.5", "--set", "lidar_azimuth_step_deg=1"])
+    meta = json.loads((session / "meta.json").read_text())
+    assert not {"revisit_m", "exclude_recent_s"} & set(meta["scenario"])
+
+    def replay(*sets):
+        args = ["replay", str(session), "--pipeline", "sc++", "--json", *(x for s in sets for x in ("--set", s))]
+        return json.loads(_invoke(args).output.strip().splitlines()[0])["metrics"]
+
+    default = replay()  # a 1.5 m walk lasts less than the 20 s that make an earlier keyframe eligible
+    near = replay("exclude_recent_s=0.1", "revisit_m=50")  # every earlier keyframe is a revisit
+    assert default["n_keyframes"] == near["n_keyframes"] > 1
+    assert default["n_revisits"] == 0 and near["n_revisits"] == near["n_keyframes"] - 1
+    wrong = CliRunner().invoke(cli, ["replay", str(session), "--set", "max_distance_m=3"])
+    assert wrong.exit_code == 2 and "max_distance_m" in wrong.stderr and "revisit_m" in wrong.stderr

@@ -34,6 +34,21 @@ def test_quaternion_matrix_roundtrip_and_product():
         assert np.allclose(quat_wxyz_to_matrix(quat_multiply(q, p)), R @ quat_wxyz_to_matrix(p), atol=1e-12)
 
 
+def test_quaternion_product_of_stacks_is_the_product_row_by_row():
+    """One product serves single quaternions and stacks (the IMU's errors, a trajectory's
+    orientations): each row equals the single product, bit for bit, and the rotations compose."""
+    rng = np.random.default_rng(1)
+    a, b = rng.normal(size=(7, 4)), rng.normal(size=(7, 4))
+    rows = quat_multiply(a, b)
+    one = quat_multiply(a[0], b)
+    assert rows.shape == one.shape == (7, 4)
+    for k in range(7):
+        assert np.array_equal(rows[k], quat_multiply(a[k], b[k]))
+        assert np.array_equal(one[k], quat_multiply(a[0], b[k]))
+        qa, qb = a[k] / np.linalg.norm(a[k]), b[k] / np.linalg.norm(b[k])
+        assert np.allclose(quat_wxyz_to_matrix(rows[k]), quat_wxyz_to_matrix(qa) @ quat_wxyz_to_matrix(qb), atol=1e-12)
+
+
 def test_elementary_rotations_match_rodrigues():
     for a in (-1.0, 0.3, 2.0):
         assert np.allclose(rot_x(a), axis_angle_to_matrix([1, 0, 0], a))

@@ -125,7 +125,7 @@ def test_noise_std_matches_the_stereo_model_on_a_wall(distance_m):
     valid = frame.depth_m > 0
     assert valid.mean() > 0.999
     err = frame.depth_m[valid].astype(float) - distance_m
-    sigma = distance_m**2 * 0.08 / (384.0 * 0.095)  # z^2 s / (f B), SENSORS.md
+    sigma = distance_m**2 * 0.08 / (384.0 * 0.095)  # z^2 s / (f B), docs/sensor-reference.md
     assert abs(err.std() / sigma - 1.0) < 0.10
     assert abs(err.mean()) < 0.02 * sigma
 

@@ -1,5 +1,6 @@
 """Filter pipelines (seeds/003 eq. 4.15-4.19) and the kiss-icp adapter on constructed frames."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -151,6 +152,32 @@ def test_masks_equal_the_filter_functions(calibration):
     for cls in (FilterNaiveGround, FilterNormalGround):
         assert _run(cls, calibration, [*states, on_ground]).keep[0][:400].mean() > 0.9
     assert _run(FILTER_PIPELINES["threshold"], calibration, [*states, on_ground]).keep[0][:400].mean() < 0.1
+
+
+def test_each_scan_s_mask_is_returned_online_and_kiss_icp_registers_those(calibration):
+    """process() returns a scan's own FilterEstimate (its stamp, its mask, nothing for other
+    frames); kiss-icp's filter stage registers exactly those masks."""
+    from exobench.core.estimates import FilterEstimate
+    from exobench.mapping.odometry.kiss_icp import KissConfig, KissIcpPipeline, run_kiss_icp
+    from exobench.perception.lidar_filter import FilterStageConfig
+
+    rng = np.random.default_rng(2)
+    _, states = _states(calibration, 0.0, R_TILT)
+    scans = [_scan(rng, 0.1 * (k + 1), n=2000) for k in range(4)]
+    pipe = FilterNaiveGround()
+    pipe.reset(calibration)
+    online = [pipe.process(f) for f in [*states, *scans]]
+    assert online[: len(states)] == [None] * len(states)
+    final = pipe.finalize()
+    for scan, est, keep in zip(scans, online[len(states):], final.keep, strict=True):
+        assert isinstance(est, FilterEstimate) and len(est.keep) == 1
+        np.testing.assert_array_equal(est.stamps_s, [scan.stamp_s])
+        np.testing.assert_array_equal(est.keep[0], keep)
+    config = KissConfig(filter=FilterStageConfig(kind="naive-ground"), voxel_size_m=0.2)
+    staged = _run(KissIcpPipeline, calibration, [*states, *scans], config)
+    direct = run_kiss_icp(scans, list(final.keep), dataclasses.replace(config, filter=FilterStageConfig()))
+    np.testing.assert_array_equal(staged.T_world_sensor, direct.T_world_sensor)
+    assert staged.stats["points_used"] == direct.stats["points_used"] == sum(int(k.sum()) for k in final.keep)
 
 
 def test_faults_never_raise_and_are_counted(calibration):

@@ -22,14 +22,14 @@ e.g. ``n_nan_points`` and ``n_absurd_points``) are reported as ``stat_*``.
 Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
 :func:`..lidar_trajectory.score_trajectory` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
 ``odom_tve_{x,y,z}_m``, ``odom_ate_m``, ``odom_rpe_m``, ...). KISS-ICP registers as the thesis ran it,
-with one of its two downsamplings removed (the scenario's ``odometry_downsample``, ``"single"`` by
-default; :class:`~exobench.mapping.odometry.kiss_icp.KissConfig`).
+with one of its two downsamplings removed (the scoring setting ``odometry_downsample``, ``"single"``
+by default; :class:`~exobench.mapping.odometry.kiss_icp.KissConfig`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -100,20 +100,42 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
     }  # fmt: skip
 
 
-def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tuple[dict[str, Any], Any]:
-    """kiss-icp on the kept points of every scan, scored as the odometry track does: (``odom_``
-    metrics, the :class:`TrajectoryEstimate`)."""
+def kiss_on_kept(episode: Episode, keep: Sequence[np.ndarray], downsample: str = "single") -> Any:
+    """kiss-icp's :class:`TrajectoryEstimate` on the kept points of every scan of :func:`lidar_pairs`."""
     from exobench.mapping.odometry.kiss_icp import KissConfig, run_kiss_icp
 
+    scans = [s for s, _ in lidar_pairs(episode)]
+    return run_kiss_icp(scans, keep, KissConfig(downsample=downsample))
+
+
+def kiss_trajectories(episode: Episode, estimates: Mapping[str, Any], downsample: str = "single") -> dict[str, Any]:
+    """``kiss-icp+<name>`` -> :func:`kiss_on_kept` of each estimate whose masks fit every scan
+    (those :func:`score_filter` scores through odometry)."""
+    pairs = lidar_pairs(episode)
+    out = {}
+    for name, est in estimates.items():
+        if not isinstance(est, FilterEstimate) or not pairs:
+            continue
+        try:
+            masks, _ = masks_by_scan(pairs, est)
+        except ValueError:
+            continue
+        if all(m is not None and len(m) == len(s.points_xyz) for m, (s, _) in zip(masks, pairs, strict=True)):
+            out[f"kiss-icp+{name}"] = kiss_on_kept(episode, masks, downsample)
+    return out
+
+
+def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray], downsample: str = "single") -> dict[str, Any]:
+    """kiss-icp on the kept points of every scan (:func:`kiss_on_kept`), scored as the odometry
+    track does: the ``odom_`` metrics."""
     from ..lidar_trajectory import score_trajectory
 
-    scans = [s for s, _ in lidar_pairs(episode)]
-    est = run_kiss_icp(scans, keep, KissConfig(downsample=episode.scenario.get("odometry_downsample", "single")))
+    est = kiss_on_kept(episode, keep, downsample)
     m = score_trajectory(episode, est)
     out = {f"odom_{k}": m.get(k, math.nan) for k in ("te_m", "oe_rad", "tve_x_m", "tve_y_m", "tve_z_m", "ate_m", "rpe_m",
                                                      "drift_per_m", "time_per_scan_ms")}  # fmt: skip
     out["odom_failures"] = m.get("failures", math.nan)
-    return out, est
+    return out
 
 
 def masks_by_scan(pairs: Sequence[tuple[Any, Any]], est: FilterEstimate) -> tuple[list[np.ndarray | None], int]:
@@ -136,9 +158,9 @@ def masks_by_scan(pairs: Sequence[tuple[Any, Any]], est: FilterEstimate) -> tupl
 
 
 def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = False,
-                 trajectories: dict[int, Any] | None = None) -> dict[str, Any]:
+                 downsample: str = "single") -> dict[str, Any]:
     """The metrics of the module docstring (never raises on a bad estimate); with ``odometry``
-    the kiss-icp trajectory is stored in ``trajectories[id(est)]`` when given.
+    also through kiss-icp registering with ``downsample``.
 
     A scan without a mask of its length is never scored as filtered: when any scan has none
     (no masks at all, masks for another sensor or other stamps), the estimate fails with the
@@ -175,10 +197,7 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
             out["failed_reason"] = f"{unmatched} masks match no scan (ignored)"
         out.update({k: math.nan for k in ODOM_KEYS})
         if odometry:
-            m, traj = odometry_through_filter(episode, keep)
-            out.update(m)
-            if trajectories is not None:
-                trajectories[id(est)] = traj
+            out.update(odometry_through_filter(episode, keep, downsample))
         return out
     except Exception as e:  # a scorer never raises on an estimate
         return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")

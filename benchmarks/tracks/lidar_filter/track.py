@@ -8,7 +8,10 @@ real floor returns are weak at grazing incidence. Each pipeline (``filter-none``
 scan, scored point by point against the truth (:mod:`.metrics`: spurious points
 removed, ground points kept, per kind, time per scan) and, where the scenario asks for it
 (``score_odometry``, on in the paper and full suites), through KISS-ICP odometry on the kept
-points as Table 5.4 does (loop TE/OE/TVE, ATE).
+points as Table 5.4 does (loop TE/OE/TVE, ATE). ``score_odometry`` and ``odometry_downsample``
+are its scoring settings (``scoring_keys``): they never reach the simulation. The figures and
+the recording run KISS-ICP on the kept points again (it is deterministic) rather than keep the
+scorer's trajectories between calls.
 
 Suites (cases deterministic; the run seed drives the sensor noise):
 
@@ -40,9 +43,9 @@ from exobench.core.estimates import FilterEstimate
 
 from ..lidar_trajectory import trajectory_figure_data, trajectory_sections
 from ..office_recording import write_lidar_recording
-from ..office_walks import office_params, replace_scenario, simulate_office_episode, validate_office_scenario
+from ..office_walks import office_params, simulate_office_episode, validate_office_scenario
 from ..spec import Case, ParamInfo, Reference, SummaryRow
-from .metrics import failure_metrics, score_filter
+from .metrics import failure_metrics, kiss_trajectories, score_filter
 from .paper import published_references
 
 
@@ -127,16 +130,11 @@ class LidarFilterTrack:
     estimate_type: ClassVar[type] = FilterEstimate
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_scan_ms", "odom_time_per_scan_ms"})
+    scoring_keys: ClassVar[frozenset[str]] = frozenset({"score_odometry", "odometry_downsample"})
     report_intro = (
         "Published figures (Tab. 5.4 of seeds/003) come from a Unitree B1 with a VLP-16 in a real glass-walled "
         "office, scored by loop closure error only; ours from the simulated exoskeleton office walk."
     )
-
-    def __init__(self) -> None:
-        # kiss-icp trajectories computed by score(), by id of the FilterEstimate, for the
-        # figure data and the recording of the same episode (cleared per episode)
-        self._trajectories: dict[int, Any] = {}
-        self._episode_id: int | None = None
 
     def params(self) -> list[ParamInfo]:
         return office_params(_extra())
@@ -162,27 +160,26 @@ class LidarFilterTrack:
         raise UnknownNameError("suite", suite, self.suites)
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
-        extra = _extra()
-        ep = simulate_office_episode(scenario, seed, extra)
-        return replace_scenario(ep, {k: scenario.get(k, spec.default) for k, spec in extra.items()})
+        return simulate_office_episode(scenario, seed, _extra())
 
-    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
-        if not isinstance(estimate, FilterEstimate):
-            return failure_metrics(episode, f"finalize() returned {type(estimate).__name__}, not FilterEstimate")
-        if self._episode_id != id(episode):
-            self._trajectories, self._episode_id = {}, id(episode)
-        odometry = bool(episode.scenario.get("score_odometry", False))
-        return score_filter(episode, estimate, odometry=odometry, trajectories=self._trajectories)
+    @staticmethod
+    def _scoring(scoring: Mapping[str, Any] | None) -> dict[str, Any]:
+        given = dict(scoring or {})
+        return {k: given.get(k, spec.default) for k, spec in _extra().items()}
 
-    def _kiss_trajectories(self, estimates: Mapping[str, Any]) -> dict[str, Any]:
-        """``kiss-icp+<filter pipeline>`` -> the trajectory score() computed on its masks."""
-        out = {}
-        for name, est in estimates.items():
-            final = est[-1][1] if isinstance(est, list) and est else est
-            traj = self._trajectories.get(id(final))
-            if traj is not None:
-                out[f"kiss-icp+{name}"] = traj
-        return out
+    def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        s = self._scoring(scoring)
+        return score_filter(episode, estimate, odometry=bool(s["score_odometry"]), downsample=s["odometry_downsample"])
+
+    def _kiss_trajectories(self, episode: Episode, estimates: Mapping[str, Any],
+                           scoring: Mapping[str, Any] | None) -> dict[str, Any]:
+        """``kiss-icp+<filter pipeline>`` -> KISS-ICP's trajectory on its kept points, when the
+        scoring settings score odometry."""
+        s = self._scoring(scoring)
+        if not s["score_odometry"]:
+            return {}
+        finals = {n: est[-1][1] if isinstance(est, list) and est else est for n, est in estimates.items()}
+        return kiss_trajectories(episode, finals, downsample=s["odometry_downsample"])
 
     def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
         return failure_metrics(episode, reason)
@@ -193,8 +190,9 @@ class LidarFilterTrack:
     def summary_rows(self) -> list[SummaryRow]:
         return list(SUMMARY_ROWS)
 
-    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
-        return trajectory_figure_data(episode, self._kiss_trajectories(estimates))
+    def figure_data(self, episode: Episode, estimates: dict[str, Any],
+                    scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        return trajectory_figure_data(episode, self._kiss_trajectories(episode, estimates, scoring))
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
         from .report import filter_table
@@ -203,6 +201,7 @@ class LidarFilterTrack:
                 ("Plain ring", ("ring",))]
         return filter_table(records, pipelines, sets) + trajectory_sections(out)
 
-    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
-        extra = self._kiss_trajectories(estimates_by_pipeline) if self._episode_id == id(episode) else {}
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path,
+                        scoring: Mapping[str, Any] | None = None) -> Path:
+        extra = self._kiss_trajectories(episode, estimates_by_pipeline, scoring)
         return write_lidar_recording(episode, {**estimates_by_pipeline, **extra}, path)

@@ -25,7 +25,6 @@ from .paper import (
     MOUNTS,
     PATTERNS,
     TERRAIN_GROUPS,
-    TERRAIN_LEVELS,
     table_ii_value,
     table_iii_text,
 )
@@ -44,14 +43,6 @@ def pct_cell(records: Sequence[dict[str, Any]], key: str = "accuracy") -> str:
     if v.size == 0:
         return DASH
     return f"{v[0]:.2f}" if v.size == 1 else f"{v.mean():.2f} ± {v.std(ddof=1):.2f}"
-
-
-def _terrain_label(scenario: dict[str, Any]) -> str | None:
-    for terrain, value, label in TERRAIN_LEVELS:
-        key = "riser_m" if terrain == "stairs" else "slope_deg"
-        if scenario.get("terrain") == terrain and abs(float(scenario.get(key, math.nan)) - value) < 1e-6:
-            return label
-    return None
 
 
 def generality_records(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:

@@ -211,6 +211,7 @@ class LocomotionTrack:
     estimate_type: ClassVar[type] = LocomotionEstimate
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"width_px": 96, "height_px": 72, "rate_hz": 10.0, "duration_cap_s": 4.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"latency_ms_median", "latency_ms_p95"})
+    scoring_keys: ClassVar[frozenset[str]] = frozenset()
 
     def params(self) -> list[ParamInfo]:
         from exobench.envs.sim.scenarios.course import PARAMS
@@ -239,11 +240,8 @@ class LocomotionTrack:
 
         return simulate_locomotion(LocomotionScenario.from_dict(dict(scenario)), seed)
 
-    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
-        steps = episode.truth.steps
-        if not isinstance(estimate, LocomotionEstimate):
-            return failure_metrics(len(steps), f"finalize() returned {type(estimate).__name__}, not LocomotionEstimate")
-        return score_predictions(steps, estimate, T_world_odom=local_odometry_alignment(episode))
+    def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        return score_predictions(episode.truth.steps, estimate, T_world_odom=local_odometry_alignment(episode))
 
     def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
         return failure_metrics(len(episode.truth.steps) if episode is not None else 0, reason)
@@ -254,12 +252,14 @@ class LocomotionTrack:
     def summary_rows(self) -> list[SummaryRow]:
         return list(SUMMARY_ROWS)
 
-    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
+    def figure_data(self, episode: Episode, estimates: dict[str, Any],
+                    scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         from .report import timeline_data
 
         return timeline_data(episode, estimates)
 
-    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path,
+                        scoring: Mapping[str, Any] | None = None) -> Path:
         from .recording import write_recording
 
         return write_recording(episode, estimates_by_pipeline, path)

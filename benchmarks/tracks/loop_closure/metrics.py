@@ -216,11 +216,11 @@ def failure_metrics(episode: Episode | None, reason: str) -> dict[str, Any]:
     return {"failed": True, "failed_reason": reason, **_nan_metrics(), "pr_tau": [], "pr_precision": [], "pr_recall": []}
 
 
-def score_place_recognition(episode: Episode, estimate: PlaceRecognitionEstimate) -> dict[str, Any]:
-    """Every metric of one estimate (see the module docstring); never raises on a bad estimate."""
-    sc = episode.scenario
-    revisit = float(sc.get("revisit_m", REVISIT_M))
-    exclude = float(sc.get("exclude_recent_s", EXCLUDE_RECENT_S))
+def score_place_recognition(episode: Episode, estimate: PlaceRecognitionEstimate, *, revisit_m: float = REVISIT_M,
+                            exclude_recent_s: float = EXCLUDE_RECENT_S) -> dict[str, Any]:
+    """Every metric of one estimate (see the module docstring) under the scoring settings
+    ``revisit_m`` and ``exclude_recent_s``; never raises on a bad estimate."""
+    revisit, exclude = float(revisit_m), float(exclude_recent_s)
     stamps = np.asarray(estimate.stamps_s, dtype=float).reshape(-1)
     K = len(stamps)
     arrays = [np.asarray(a).reshape(-1) for a in (estimate.match_index, estimate.distance, estimate.yaw_rad, estimate.time_per_keyframe_s)]

@@ -15,10 +15,11 @@ from ..office_recording import log_office_world, log_scans, log_trajectory
 from .report import figure_arrays, final_estimate
 
 
-def write_recording(episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+def write_recording(episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path, *,
+                    revisit_m: float, exclude_recent_s: float) -> Path:
     """Scans (every 5th, by intensity and by true return kind), true surfaces and trajectory,
-    and each pipeline's detections at its best-F1 threshold as segments between the true
-    keyframe positions (green true, red false), shown from the query's time."""
+    and each pipeline's detections at its best-F1 threshold (under the scoring settings) as
+    segments between the true keyframe positions (green true, red false), shown from the query's time."""
     import rerun as rr
     import rerun.blueprint as rrb
 
@@ -33,7 +34,7 @@ def write_recording(episode: Episode, estimates_by_pipeline: dict[str, Any], pat
     log_trajectory(rr, rec, "world/trajectory/true", tr[:, 1:4], (240, 200, 60))
     log_scans(rr, rec, episode, every=5)
     finals = {n: final_estimate(e) for n, e in estimates_by_pipeline.items()}
-    data = figure_arrays(episode, finals)
+    data = figure_arrays(episode, finals, revisit_m=revisit_m, exclude_recent_s=exclude_recent_s)
     for name, est in sorted(finals.items()):
         if not isinstance(est, PlaceRecognitionEstimate) or f"{name}__keyframes_xyz" not in data:
             continue

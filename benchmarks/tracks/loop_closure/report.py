@@ -18,27 +18,27 @@ from exobench.core.episode import Episode
 from exobench.core.estimates import PlaceRecognitionEstimate
 
 from ...plots import pyplot
-from .metrics import best_f1, keyframe_poses, pr_curve
+from .metrics import EXCLUDE_RECENT_S, REVISIT_M, best_f1, keyframe_poses, pr_curve
 
 
-def figure_arrays(episode: Episode, estimates: Mapping[str, Any]) -> dict[str, Any]:
+def figure_arrays(episode: Episode, estimates: Mapping[str, Any], *, revisit_m: float = REVISIT_M,
+                  exclude_recent_s: float = EXCLUDE_RECENT_S) -> dict[str, Any]:
     """Arrays of the trajectory figure: true path, and per pipeline the keyframe positions, matches
-    and the detections at its best-F1 threshold (correct or not)."""
+    and the detections at its best-F1 threshold (correct or not), under the scoring settings."""
     tr = np.asarray(episode.truth.trajectory_w, dtype=float).reshape(-1, 8)
     out: dict[str, Any] = {"trajectory_xyz": tr[:, 1:4], "pipelines": np.array(sorted(estimates), dtype=str)}
-    sc = episode.scenario
     for name, est in sorted(estimates.items()):
         est = final_estimate(est)
         if not isinstance(est, PlaceRecognitionEstimate):
             continue
         pos, _, _ = keyframe_poses(tr, est.stamps_s)
         curve = pr_curve(pos, est.stamps_s, est.match_index, est.distance,
-                         revisit_m=float(sc.get("revisit_m", 5.0)), exclude_recent_s=float(sc.get("exclude_recent_s", 20.0)))  # fmt: skip
+                         revisit_m=float(revisit_m), exclude_recent_s=float(exclude_recent_s))
         _, tau = best_f1(curve)
         m = np.asarray(est.match_index, dtype=np.int64)
         d = np.asarray(est.distance, dtype=float)
         t = np.asarray(est.stamps_s, dtype=float)
-        eligible = (m >= 0) & ((t - t[np.where(m >= 0, m, 0)]) >= float(sc.get("exclude_recent_s", 20.0)))
+        eligible = (m >= 0) & ((t - t[np.where(m >= 0, m, 0)]) >= float(exclude_recent_s))
         detected = eligible & np.isfinite(d) & (d <= tau if math.isfinite(tau) else np.zeros(len(d), dtype=bool))
         out[f"{name}__keyframes_xyz"] = pos
         out[f"{name}__match"] = m

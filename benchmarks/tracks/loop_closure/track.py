@@ -14,7 +14,9 @@ relative-yaw error of the correct matches.
 
 Scenario: the office walk's parameters plus the office's size and glazing (the office
 parameters :class:`~exobench.models.office.OfficeParams` that ``OfficeScenario`` does not
-expose) and the LiDAR's azimuth step; ``revisit_m`` and ``exclude_recent_s`` only score.
+expose) and the LiDAR's azimuth step. ``revisit_m`` and ``exclude_recent_s`` are its scoring
+settings (``scoring_keys``): set like the scenario's values and stored with each record, they
+never reach the simulation; the runner hands them to ``score``.
 
 Suites (the run seed drives the sensor noise; the office layout is ``office_seed``):
 
@@ -43,7 +45,6 @@ from ..spec import Case, ParamInfo, Reference, SummaryRow
 from .metrics import EXCLUDE_RECENT_S, REVISIT_M, failure_metrics, score_place_recognition
 from .report import figure_arrays
 
-PIPELINES = ("sc++", "gsc-height", "gsc-huber", "gsc-intensity")
 OFFICE_KEYS = ("corridor_length_m", "room_depth_m", "meeting_room_m", "glass_fraction", "polished_fraction")
 SCORING_KEYS = ("revisit_m", "exclude_recent_s")
 EXTRA: dict[str, ParamSpec] = {
@@ -129,9 +130,14 @@ def simulate_loop(scenario: Mapping[str, Any], seed: int) -> Episode:
     from exobench.envs.sim.scenarios.office import simulate_office
 
     values = {k: v for k, v in scenario.items() if k not in SCORING_KEYS}
-    episode = simulate_office(_scenario_class()(**values), seed)
-    scoring = {k: scenario[k] for k in SCORING_KEYS if k in scenario}
-    return dataclasses.replace(episode, scenario={**episode.scenario, **scoring})
+    return simulate_office(_scenario_class()(**values), seed)
+
+
+def scoring_settings(scoring: Mapping[str, Any] | None) -> dict[str, float]:
+    """``revisit_m`` and ``exclude_recent_s`` of the given settings, the thesis' values for those not given."""
+    given = dict(scoring or {})
+    return {"revisit_m": float(given.get("revisit_m", REVISIT_M)),
+            "exclude_recent_s": float(given.get("exclude_recent_s", EXCLUDE_RECENT_S))}  # fmt: skip
 
 
 def _ref(metric: str, text: str, source: str, pipelines: tuple[str, ...] = (), value: float | None = None) -> Reference:
@@ -163,6 +169,7 @@ class LoopClosureTrack:
     estimate_type: ClassVar[type] = PlaceRecognitionEstimate
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5, "lidar_azimuth_step_deg": 1.0}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_keyframe_ms"})
+    scoring_keys: ClassVar[frozenset[str]] = frozenset(SCORING_KEYS)
     report_intro: ClassVar[str] = (
         "Published figures: Table 5.5 and section 5.2.3 of seeds/003 (KITTI and VBR sequences, "
         "i9-11950H); ours from simulated office loops with a trunk VLP-16."
@@ -198,11 +205,9 @@ class LoopClosureTrack:
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         return simulate_loop(scenario, seed)
 
-    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
-        if not isinstance(estimate, PlaceRecognitionEstimate):
-            return failure_metrics(episode, f"finalize() returned {type(estimate).__name__}, not PlaceRecognitionEstimate")
+    def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         try:
-            return score_place_recognition(episode, estimate)
+            return score_place_recognition(episode, estimate, **scoring_settings(scoring))
         except Exception as e:  # a malformed estimate is a failed result, never a crash
             return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")
 
@@ -215,8 +220,9 @@ class LoopClosureTrack:
     def summary_rows(self) -> list[SummaryRow]:
         return list(SUMMARY_ROWS)
 
-    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
-        return figure_arrays(episode, estimates)
+    def figure_data(self, episode: Episode, estimates: dict[str, Any],
+                    scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
+        return figure_arrays(episode, estimates, **scoring_settings(scoring))
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
         """PR curves per episode (up to 12) and the figure cases' trajectories with their matches."""
@@ -224,8 +230,9 @@ class LoopClosureTrack:
 
         return report_sections(records, pipelines, out)
 
-    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path,
+                        scoring: Mapping[str, Any] | None = None) -> Path:
         """Scans, true surfaces and trajectory, and each pipeline's detections (see :mod:`.recording`)."""
         from .recording import write_recording
 
-        return write_recording(episode, estimates_by_pipeline, path)
+        return write_recording(episode, estimates_by_pipeline, path, **scoring_settings(scoring))

@@ -101,6 +101,7 @@ class OdometryTrack:
     estimate_type: ClassVar[type] = TrajectoryEstimate
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_scan_ms"})
+    scoring_keys: ClassVar[frozenset[str]] = frozenset()
     report_intro = (
         "Published figures come from VBR outdoor sequences (Tab. 5.3) and a real indoor loop with a quadruped "
         "(Tab. 5.4) of seeds/003; ours from the simulated office walk."
@@ -134,9 +135,7 @@ class OdometryTrack:
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         return simulate_office_episode(scenario, seed)
 
-    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
-        if not isinstance(estimate, TrajectoryEstimate):
-            return failure_metrics(episode, f"finalize() returned {type(estimate).__name__}, not TrajectoryEstimate")
+    def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         return score_trajectory(episode, estimate)
 
     def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
@@ -148,11 +147,13 @@ class OdometryTrack:
     def summary_rows(self) -> list[SummaryRow]:
         return list(SUMMARY_ROWS)
 
-    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
+    def figure_data(self, episode: Episode, estimates: dict[str, Any],
+                    scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         return trajectory_figure_data(episode, estimates)
 
     def report_sections(self, records: list[dict[str, Any]], pipelines: list[str], out: Path) -> list[str]:
         return trajectory_sections(out)
 
-    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path,
+                        scoring: Mapping[str, Any] | None = None) -> Path:
         return write_lidar_recording(episode, estimates_by_pipeline, path)

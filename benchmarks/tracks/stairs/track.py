@@ -48,7 +48,6 @@ CASES: dict[str, dict[str, float]] = {
 QUICK_POSES = 3
 USER_HEIGHTS_M = (1.60, 1.90)
 NOISE_OFF = {"tof_noise_m": 0.0, "tof_dropout": 0.0, "imu_noise_scale": 0.0, "imu_orientation_deg": 0.0, "encoder_noise_rad": 0.0}
-CASE_GROUPS = tuple(CASES)
 STAIR_GROUPS = tuple(f"{r:.3f}/{t:.3f}" for r, t in STAIRCASES)
 
 
@@ -166,6 +165,7 @@ class StairsTrack:
     estimate_type: ClassVar[type] = StaircaseEstimate
     smoke_scenario: ClassVar[Mapping[str, Any]] = {}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_point_us"})
+    scoring_keys: ClassVar[frozenset[str]] = frozenset()
 
     def params(self) -> list[ParamInfo]:
         from exobench.envs.sim.scenarios.stairs import PARAMS
@@ -217,9 +217,7 @@ class StairsTrack:
 
         return simulate_stairs(StairScenario.from_dict(dict(scenario)), seed)
 
-    def score(self, episode: Episode, estimate: Any) -> dict[str, Any]:
-        if not isinstance(estimate, StaircaseEstimate):
-            return failure_metrics(episode, f"finalize() returned {type(estimate).__name__}, not StaircaseEstimate")
+    def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         return score_staircase(episode, estimate)
 
     def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
@@ -231,10 +229,12 @@ class StairsTrack:
     def summary_rows(self) -> list[SummaryRow]:
         return list(SUMMARY_ROWS)
 
-    def figure_data(self, episode: Episode, estimates: dict[str, Any]) -> dict[str, Any]:
+    def figure_data(self, episode: Episode, estimates: dict[str, Any],
+                    scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         return side_view_data(episode, estimates)
 
-    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path) -> Path:
+    def write_recording(self, episode: Episode, estimates_by_pipeline: dict[str, Any], path: Path,
+                        scoring: Mapping[str, Any] | None = None) -> Path:
         from .recording import write_recording
 
         return write_recording(episode, estimates_by_pipeline, path)

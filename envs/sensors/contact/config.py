@@ -14,7 +14,7 @@ class ContactConfig:
     """Insole force pads under heel and toe, from the geometric contact of the feet.
 
     Output: :class:`~exobench.core.ContactSample` per pad (``contact_{l,r}_{heel,toe}``): normal
-    force, N, and ``in_contact``. Sources: SENSORS.md; [A] marks an assumption.
+    force, N, and ``in_contact``. Sources: docs/sensor-reference.md; [A] marks an assumption.
 
     Attributes:
         rate_hz: sampling rate, Hz [A: 100].

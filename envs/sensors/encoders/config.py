@@ -14,7 +14,7 @@ class EncoderConfig:
     """Joint encoders of the leg joints.
 
     Output: :class:`~exobench.core.JointState` (sensor id ``encoders``), joint angles in rad in
-    the robot description's joint order. Sources: SENSORS.md; [A] marks an assumption.
+    the robot description's joint order. Sources: docs/sensor-reference.md; [A] marks an assumption.
 
     Attributes:
         rate_hz: sampling rate, Hz (200) [A: the device samples at 1 kHz; 200 Hz keeps sessions small].

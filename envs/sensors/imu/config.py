@@ -15,7 +15,7 @@ class ImuConfig:
 
     Output: :class:`~exobench.core.ImuSample` in the IMU site's frame: ``quat_wxyz`` of
     ``R_world_imu`` (gravity-aligned world), ``gyro_rad_s`` (rad/s), ``accel_m_s2`` (specific
-    force, m/s^2). Sources: SENSORS.md (BMI055 Allan figures of the OpenVINS rs_d455 kalibr files);
+    force, m/s^2). Sources: docs/sensor-reference.md (BMI055 Allan figures of the OpenVINS rs_d455 kalibr files);
     [A] marks an assumption.
 
     Attributes:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from exobench.core import ImuSample
+from exobench.core.transforms import quat_multiply
 
 from ..common import sensor_rngs
 from .config import ImuConfig
@@ -78,7 +79,7 @@ class ImuSensor:
         ang = np.linalg.norm(err, axis=1)
         axis = err / np.where(ang > 0, ang, 1.0)[:, None]
         q_err = np.column_stack([np.cos(0.5 * ang), np.sin(0.5 * ang)[:, None] * axis])
-        q = _quat_mul(q_err, q_true)
+        q = quat_multiply(q_err, q_true)
         q /= np.linalg.norm(q, axis=1)[:, None]
         q *= np.where(q[:, :1] < 0, -1.0, 1.0)
         keep = self.drop_rng.random(n) >= c.dropout_prob
@@ -86,20 +87,6 @@ class ImuSensor:
             ImuSample(float(t[k] + c.latency_s), self.sensor_id, q[k].copy(), gyro_m[k].copy(), acc_m[k].copy())
             for k in np.flatnonzero(keep)
         ]
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products of wxyz quaternions, row by row, (N, 4)."""
-    w1, x1, y1, z1 = a.T
-    w2, x2, y2, z2 = b.T
-    return np.column_stack(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ]
-    )
 
 
 def _walk(steps: np.ndarray) -> np.ndarray:

@@ -21,7 +21,7 @@ class LidarConfig:
     Output: :class:`~exobench.core.LidarScan`, points in the sensor frame (x forward, y left,
     z up) at their firing time, m, with an intensity byte, ring and time offset; per point a
     :class:`~exobench.core.LidarTruth`. Sources: VLP-16 manual, VLP-32C calibration file, Ouster
-    OS1 and Livox Mid-40 data sheets (SENSORS.md); [A] marks an assumption.
+    OS1 and Livox Mid-40 data sheets (docs/sensor-reference.md); [A] marks an assumption.
 
     Attributes:
         pattern: channels, timing and range limits (default VLP-16 at 10 Hz); its ``rate_hz``

@@ -19,7 +19,7 @@ Two kinds of pattern:
   phase follows the absolute time, so successive sweeps cover different rays while the pattern
   stays deterministic. ``vertical_angles_deg`` are the lasers' elevation offsets.
 
-Sources (``SENSORS.md``): VLP-16 manual (16 lasers at -15..+15 deg in 2 deg steps, laser id
+Sources (``docs/sensor-reference.md``): VLP-16 manual (16 lasers at -15..+15 deg in 2 deg steps, laser id
 0:-15, 1:+1, 2:-13, 3:+3 ...; all 16 every 55.296 us, one every 2.304 us; 0.2 deg at 10 Hz; range
 100 m, practical minimum 0.9 m). VLP-32C: laser table of the Velodyne calibration file (elevation
 and azimuth offset per laser id), lasers firing in pairs [A: same 55.296 / 2.304 us timing].

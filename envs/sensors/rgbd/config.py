@@ -1,6 +1,6 @@
 """RGB-D camera configuration (Intel RealSense D455 defaults) and its pinhole intrinsics.
 
-Defaults come from ``SENSORS.md`` (RGB-D section); [A] marks an assumption, [D] a derived value.
+Defaults come from ``docs/sensor-reference.md`` (RGB-D section); [A] marks an assumption, [D] a derived value.
 Pixel convention: pixel (u, v) = (column, row) has its centre at integer coordinates, so the
 principal point of a centred sensor is ((W - 1) / 2, (H - 1) / 2); a point (x, y, z) in the
 optical frame (z forward, x right, y down) projects to u = fx x / z + cx, v = fy y / z + cy.
@@ -14,7 +14,7 @@ import numpy as np
 
 from exobench.core import ConfigError, check_int, check_range
 
-# D455 depth intrinsics per resolution (SENSORS.md): (fx, fy, cx, cy) in pixels; None = centred
+# D455 depth intrinsics per resolution (docs/sensor-reference.md): (fx, fy, cx, cy) in pixels; None = centred
 _D455_INTRINSICS: dict[tuple[int, int], tuple[float, float, float | None, float | None]] = {
     (640, 480): (384.0, 384.0, 319.5, 236.4),
     (848, 480): (424.0, 424.0, None, None),  # [D]
@@ -28,7 +28,7 @@ class RgbdConfig:
 
     Output: :class:`~exobench.core.RgbdFrame` in the camera's optical frame (z forward, x right,
     y down): ``rgb`` (H, W, 3) uint8, ``depth_m`` z-depth (H, W) float32 m (0 = invalid), ``K``.
-    Sources: SENSORS.md (RGB-D: D455 data sheet; librealsense issues #3904, #6697, #7996, #9241).
+    Sources: docs/sensor-reference.md (RGB-D: D455 data sheet; librealsense issues #3904, #6697, #7996, #9241).
 
     Attributes:
         width_px / height_px: image size, pixels (640 x 480; the D455 is best at 848 x 480).

@@ -7,7 +7,7 @@ kept for the camera's life. Depth is MuJoCo's depth buffer converted to metres: 
 the optical axis (z-depth, not the range along the pixel ray), as a RealSense reports it. The
 camera sees what MuJoCo renders by default: geom groups 0-2, i.e. the world and the exoskeleton.
 
-Depth model, per pixel, from the noise-free depth z (``SENSORS.md``):
+Depth model, per pixel, from the noise-free depth z (``docs/sensor-reference.md``):
 
 1. no surface (the far clipping plane) -> invalid;
 2. depth discontinuity: a 4-neighbour's z differs by more than ``edge_threshold_rel`` times the

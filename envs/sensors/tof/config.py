@@ -14,7 +14,7 @@ class ToFConfig:
     """ST VL53L1X single-beam ranging.
 
     Output: :class:`~exobench.core.ToFReading`, the range along the sensor site's +z axis, m.
-    Sources: ST VL53L1X data sheet and ULD API (SENSORS.md); [A] marks an assumption.
+    Sources: ST VL53L1X data sheet and ULD API (docs/sensor-reference.md); [A] marks an assumption.
 
     Attributes:
         rate_hz: ranging rate, Hz (50).

@@ -29,7 +29,7 @@ need a stance knee of up to 115 deg (see the walk module); on treads shorter tha
 ``ConfigError`` naming ``riser_m`` (stairs) or ``slope_deg`` (ramps) after at most
 ``course_world.MAX_PLANS`` planner calls (about 20-60 s).
 
-Walking patterns (SENSORS.md "Walking"): the walker is stop-and-go, so a pattern is a step length
+Walking patterns (docs/sensor-reference.md "Walking"): the walker is stop-and-go, so a pattern is a step length
 and a step period = swing + double support (:data:`PATTERNS`): cadence 90 (wander), 110 (walk)
 and 164 (jog) steps/min. Step lengths are what the walker can reach on stairs and ramps (0.35,
 0.40, 0.45 m at 1.75 m, scaled by height; real walking takes ~0.7 m and jogging 0.9-1.1 m
@@ -60,7 +60,7 @@ Frames (time-ordered; ties: IMU, contacts, odometry, camera):
   ``latency_s``, lost with probability ``frame_dropout``; ``<m>`` is ``head``, ``chest`` or
   ``thigh_r`` (:func:`sensor_ids`);
 - ``imu_<m>`` :class:`~exobench.core.ImuSample` at ``imu_rate_hz`` from a site at the camera's
-  optical frame (the D455's BMI055, SENSORS.md noise x ``imu_noise_scale``); its calibration mount
+  optical frame (the D455's BMI055, docs/sensor-reference.md noise x ``imu_noise_scale``); its calibration mount
   has the camera's pose and ``calibration.extra["T_camera_imu"]`` is the identity;
 - ``contact_{l,r}_{heel,toe}`` insole pads (:mod:`exobench.envs.sensors.contact`), 100 Hz;
 - ``odom_<m>`` :class:`~exobench.core.OdometrySample` at each camera measurement time (also for
@@ -186,7 +186,7 @@ class LocomotionScenario(scenario_base("LocomotionScenario", "locomotion", PARAM
 
 
 # pattern -> (step length at a 1.75 m user, m; swing, s; double support, s). Cadence = 60 /
-# (swing + double support): wander 90, walk 110, jog 164 steps/min (SENSORS.md "Walking"). The
+# (swing + double support): wander 90, walk 110, jog 164 steps/min (docs/sensor-reference.md "Walking"). The
 # step lengths are what the stop-and-go kinematic walker can reach on stairs and ramps (about
 # 0.35-0.45 m; real walking takes 0.7 m and jogging 0.9-1.1 m steps), scaled by height / 1.75;
 # the speeds are therefore about 0.52 (wander), 0.73 (walk) and 1.2 (jog) m/s on level ground
@@ -328,7 +328,7 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
     def walker_heading(t: float) -> float:
         return float(motion.state(t, solve_legs=False).yaw[0])
 
-    peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, 0.5 * sc.width_m, dur, ped_rng)
+    peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, dur, ped_rng)
     chest = any(s.sensor_id == CHEST_CAMERA for s in rig)
     scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds))
     model = scene.model
