@@ -297,9 +297,9 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
         from exobench.core.errors import ConfigError
 
         raise ConfigError("--set", ",".join(plan.scenario_overrides), "pipeline parameters only (NAME.KEY=VALUE)")
+    episode = read_session(session_dir, track=plan.track.name)  # a refused session: its one error line only
     if not content_checked(meta):
         click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its files are not verified, only its frames against their truth", err=True)
-    episode = read_session(session_dir, track=plan.track.name)
     scorer_errors: dict[str, str] = {}
     _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines, scorer_errors=scorer_errors)
     records = [

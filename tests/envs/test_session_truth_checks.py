@@ -71,7 +71,7 @@ def _replay(path):
 
 def _refused(r, *needles):
     assert r.exit_code == 2, (r.exit_code, r.output)
-    err = [line for line in r.stderr.strip().splitlines() if not line.startswith("exobench: note:")]
+    err = r.stderr.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("exobench: error: "), r.stderr
     for needle in needles:
         assert needle in err[0], (needle, err[0])
