@@ -149,10 +149,16 @@ def check_track(path: str | os.PathLike, meta: dict[str, Any], track: str | None
 
 
 def verify_files(path: str | os.PathLike, meta: dict[str, Any]) -> None:
-    """Every file listed in ``meta.json`` is there with its size and SHA-256 (version 4 on)."""
+    """Every file listed in ``meta.json`` is there with its size and SHA-256, and every other
+    file of the session is listed (version 4 on, or any version that lists them): an edited
+    file taken off the list is not read unchecked."""
     root = Path(path)
     if not content_checked(meta):
         return
+    for f in sorted(root.rglob("*")):
+        rel = f.relative_to(root).as_posix()
+        if f.is_file() and rel != "meta.json" and rel not in meta["files"]:
+            raise SessionError(f"{f}: not listed in meta.json 'files' (added or edited after recording)")
     for rel, want in meta["files"].items():
         f = root / rel
         if not isinstance(rel, str) or rel.startswith("/") or ".." in Path(rel).parts or not isinstance(want, dict):

@@ -115,6 +115,19 @@ def test_an_old_format_listing_hashes_has_them_checked(session):
     _refused(_replay(session), "frames.jsonl", "content differs")
 
 
+@pytest.mark.parametrize("how", ["edited-and-unlisted", "empty-list"])
+def test_a_file_taken_off_the_hash_list_is_refused(session, how):
+    f = session / "truth" / "tof.jsonl"
+    f.write_text(f.read_text().replace('"true_range_m":0.', '"true_range_m":1.', 1))  # a value edit, counts kept
+    meta = _meta(session)
+    if how == "empty-list":
+        meta["files"] = {}
+    else:
+        del meta["files"]["truth/tof.jsonl"]
+    _write_meta(session, meta)
+    _refused(_replay(session), "calibration.json" if how == "empty-list" else "tof.jsonl", "not listed")  # the first unlisted
+
+
 @pytest.mark.parametrize("version", [4, 5])
 def test_a_format_with_hashes_but_no_file_list_is_refused(session, version):
     meta = _meta(session)
