@@ -5,10 +5,11 @@ the files, so a session whose ``meta.json`` was edited with them (or an old form
 hashes) passes those checks. What the scorers rely on is that each frame has its truth, and
 that is checked here from the files alone, for every format version:
 
-- ToF: one truth per ToF reading, with its sensor and stamp (climbing-step episodes, the only
-  ones with ToF truth: the stairs scorer labels each point through it);
+- ToF: a truth for each ToF reading, of its sensor and stamp, and a reading for each truth
+  (climbing-step episodes, the only ones with ToF truth: the stairs scorer labels each point
+  through it; a reading delivered twice shares its truth);
 - LiDAR: one truth per scan, in scan order, with the scan's sensor, stamp and point count;
-- segmentation: one per-pixel truth per frame of each camera that keeps one, and one for every
+- segmentation: a per-pixel truth for each frame of each camera that keeps one, and for every
   camera frame when the scenario asked for it;
 - the true trajectory: one pose per distinct sweep of the trunk LiDAR (office walks, what the
   LiDAR tracks score against) or per odometry sample (course walks, the camera's ticks).
@@ -19,7 +20,6 @@ frame without its truth, so a cut or padded truth is never scored against a part
 
 from __future__ import annotations
 
-from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -31,16 +31,18 @@ from exobench.core import EpisodeTruth, Frame, LidarScan, OdometrySample, RgbdFr
 LIDAR_TRUNK = "lidar_trunk"  # the LiDAR an office walk's trajectory_w follows (envs.sim.scenarios.office)
 
 
-def _keys(items: Sequence[Any]) -> Counter:
-    return Counter((str(x.sensor_id), float(x.stamp_s)) for x in items)
+def _keys(items: Sequence[Any]) -> set[tuple[str, float]]:
+    return {(str(x.sensor_id), float(x.stamp_s)) for x in items}
 
 
 def _same_keys(where: Path, what: str, frames: Sequence[Any], truths: Sequence[Any]) -> None:
+    """Each frame has a truth of its sensor and stamp and each truth a frame; a frame delivered
+    twice (same sensor and stamp, a delivery fault) shares its truth."""
     got, want = _keys(truths), _keys(frames)
     if got == want:
         return
-    missing = sorted((want - got).elements())
-    extra = sorted((got - want).elements())
+    missing = sorted(want - got)
+    extra = sorted(got - want)
     first = f"first {what} without its truth: {missing[0][0]} at {missing[0][1]!r} s" if missing else (
         f"first truth without its {what}: {extra[0][0]} at {extra[0][1]!r} s")  # fmt: skip
     raise SessionError(f"{where}: {len(truths)} truths for {len(frames)} {what}s ({first}); cut or edited")

@@ -211,3 +211,19 @@ def test_course_truths_follow_their_frames(course, tmp_path):
     half = np.asarray(ep.truth.trajectory_w)[: len(ep.truth.trajectory_w) // 2]
     with pytest.raises(SessionError, match="trajectory_w has"):
         check_truth_matches_frames(tmp_path, ep.frames, dataclasses.replace(ep.truth, trajectory_w=half), ep.scenario)
+
+
+def test_readings_delivered_twice_share_their_truth(session):
+    """A duplicated delivery (same sensor, same stamp) is a fault of the stream, not of the
+    truth: the session reads, every reading still with its truth."""
+    _old_format(session)
+    f = session / "frames.jsonl"
+    lines = f.read_text().splitlines(keepends=True)
+    doubled = [x for line in lines for x in ([line, line] if '"sensor_id":"tof_r_' in line else [line])]
+    f.write_text("".join(doubled))
+    meta = _meta(session)
+    meta["frame_counts"]["tof"] += len(doubled) - len(lines)
+    _write_meta(session, meta)
+    ep = read_session(session)
+    tof = [fr for fr in ep.frames if type(fr).__name__ == "ToFReading"]
+    assert len(tof) == len(ep.truth.stairs.tof) + (len(doubled) - len(lines)) and len(doubled) > len(lines)
