@@ -338,13 +338,20 @@ def list_() -> None:
 def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
     """Time the RTLS update against a batch refit (rtls), the simulator (sim), the LiDAR (lidar) or
     the locomotion track at 640x480 (locomotion: latency per prediction, TSDF and rendering fps)."""
+    from exobench.core.errors import ConfigError
+
     from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
     from .results import json_safe
 
+    if session and what != "rtls":
+        raise ConfigError("--session", session, "bench rtls only")
     if what == "rtls":
         if session:
-            from exobench.envs.session import read_session
+            from exobench.envs.session import read_meta, read_session
 
+            recorded = read_meta(session).get("track")
+            if recorded not in (None, "stairs"):
+                raise ConfigError("--session", session, f"a session of track 'stairs' (this one is of {recorded!r})")
             episode = read_session(session)
         else:
             episode = case_a_episode(seed)
@@ -357,6 +364,11 @@ def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
         result = bench_locomotion(seed=seed)
     else:
         result = bench_sim(seed=seed)
+    if result.get("error"):  # nothing to time: never a table of zeros with exit 0
+        if session:
+            raise ConfigError("--session", session, f"a stairs session the RTLS pipeline finds surfaces in ({result['error']})")
+        click.echo(f"exobench: bench {what}: {result['error']}", err=True)
+        sys.exit(EXIT_FAILED)
     if as_json:
         click.echo(json.dumps(json_safe(result), indent=2))
         return
@@ -404,9 +416,9 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
 
         allowed = "pipeline parameters (NAME.KEY=VALUE)" + (f" and scoring settings ({', '.join(sorted(scoring_keys))})" if scoring_keys else "")
         raise ConfigError("--set", ",".join(recorded), allowed)
+    episode = read_session(session_dir, track=plan.track.name)  # a refused session: its one error line only
     if not content_checked(meta):
-        click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its content is not verified", err=True)
-    episode = read_session(session_dir, track=plan.track.name)
+        click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its files are not verified, only its frames against their truth", err=True)
     scorer_errors: dict[str, str] = {}
     # sessions recorded before scoring settings left the episode carry them in their scenario
     scoring = {**{k: v for k, v in episode.scenario.items() if k in scoring_keys},

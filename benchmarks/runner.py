@@ -191,7 +191,8 @@ def run_pipelines(
     :func:`~.tracks.spec.scoring_of`; None: their defaults). A pipeline that raises, or whose
     ``finalize()`` returns anything but an instance of ``track.estimate_type``, is scored with
     ``track.failed_metrics`` and the reason; so is a scorer that raises, whose reasons also go to
-    ``scorer_errors`` (pipeline name -> reason) when it is given. With ``timeline_every_s`` the
+    ``scorer_errors`` (pipeline name -> reason) when it is given. A score with no headline
+    metric finite is failed (:func:`unscored_failed`). With ``timeline_every_s`` the
     online estimates are kept at most that often (for rerun).
     """
     estimates: dict[str, Any] = {}
@@ -220,7 +221,7 @@ def run_pipelines(
                 metrics[p.name] = track.failed_metrics(episode, reason)
         if p.name not in metrics:
             try:
-                metrics[p.name] = track.score(episode, est, scoring)
+                metrics[p.name] = unscored_failed(track, track.score(episode, est, scoring))
             except Exception as e:  # a failure of the benchmark, not of the pipeline
                 reason = f"scorer raised {type(e).__name__}: {e}"
                 metrics[p.name] = track.failed_metrics(episode, reason)
@@ -229,6 +230,29 @@ def run_pipelines(
         walls[p.name] = time.perf_counter() - t0
         timelines[p.name] = timeline
     return estimates, metrics, walls, timelines
+
+
+def unscored_reason(track: Track, metrics: Mapping[str, Any]) -> str:
+    """Why a record scored nothing: every one of the track's ``headline_metrics`` is missing or
+    NaN (empty when one is finite, or when the track names none)."""
+    keys = tuple(getattr(track, "headline_metrics", ()))
+
+    def finite(v: Any) -> bool:
+        return isinstance(v, (int, float, np.number)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+    if not keys or any(finite(metrics.get(k)) for k in keys):
+        return ""
+    return f"no metric could be computed ({', '.join(keys)}: none finite)"
+
+
+def unscored_failed(track: Track, metrics: dict[str, Any]) -> dict[str, Any]:
+    """``metrics``, failed with :func:`unscored_reason` (before the scorer's own note, if any)
+    when it scored nothing: a record without a figure is never "0 failed"."""
+    reason = "" if metrics.get("failed") else unscored_reason(track, metrics)
+    if not reason:
+        return metrics
+    note = metrics.get("failed_reason") or ""
+    return {**metrics, "failed": True, "failed_reason": f"{reason}; {note}" if note else reason}
 
 
 @dataclass(frozen=True)

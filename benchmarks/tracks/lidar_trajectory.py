@@ -102,6 +102,8 @@ def score_trajectory(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any
         P = np.asarray(est.T_world_sensor, dtype=float).reshape(-1, 4, 4)
         if len(P) != len(stamps):
             return failure_metrics(episode, f"{len(stamps)} stamps but {len(P)} poses")
+        if not len(P):
+            return failure_metrics(episode, "no poses")
         track = true_track(episode)
         inside, Q = interpolate_poses(track, stamps)
         finite = np.all(np.isfinite(P.reshape(len(P), -1)), axis=1)

@@ -131,7 +131,14 @@ class SummaryRow:
 
 @runtime_checkable
 class Track(Protocol):
-    """Protocol of a track (see the module docstring)."""
+    """Protocol of a track (see the module docstring).
+
+    Optional member (not required of a track class, so tracks written before it still load):
+    ``headline_metrics: ClassVar[tuple[str, ...]]``, the metric keys that say how good an
+    estimate is. A record with none of them finite scored nothing, and the runner fails it
+    with that reason (:func:`exobench.benchmarks.runner.unscored_reason`), so an estimate that
+    could not be scored is never counted as a result.
+    """
 
     name: ClassVar[str]
     suites: ClassVar[tuple[str, ...]]

@@ -39,7 +39,8 @@ step's fields flat for every episode; version 3 writes them as a ``stairs`` obje
 episode has no climbing step (versions 1 and 2 read them as the stairs part of staircase episodes
 only). Version 4 adds the track, the truth counts and the file hashes to ``meta.json``; a session
 is checked against them (and its frame counts) before it is read, and older versions are read
-without the hash check. Version 5 stores the LiDAR scans of each sensor and the LiDAR truths
+without the hash check (unless they list hashes); every version has its frames checked against
+the truth they are scored with (:mod:`.checks`). Version 5 stores the LiDAR scans of each sensor and the LiDAR truths
 in one compact stream each (about an eighth of version 4's size); ``write_session(...,
 compact=False)`` still writes version 4. Writing gives version 5.
 """

@@ -5,7 +5,9 @@ non-UTF-8 file, or one holding something other than the expected JSON object, is
 :class:`SessionError` naming the file. From version 4, ``meta.json`` lists every other file with
 its size and SHA-256 (``files``), the track it was recorded for (``track``) and the number of
 truths (``truth_counts``); :func:`read_session` checks them all, and the frame counts of every
-version, before anything is scored. Older versions have no hashes (:func:`content_checked`).
+version, before anything is scored. Older versions have no hashes (:func:`content_checked`):
+since a forger edits ``meta.json`` with the files, the frames are also checked against the
+truth they are scored with (:mod:`.checks`), whatever the version.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from typing import Any
 from exobench.core import Episode, Frame, SessionError
 
 from .calibration import calibration_from_dict, calibration_to_dict
+from .checks import check_truth_matches_frames
 from .codecs import codec_of, frame_from_dict, frame_to_dict
 from .store import BinaryStore, dumps, load_json, plain
 from .truth import read_truth, write_truth
@@ -126,7 +129,7 @@ def read_meta(path: str | os.PathLike) -> dict[str, Any]:
             f"{p / 'meta.json'}: version {meta.get('version')!r} unsupported; supported: {list(SUPPORTED_VERSIONS)}"
         )
     kinds = {"scenario": dict, "seed": int, "frame_counts": dict}
-    if meta["version"] >= HASHED_FROM:
+    if content_checked(meta):
         kinds["files"] = dict
     for key, kind in kinds.items():
         if not isinstance(meta.get(key), kind) or isinstance(meta.get(key), bool):
@@ -135,8 +138,10 @@ def read_meta(path: str | os.PathLike) -> dict[str, Any]:
 
 
 def content_checked(meta: dict[str, Any]) -> bool:
-    """Whether the session's files carry hashes (version 4 on); older ones are read unchecked."""
-    return int(meta.get("version", 0)) >= HASHED_FROM
+    """Whether the session's files carry hashes: from version 4 they must (:func:`read_meta`
+    refuses one without), and an older version that lists them is checked as well. Without
+    hashes a session is still checked for frames without truth (:mod:`.checks`)."""
+    return int(meta.get("version", 0)) >= HASHED_FROM or "files" in meta
 
 
 def check_track(path: str | os.PathLike, meta: dict[str, Any], track: str | None) -> None:
@@ -147,10 +152,16 @@ def check_track(path: str | os.PathLike, meta: dict[str, Any], track: str | None
 
 
 def verify_files(path: str | os.PathLike, meta: dict[str, Any]) -> None:
-    """Every file listed in ``meta.json`` is there with its size and SHA-256 (version 4 on)."""
+    """Every file listed in ``meta.json`` is there with its size and SHA-256, and every other
+    file of the session is listed (version 4 on, or any version that lists them): an edited
+    file taken off the list is not read unchecked."""
     root = Path(path)
     if not content_checked(meta):
         return
+    for f in sorted(root.rglob("*")):
+        rel = f.relative_to(root).as_posix()
+        if f.is_file() and rel != "meta.json" and rel not in meta["files"]:
+            raise SessionError(f"{f}: not listed in meta.json 'files' (added or edited after recording)")
     for rel, want in meta["files"].items():
         f = root / rel
         if not isinstance(rel, str) or rel.startswith("/") or ".." in Path(rel).parts or not isinstance(want, dict):
@@ -192,8 +203,10 @@ def iter_frames(path: str | os.PathLike) -> Iterator[Frame]:
 
 def read_session(path: str | os.PathLike, *, track: str | None = None) -> Episode:
     """Read a whole session back into an :class:`Episode` (truth required), after checking it:
-    the track it was recorded for (when ``track`` is given), every file's hash (version 4 on),
-    the frame counts per kind and the number of truths against ``meta.json``."""
+    the track it was recorded for (when ``track`` is given), every file's hash (version 4 on,
+    and any older one that lists them), the frame counts per kind and the number of truths
+    against ``meta.json``, and, whatever the version, every frame the tracks score against its
+    truth (:func:`.checks.check_truth_matches_frames`)."""
     p = Path(path)
     meta = read_meta(p)
     check_track(p, meta, track)
@@ -216,6 +229,7 @@ def read_session(path: str | os.PathLike, *, track: str | None = None) -> Episod
     if counts != want:
         raise SessionError(f"{p / 'frames.jsonl'}: frame counts {counts} differ from meta.json {want} (cut or edited)")
     truth = read_truth(p)
+    check_truth_matches_frames(p, frames, truth, meta["scenario"])
     tc = meta.get("truth_counts")
     if isinstance(tc, dict):
         got = {"lidar": len(truth.lidar), "tof": 0 if truth.stairs is None else len(truth.stairs.tof),

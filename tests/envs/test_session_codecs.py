@@ -11,6 +11,7 @@ from exobench.envs.session import (
     FrameCodec,
     frame_from_dict,
     frame_to_dict,
+    iter_frames,
     read_session,
     register_codec,
     write_session,
@@ -55,7 +56,7 @@ def test_every_registered_kind_round_trips_bit_exact(kind, tmp_path):
             isinstance(v, np.ndarray) and v.dtype.kind == "f" and np.isnan(v).any() for v in values
         ), f"the example {kind} frame should carry a NaN"
     write_session(_episode(frames), tmp_path / "s")
-    back = read_session(tmp_path / "s").frames
+    back = tuple(iter_frames(tmp_path / "s"))  # frames only: these scans have no truth to be scored with
     assert len(back) == len(frames)
     for i, (a, b) in enumerate(zip(frames, back)):
         for fl in dataclasses.fields(a):

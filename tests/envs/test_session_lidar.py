@@ -259,7 +259,8 @@ def test_version_1_session_still_reads(tmp_path):
     (p / "truth" / "episode.json").write_text(json.dumps(truth))
     tof = {"stamp_s": 0.02, "sensor_id": "tof_r_med", "true_range_m": 0.41, "hit_w": [0.1, 0.2, 0.0],
            "surface_id": 0, "T_world_sensor": np.eye(4).tolist()}  # fmt: skip
-    (p / "truth" / "tof.jsonl").write_text(json.dumps(tof) + "\n")
+    no_target = {**tof, "stamp_s": 0.04, "true_range_m": None, "hit_w": [None, None, None], "surface_id": -1}
+    (p / "truth" / "tof.jsonl").write_text(json.dumps(tof) + "\n" + json.dumps(no_target) + "\n")  # one per reading
 
     ep = read_session(p)
     assert [type(f) for f in ep.frames] == [ToFReading, ImuSample, ToFReading]
@@ -287,6 +288,8 @@ def test_version_2_truth_gives_a_stairs_part_only_to_staircase_episodes(tmp_path
     td.update(stance_side="r", touchdown_w=[0.1, 0.2, 0.3], foot_track_w=[[0.0, 0.1, 0.2, 0.3]])
     (path / "truth" / "episode.json").write_text(json.dumps(td))
     meta = json.loads((path / "meta.json").read_text())
+    for key in ("files", "truth_counts", "track"):  # version 2 had none of them
+        meta.pop(key)
     (path / "meta.json").write_text(json.dumps({**meta, "version": 2}))
     assert read_session(path).truth.stairs is None
     td["scene"]["kind"] = "staircase"
@@ -324,6 +327,8 @@ def test_lidar_truth_files_with_material_strings_still_read(tmp_path):
     ep = _synthetic(np.random.default_rng(6))
     path = write_session(ep, tmp_path / "s", compact=False)
     meta = json.loads((path / "meta.json").read_text())
+    for key in ("files", "truth_counts", "track"):  # version 3 had none of them
+        meta.pop(key)
     (path / "meta.json").write_text(json.dumps({**meta, "version": 3}))
     old_fields = ("stamp_s", "sensor_id", "true_range_m", "hit_w", "geom_id", "surface_id", "material", "kind",
                   "via_geom_id", "signal", "origin_w", "dir_w")  # fmt: skip

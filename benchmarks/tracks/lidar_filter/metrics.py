@@ -190,11 +190,14 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
         keep = [m for m in masks if m is not None]
         out: dict[str, Any] = {"failed": False, "failed_reason": ""}
         out.update(mask_fractions(classes, ground, keep, measured))
+        if not any(math.isfinite(out[k]) for k in FRACTION_KEYS):  # e.g. every return NaN: nothing was filtered
+            out.update(failed=True, failed_reason=f"no point to score: {out['n_nan']} of {out['n_points']} points are NaN")
         stats = est.stats if isinstance(est.stats, dict) else {}
         out.update({f"stat_{k}": v for k, v in stats.items() if isinstance(v, (int, float)) and not isinstance(v, bool)})
         out["time_per_scan_ms"] = tj.time_per_scan_ms(est.time_per_scan_s)
         if unmatched:
-            out["failed_reason"] = f"{unmatched} masks match no scan (ignored)"
+            note = f"{unmatched} masks match no scan (ignored)"
+            out["failed_reason"] = f"{out['failed_reason']}; {note}" if out["failed_reason"] else note
         out.update({k: math.nan for k in ODOM_KEYS})
         if odometry:
             out.update(odometry_through_filter(episode, keep, downsample))

@@ -131,6 +131,7 @@ class LidarFilterTrack:
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_scan_ms", "odom_time_per_scan_ms"})
     scoring_keys: ClassVar[frozenset[str]] = frozenset({"score_odometry", "odometry_downsample"})
+    headline_metrics: ClassVar[tuple[str, ...]] = ("spurious_removed_frac", "ground_kept_frac", "genuine_kept_frac", "kept_frac")
     report_intro = (
         "Published figures (Tab. 5.4 of seeds/003) come from a Unitree B1 with a VLP-16 in a real glass-walled "
         "office, scored by loop closure error only; ours from the simulated exoskeleton office walk."

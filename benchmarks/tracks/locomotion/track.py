@@ -212,6 +212,7 @@ class LocomotionTrack:
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"width_px": 96, "height_px": 72, "rate_hz": 10.0, "duration_cap_s": 4.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"latency_ms_median", "latency_ms_p95"})
     scoring_keys: ClassVar[frozenset[str]] = frozenset()
+    headline_metrics: ClassVar[tuple[str, ...]] = ("accuracy", "transition_accuracy", "anticipation_s", "footprint_error_m")
 
     def params(self) -> list[ParamInfo]:
         from exobench.envs.sim.scenarios.course import PARAMS

@@ -238,7 +238,7 @@ def score_place_recognition(episode: Episode, estimate: PlaceRecognitionEstimate
     has_loop = curve.n_loops
     correct_frac = float(np.sum(curve.correct) / has_loop) if has_loop else math.nan
     stats = estimate.stats or {}
-    return {
+    out = {
         "failed": False,
         "max_recall_at_full_precision": max_recall_at_full_precision(curve),
         "pr_auc": pr_auc(curve),
@@ -255,3 +255,7 @@ def score_place_recognition(episode: Episode, estimate: PlaceRecognitionEstimate
         "pr_precision": np.round(curve.precision, 6).tolist(),
         "pr_recall": np.round(curve.recall, 6).tolist(),
     }
+    if out["invalid_keyframes"] >= K:  # no descriptor at all (e.g. every return NaN): recall 0 measures nothing
+        out.update({k: math.nan for k in ("max_recall_at_full_precision", "pr_auc", "best_f1", "tau_best_f1")})
+        out.update(failed=True, failed_reason=f"every keyframe is invalid ({out['invalid_keyframes']} of {K}): nothing to match")
+    return out

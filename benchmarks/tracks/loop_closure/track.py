@@ -170,6 +170,7 @@ class LoopClosureTrack:
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5, "lidar_azimuth_step_deg": 1.0}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_keyframe_ms"})
     scoring_keys: ClassVar[frozenset[str]] = frozenset(SCORING_KEYS)
+    headline_metrics: ClassVar[tuple[str, ...]] = ("max_recall_at_full_precision", "pr_auc", "best_f1")
     report_intro: ClassVar[str] = (
         "Published figures: Table 5.5 and section 5.2.3 of seeds/003 (KITTI and VBR sequences, "
         "i9-11950H); ours from simulated office loops with a trunk VLP-16."

@@ -102,6 +102,7 @@ class OdometryTrack:
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"max_distance_m": 1.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_scan_ms"})
     scoring_keys: ClassVar[frozenset[str]] = frozenset()
+    headline_metrics: ClassVar[tuple[str, ...]] = ("ate_m", "rpe_m", "drift_per_m", "te_m")
     report_intro = (
         "Published figures come from VBR outdoor sequences (Tab. 5.3) and a real indoor loop with a quadruped "
         "(Tab. 5.4) of seeds/003; ours from the simulated office walk."

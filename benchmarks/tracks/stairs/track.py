@@ -166,6 +166,7 @@ class StairsTrack:
     smoke_scenario: ClassVar[Mapping[str, Any]] = {}
     timing_metrics: ClassVar[frozenset[str]] = frozenset({"time_per_point_us"})
     scoring_keys: ClassVar[frozenset[str]] = frozenset()
+    headline_metrics: ClassVar[tuple[str, ...]] = ("riser_error_pct", "tread_error_pct", "touchdown_error_m", "assignment_accuracy")
 
     def params(self) -> list[ParamInfo]:
         from exobench.envs.sim.scenarios.stairs import PARAMS

@@ -46,8 +46,8 @@ class LidarConfig:
         duplicate_prob: probability a delivered sweep is delivered twice (a second identical
             frame, same stamp, same truth), [0, 1] [A: 0].
         out_of_order_prob: probability a sweep is delivered late, after the next one: its
-            ``stamp_s`` (delivery time) grows by 1.5 sweep periods, its ``sweep_start_s`` stays,
-            [0, 1] [A: 0].
+            ``stamp_s`` (delivery time) grows by 1.5 sweep periods, its ``sweep_start_s`` stays;
+            the next sweep, which overtakes it, is on time (at 1, pairs swap), [0, 1] [A: 0].
         time_jump_prob: probability the sensor's clock steps by ``time_jump_s`` at a sweep; the
             step holds for that sweep and every later one (``stamp_s`` and ``sweep_start_s`` shift,
             the truth trajectory stays in true time), [0, 1] [A: 0].

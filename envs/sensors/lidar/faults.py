@@ -7,7 +7,10 @@ returns what the sensor delivers for it, each frame with its truth:
   stamp, copied arrays) with a copy of its truth;
 - a late sweep (``out_of_order_prob``) is delivered after the next one: its ``stamp_s`` (the
   delivery time) grows by :data:`LATE_PERIODS` sweep periods, halfway between the next two
-  deliveries, so it never shares a stamp with an on-time sweep; its ``sweep_start_s`` stays;
+  deliveries, so it never shares a stamp with an on-time sweep; its ``sweep_start_s`` stays.
+  The sweep after a late one is the one that overtakes it, so it is on time whatever its draw:
+  at probability 1 every pair of sweeps is swapped (1, 0, 3, 2, ...), never all of them
+  delayed alike, which would keep their order;
 - a clock step (``time_jump_prob``, ``time_jump_s``) shifts ``stamp_s`` and ``sweep_start_s`` of
   that sweep and of every later one (the offsets add up).
 
@@ -47,6 +50,7 @@ class StreamFaults:
         self.jump_rng = sensor_rngs(seed, f"{sensor_id}/time_jump")[0]
         self.clock_offset_s = 0.0
         self.true_starts: list[float] = []
+        self.overtaking = False  # the previous sweep is late: this one is delivered before it
 
     def _hit(self, rng: np.random.Generator, prob: float) -> bool:
         return bool(prob > 0.0 and rng.random() < prob)
@@ -55,9 +59,10 @@ class StreamFaults:
         """The frames (with their truth) delivered for one sweep (``got``: the sweep, None if lost)."""
         c = self.config
         dup = self._hit(self.dup_rng, c.duplicate_prob)
-        late = self._hit(self.late_rng, c.out_of_order_prob)
+        late = self._hit(self.late_rng, c.out_of_order_prob) and not self.overtaking
         if self._hit(self.jump_rng, c.time_jump_prob):
             self.clock_offset_s += c.time_jump_s
+        self.overtaking = late and got is not None
         if got is None:
             return []
         scan, truth = got
