@@ -64,7 +64,7 @@ def test_every_lidar_return_nan_fails_every_pipeline_with_its_reason(name):
 
 
 class _NothingScored(FakeTrack):
-    def score(self, episode, estimate):
+    def score(self, episode, estimate, scoring=None):
         m = super().score(episode, estimate)
         return {**m, **{k: math.nan for k in self.headline_metrics}, "failed": False, "failed_reason": "a note"}
 
