@@ -16,8 +16,9 @@ every fraction, whether the filter keeps or removes them. Pooled over all scans 
 - ``time_per_scan_ms``: median compute time per scan.
 
 Points the scan itself holds as NaN (a faulty driver) were never measured: they count neither as
-kept nor as removed, nor in ``n_points``; the pipeline's own counts (``FilterEstimate.stats``,
-e.g. ``n_nan_points`` and ``n_absurd_points``) are reported as ``stat_*``.
+kept nor as removed, nor in ``n_points``; the filter's own counts (``FilterEstimate.stats``,
+e.g. ``empty_scans``) are reported as ``stat_*``. A repeated or out-of-order scan, which a
+pipeline does not use (:mod:`exobench.core.counters`), is not scored: each instant once.
 
 Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
 :func:`..lidar_trajectory.score_trajectory` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
@@ -34,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from exobench.core.counters import admitted
 from exobench.core.episode import Episode
 from exobench.core.estimates import FilterEstimate
 
@@ -100,6 +102,12 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
     }  # fmt: skip
 
 
+def scored_pairs(episode: Episode) -> list[tuple[Any, Any]]:
+    """:func:`..office_walks.lidar_pairs` of the scans a pipeline uses (not repeated, in order)."""
+    used = {id(f) for f, ok in zip(episode.frames, admitted(episode.frames), strict=True) if ok}
+    return [(s, t) for s, t in lidar_pairs(episode) if id(s) in used]
+
+
 def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tuple[dict[str, Any], Any]:
     """kiss-icp on the kept points of every scan, scored as the odometry track does: (``odom_``
     metrics, the :class:`TrajectoryEstimate`)."""
@@ -107,7 +115,7 @@ def odometry_through_filter(episode: Episode, keep: Sequence[np.ndarray]) -> tup
 
     from ..lidar_trajectory import score_trajectory
 
-    scans = [s for s, _ in lidar_pairs(episode)]
+    scans = [s for s, _ in scored_pairs(episode)]
     est = run_kiss_icp(scans, keep, KissConfig(downsample=episode.scenario.get("odometry_downsample", "single")))
     m = score_trajectory(episode, est)
     out = {f"odom_{k}": m.get(k, math.nan) for k in ("te_m", "oe_rad", "tve_x_m", "tve_y_m", "tve_z_m", "ate_m", "rpe_m",
@@ -145,7 +153,7 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
     count in its reason and NaN fractions.
     """
     try:
-        pairs = lidar_pairs(episode)
+        pairs = scored_pairs(episode)
         if not pairs:
             return failure_metrics(episode, "the episode has no LiDAR scan with point truth")
         classes, ground, measured = [], [], []
