@@ -1,10 +1,12 @@
 """Faulty sensor data on demand: frames with no return, with NaN, and streams with gaps.
 
 Real logs contain what a simulation rarely does: a ToF that sees nothing, a LiDAR sweep that
-came back empty, a depth image of zeros, a driver that wrote NaN, a frame that never arrived.
-These functions make such frames from good ones, so that tests (and users checking their own
-pipelines) can feed every pipeline the faults it must survive and count. They change values
-only: stamps, sensor ids and array shapes stay as they were, except an empty sweep.
+came back empty, a depth image of zeros, a driver that wrote NaN, a frame that never arrived,
+a frame delivered twice or late. These functions make such frames from good ones, so that tests
+(and users checking their own pipelines) can feed every pipeline the faults it must survive and
+count (:mod:`exobench.core.counters`). They change values only: stamps, sensor ids and array
+shapes stay as they were, except an empty sweep; :func:`inject_stream_faults` also repeats and
+reorders frames.
 """
 
 from __future__ import annotations
@@ -172,3 +174,48 @@ def inject_absurd(
             k = idx[min(len(idx) - 1, int(a * len(idx)))]
             replaced[k] = absurd(frames[k], variant)
     return tuple(replaced.get(i, f) for i, f in enumerate(frames)), tuple(sorted(replaced))
+
+
+STREAM_FAULTS = ("dropped", "nan", "absurd", "repeated", "out_of_order")
+"""The faults :func:`inject_stream_faults` puts in every stream, named as their counters."""
+
+
+def inject_stream_faults(
+    frames: Sequence[Frame], at: tuple[float, float, float, float, float] = (0.1, 0.25, 0.45, 0.65, 0.85)
+) -> tuple[tuple[Frame, ...], dict[str, dict[str, int]]]:
+    """Every sensor stream of ``frames`` with one frame of each of :data:`STREAM_FAULTS`, at the
+    fractions ``at`` of its length (in that order): one removed, one with NaN (:func:`with_nan`),
+    one absurd (:func:`absurd`), one delivered twice in a row (an identical copy) and one
+    delivered after the next frame of its stream (its stamps kept). A stream of fewer than 10
+    frames is left as it is. Returns the frames and, per sensor id of a changed stream, how many
+    of each fault it holds."""
+    by_sensor: dict[str, list[int]] = {}
+    for i, f in enumerate(frames):
+        by_sensor.setdefault(f.sensor_id, []).append(i)
+    changed: dict[int, Frame] = {}
+    drop: set[int] = set()
+    twice: set[int] = set()
+    late: dict[int, int] = {}  # index of a late frame -> index of the frame it follows
+    injected: dict[str, dict[str, int]] = {}
+    for sid, idx in by_sensor.items():
+        if len(idx) < 10:
+            continue
+        k_drop, k_nan, k_abs, k_rep, k_late = (idx[int(a * len(idx))] for a in at)
+        drop.add(k_drop)
+        changed[k_nan] = with_nan(frames[k_nan])
+        changed[k_abs] = absurd(frames[k_abs])
+        twice.add(k_rep)
+        late[k_late] = idx[idx.index(k_late) + 1]
+        injected[sid] = dict.fromkeys(STREAM_FAULTS, 1)
+    after: dict[int, int] = {nxt: k for k, nxt in late.items()}
+    out: list[Frame] = []
+    for i, f in enumerate(frames):
+        if i in drop or i in late:
+            continue
+        f = changed.get(i, f)
+        out.append(f)
+        if i in twice:
+            out.append(replace(f))
+        if i in after:
+            out.append(changed.get(after[i], frames[after[i]]))
+    return tuple(out), injected
