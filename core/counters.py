@@ -54,7 +54,19 @@ from typing import Any
 import numpy as np
 
 from .calibration import Calibration
-from .frames import FRAME_TYPES, Frame, LidarScan, RgbdFrame, ToFReading, TofStatus, frame_kind
+from .frames import (
+    FRAME_TYPES,
+    ContactSample,
+    Frame,
+    ImuSample,
+    JointState,
+    LidarScan,
+    OdometrySample,
+    RgbdFrame,
+    ToFReading,
+    TofStatus,
+    frame_kind,
+)
 
 COUNTERS: tuple[str, ...] = (
     "seen", "used", "ignored", "repeated", "out_of_order", "dropped", "nan", "absurd", "nan_values", "absurd_values",
@@ -224,7 +236,16 @@ def nan_values(frame: Frame) -> int:
             return int(np.count_nonzero(~np.all(np.isfinite(p), axis=1)))
         if isinstance(frame, RgbdFrame):
             return int(np.count_nonzero(~np.isfinite(np.asarray(frame.depth_m, dtype=float))))
-        arrays = [getattr(frame, f.name) for f in fields(frame) if f.name not in ("stamp_s", "sensor_id", "names")]
-        return int(not all(np.all(np.isfinite(np.asarray(a, dtype=float))) for a in arrays))
+        if isinstance(frame, ContactSample):
+            return int(not math.isfinite(float(frame.force_n)))
+        if isinstance(frame, ImuSample):
+            arrays: tuple[Any, ...] = (frame.quat_wxyz, frame.gyro_rad_s, frame.accel_m_s2)
+        elif isinstance(frame, JointState):
+            arrays = (frame.position_rad,)
+        elif isinstance(frame, OdometrySample):
+            arrays = (frame.T_odom_body, frame.v_odom_m_s)
+        else:  # a frame type added later: every value but the stamp, the id and names
+            arrays = tuple(getattr(frame, f.name) for f in fields(frame) if f.name not in ("stamp_s", "sensor_id", "names"))
+        return int(not all(np.isfinite(np.asarray(a, dtype=float)).all() for a in arrays))
     except (TypeError, ValueError):
         return 0

@@ -171,18 +171,17 @@ class _FilterPipeline:
 
     def _valid_state(self, c: FrameCounts, frame: Frame) -> bool:
         """Count and refuse a state that is not finite or absurd (:mod:`exobench.core.limits`)."""
-        n_nan = nan_values(frame)
-        if n_nan:
-            c.add_nan(n_nan)
-            return False
         if isinstance(frame, JointState):
-            bad = self._joint_limits.absurd(frame)
+            bad = self._joint_limits.absurd(frame)  # non-finite angles included
         elif isinstance(frame, ImuSample):
-            bad = imu_absurd(frame)
+            bad = imu_absurd(frame)  # non-finite values included
         else:
-            bad = contact_absurd(frame)
+            bad = contact_absurd(frame) or nan_values(frame) > 0
         if bad:
-            c.add_absurd()
+            if nan_values(frame):
+                c.add_nan()
+            else:
+                c.add_absurd()
             return False
         c.used += 1
         return True
