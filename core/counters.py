@@ -197,8 +197,10 @@ class StreamCounters:
 
     def snapshot(self) -> dict[str, FrameCounts]:
         """A copy of the counters by kind (for an estimate: later frames do not change it)."""
-        return {
-            kind: FrameCounts(*(getattr(c, name) for name in COUNTERS), sensors=tuple(self._sensors.get(kind, ())))
+        sensors = self._sensors
+        return {  # field by field: an online estimate takes a copy per update, so this is kept cheap
+            kind: FrameCounts(c.seen, c.used, c.ignored, c.repeated, c.out_of_order, c.dropped, c.nan, c.absurd,
+                              c.nan_values, c.absurd_values, tuple(sensors[kind]) if kind in sensors else ())
             for kind, c in self._counts.items()
         }
 

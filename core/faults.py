@@ -182,21 +182,22 @@ STREAM_FAULTS = ("dropped", "nan", "absurd", "repeated", "out_of_order")
 
 def inject_stream_faults(
     frames: Sequence[Frame], at: tuple[float, float, float, float, float] = (0.1, 0.25, 0.45, 0.65, 0.85)
-) -> tuple[tuple[Frame, ...], dict[str, dict[str, int]]]:
+) -> tuple[tuple[Frame, ...], dict[str, dict[str, tuple[Frame, ...]]]]:
     """Every sensor stream of ``frames`` with one frame of each of :data:`STREAM_FAULTS`, at the
     fractions ``at`` of its length (in that order): one removed, one with NaN (:func:`with_nan`),
     one absurd (:func:`absurd`), one delivered twice in a row (an identical copy) and one
     delivered after the next frame of its stream (its stamps kept). A stream of fewer than 10
-    frames is left as it is. Returns the frames and, per sensor id of a changed stream, how many
-    of each fault it holds."""
+    frames is left as it is. Returns the frames and, per sensor id of a changed stream and per
+    fault, the frames concerned (the removed one, the NaN one, the absurd one, the copy, the
+    late one)."""
     by_sensor: dict[str, list[int]] = {}
     for i, f in enumerate(frames):
         by_sensor.setdefault(f.sensor_id, []).append(i)
     changed: dict[int, Frame] = {}
     drop: set[int] = set()
-    twice: set[int] = set()
+    copies: dict[int, Frame] = {}
     late: dict[int, int] = {}  # index of a late frame -> index of the frame it follows
-    injected: dict[str, dict[str, int]] = {}
+    injected: dict[str, dict[str, tuple[Frame, ...]]] = {}
     for sid, idx in by_sensor.items():
         if len(idx) < 10:
             continue
@@ -204,18 +205,18 @@ def inject_stream_faults(
         drop.add(k_drop)
         changed[k_nan] = with_nan(frames[k_nan])
         changed[k_abs] = absurd(frames[k_abs])
-        twice.add(k_rep)
+        copies[k_rep] = replace(frames[k_rep])
         late[k_late] = idx[idx.index(k_late) + 1]
-        injected[sid] = dict.fromkeys(STREAM_FAULTS, 1)
+        injected[sid] = {"dropped": (frames[k_drop],), "nan": (changed[k_nan],), "absurd": (changed[k_abs],),
+                         "repeated": (copies[k_rep],), "out_of_order": (frames[k_late],)}  # fmt: skip
     after: dict[int, int] = {nxt: k for k, nxt in late.items()}
     out: list[Frame] = []
     for i, f in enumerate(frames):
         if i in drop or i in late:
             continue
-        f = changed.get(i, f)
-        out.append(f)
-        if i in twice:
-            out.append(replace(f))
+        out.append(changed.get(i, f))
+        if i in copies:
+            out.append(copies[i])
         if i in after:
-            out.append(changed.get(after[i], frames[after[i]]))
+            out.append(frames[after[i]])
     return tuple(out), injected

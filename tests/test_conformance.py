@@ -46,8 +46,8 @@ from exobench.benchmarks.runner import PipelineRun, untimed_metrics
 from exobench.benchmarks.tracks.registry import default_track_registry
 from exobench.core.counters import FrameCounts, stream_rates
 from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownNameError
-from exobench.core.faults import STREAM_FAULTS, inject_faults, inject_stream_faults
-from exobench.core.frames import FRAME_TYPES, frame_kind
+from exobench.core.faults import STREAM_FAULTS, inject_faults, inject_stream_faults, n_absurd_points
+from exobench.core.frames import FRAME_TYPES, LidarScan, RgbdFrame, frame_kind
 
 # read once, at collection: a registration a test makes later (such as the toy track of
 # test_benchmarks_track_registry.py, which rebuilds the default registries) is not picked up
@@ -184,6 +184,13 @@ def test_pipeline_survives_no_return_nan_and_dropped_frames(name):
     assert not missing, f"{name} on faulty frames: no {sorted(missing)}"
 
 
+def _n_values(frame: Any) -> int:
+    """The values a frame holds as the counters count them: points, pixels, else one."""
+    if isinstance(frame, LidarScan):
+        return len(np.asarray(frame.points_xyz).reshape(-1, 3))
+    return int(np.asarray(frame.depth_m).size) if isinstance(frame, RgbdFrame) else 1
+
+
 def _kind_counts(estimate: Any, where: str) -> dict[str, FrameCounts]:
     counts = getattr(estimate, "counts", None)
     assert isinstance(counts, dict) and counts, f"{where}: the estimate carries no input counters"
@@ -213,11 +220,15 @@ def test_pipeline_counts_every_fault_it_is_fed(name):
     for kind in {frame_kind(f) for f in frames}:
         read = set(clean[kind].sensors) if kind in clean else set()
         mine = [f for f in frames if frame_kind(f) == kind]
-        want = {fault: sum(injected.get(sid, {}).get(fault, 0) for sid in read) for fault in STREAM_FAULTS}
+        made = {fault: [f for sid in read for f in injected.get(sid, {}).get(fault, ())] for fault in STREAM_FAULTS}
+        want = {fault: len(fs) for fault, fs in made.items()}
         # a late frame leaves a gap when the next one arrives: dropped too, where the rate is known
-        want["dropped"] = clean[kind].dropped + sum(2 * injected[sid]["dropped"] for sid in read if sid in injected and sid in rates)
+        want["dropped"] = clean[kind].dropped + sum(2 * len(injected[sid]["dropped"]) for sid in read if sid in injected and sid in rates)
+        # every value of a NaN frame is NaN; an absurd LiDAR sweep has every other point absurd
+        want["nan_values"] = sum(_n_values(f) for f in made["nan"])
+        want["absurd_values"] = sum(n_absurd_points(f) if isinstance(f, LidarScan) else _n_values(f) for f in made["absurd"])
         c = counts.get(kind, FrameCounts())
-        got = {fault: getattr(c, fault) for fault in STREAM_FAULTS}
+        got = {fault: getattr(c, fault) for fault in want}
         assert got == want, f"{name}, {kind} (reads {sorted(read)}): counted {got}, injected {want}"
         assert c.seen == len(mine) and c.ignored == sum(f.sensor_id not in read for f in mine), f"{name}, {kind}: {c}"
         assert c.used + c.ignored + c.repeated + c.out_of_order <= c.seen, f"{name}, {kind}: {c}"

@@ -142,7 +142,9 @@ def test_absurd_contact_and_odometry():
 def test_inject_stream_faults_puts_one_of_each_in_every_long_stream():
     frames = [f for k in range(20) for f in (_tof(0.02 * k), _tof(0.02 * k, "tof_b"))] + [_tof(0.5, "tof_short")]
     faulty, injected = inject_stream_faults(frames)
-    assert set(injected) == {"tof_a", "tof_b"} and all(v == dict.fromkeys(STREAM_FAULTS, 1) for v in injected.values())
+    assert set(injected) == {"tof_a", "tof_b"}
+    assert all(list(v) == list(STREAM_FAULTS) and all(len(fs) == 1 for fs in v.values()) for v in injected.values())
+    assert injected["tof_a"]["repeated"][0] is not frames[26] and injected["tof_a"]["repeated"][0].stamp_s == frames[26].stamp_s
     a = [f for f in faulty if f.sensor_id == "tof_a"]
     stamps = [round(f.stamp_s / 0.02) for f in a]
     # index 2 removed, 17 after 18, 13 twice; 5 NaN, 9 absurd
