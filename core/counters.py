@@ -118,12 +118,6 @@ def measured_s(frame: Frame) -> float:
     return float(frame.sweep_start_s if isinstance(frame, LidarScan) else frame.stamp_s)
 
 
-def kind_of(frame: Frame) -> str:
-    """:func:`~exobench.core.frames.frame_kind`, by one look-up for the frame classes themselves."""
-    kind = _KIND_OF_TYPE.get(type(frame))
-    return kind if kind is not None else frame_kind(frame)
-
-
 def stream_rates(calibration: Calibration | None) -> dict[str, float]:
     """Sensor id -> rate (Hz) of the streams whose rate the calibration gives (module docstring)."""
     if calibration is None:
@@ -180,7 +174,10 @@ class StreamCounters:
             c.ignored += 1
             return None
         sid = frame.sensor_id
-        t = measured_s(frame)
+        try:
+            t = measured_s(frame)
+        except (TypeError, ValueError):  # a time that is not a number orders nothing
+            t = math.nan
         last = self._last.get(sid)
         if last is not None and t == last:
             c.repeated += 1

@@ -54,7 +54,12 @@ from exobench.core import (
 )
 from exobench.core.counters import FrameCounts, StreamCounters, nan_values
 from exobench.core.errors import PipelineStateError
-from exobench.core.limits import FALLBACK_MAX_RANGE_M, absurd_depth, contact_absurd, max_depth_m
+from exobench.core.limits import (
+    absurd_depth,
+    contact_absurd,
+    max_depth_m,
+    odometry_absurd,
+)
 from exobench.core.pipeline import check_frame
 from exobench.perception.terrain.footprint import GaitDivider
 from exobench.perception.terrain.plane_tracking import PlaneSet
@@ -212,7 +217,7 @@ class LocomotionPipeline(ABC):
     def _on_odometry(self, frame: OdometrySample, c: FrameCounts) -> None:
         T = _finite_array(frame.T_odom_body, (4, 4))
         v = _finite_array(frame.v_odom_m_s, (3,))
-        if T is None or v is None or not np.all(np.abs(T[:3, 3]) <= FALLBACK_MAX_RANGE_M):
+        if T is None or v is None or odometry_absurd(frame):
             if nan_values(frame):
                 c.add_nan()
             else:  # a malformed pose counts with the absurd ones

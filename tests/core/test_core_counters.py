@@ -166,7 +166,7 @@ def test_admitted_is_the_same_rule_offline():
     assert admitted(frames) == [True, False, True, False, True]
 
 
-@pytest.mark.parametrize("bad", [math.inf, -math.inf])
+@pytest.mark.parametrize("bad", [math.inf, -math.inf, "0.1s"])
 def test_infinite_time_is_out_of_order(bad):
     c = StreamCounters()
     assert c.admit(_tof(bad)) is None and c.snapshot()["tof"].out_of_order == 1
