@@ -11,6 +11,9 @@ Two steps, so that nothing touches the disk until everything is valid:
   soon as it is finished. A pipeline that raises is recorded as failed and the run goes on.
   A failure of the harness itself (the simulation or the scorer raised) is recorded as failed
   too, and its record carries the reason in ``harness_error`` (see :func:`harness_errors`).
+  Every record of a pipeline that returned an estimate with input counters also holds them,
+  as ``frames.<kind>.<counter>`` for every kind the track streams
+  (:func:`exobench.core.counters.count_metrics`), the same in every track.
   With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them. The worker pool
   (:mod:`.pool`) retries the episode of a worker that died once, then records it as failed.
 
@@ -32,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from exobench.core.counters import count_metrics
 from exobench.core.errors import ConfigError, FolderError, UnknownNameError
 from exobench.core.pipeline import coerce_like
 
@@ -227,6 +231,9 @@ def run_pipelines(
                 metrics[p.name] = track.failed_metrics(episode, reason)
                 if scorer_errors is not None:
                     scorer_errors[p.name] = reason
+            counts = getattr(est, "counts", None)
+            if counts:
+                metrics[p.name].update(count_metrics(counts, getattr(track, "streams", ())))
         walls[p.name] = time.perf_counter() - t0
         timelines[p.name] = timeline
     return estimates, metrics, walls, timelines

@@ -4,6 +4,7 @@ numpy and the standard library only. Everything else in exobench builds on these
 """
 
 from .calibration import Calibration, SensorMount
+from .counters import FrameCounts, StreamCounters
 from .episode import Episode, EpisodeTruth
 from .errors import (
     ConfigError,
@@ -34,7 +35,6 @@ from .frames import (
     LidarScan,
     OdometrySample,
     RgbdFrame,
-    StreamStats,
     ToFReading,
     TofStatus,
     frame_kind,
@@ -89,7 +89,8 @@ __all__ = [
     "SensorMount",
     "SessionError",
     "StaircaseEstimate",
-    "StreamStats",
+    "StreamCounters",
+    "FrameCounts",
     "ToFReading",
     "ToFTruth",
     "TofStatus",

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from .counters import FrameCounts
+
 
 @dataclass(frozen=True, eq=False)
 class PlaneEstimate:
@@ -62,8 +64,9 @@ class StaircaseEstimate:
         planes: estimated surfaces, by index.
         riser_height_m / tread_depth_m: read-out of the geometry (NaN when unknown).
         assignments: one entry per ToF reading, in arrival order.
-        stats: faulty-input counters and other diagnostics.
+        stats: diagnostics (no-return readings, readings before any state, the algorithm's own).
         compute_time_s: processing time spent per used point (s), one entry per point.
+        counts: the input counters by frame kind (:mod:`exobench.core.counters`).
     """
 
     planes: tuple[PlaneEstimate, ...]
@@ -73,6 +76,7 @@ class StaircaseEstimate:
     stats: dict[str, Any] = field(default_factory=dict)
     compute_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
     frame_id: str = "stance_ground"
+    counts: dict[str, FrameCounts] = field(default_factory=dict)
 
     def plane(self, index: int) -> PlaneEstimate | None:
         for p in self.planes:
@@ -116,12 +120,14 @@ class LocomotionEstimate:
         predictions: one per processed camera frame, time-ordered.
         planes: the final plane set, each a dict with ``id``, ``normal``, ``centroid`` (odometry
             frame), ``kind`` and ``score`` (for reports and rerun).
-        stats: diagnostics and faulty-input counters (dropped frames, empty depth, ...).
+        stats: diagnostics (statuses, strikes, ...).
+        counts: the input counters by frame kind (:mod:`exobench.core.counters`).
     """
 
     predictions: tuple[ModePrediction, ...]
     planes: tuple[dict[str, Any], ...] = ()
     stats: dict[str, Any] = field(default_factory=dict)
+    counts: dict[str, FrameCounts] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,6 +143,7 @@ class TrajectoryEstimate:
         status: per-pose status (``"ok"``, ``"empty_scan"``, ``"lost"``, ...), length N.
         stats: diagnostics (failures, keyframes, submaps, ...).
         map_points: the final (corrected) map in the estimator frame, (M, 3), optional.
+        counts: the input counters by frame kind (:mod:`exobench.core.counters`).
     """
 
     stamps_s: np.ndarray
@@ -146,6 +153,7 @@ class TrajectoryEstimate:
     status: tuple[str, ...] = ()
     stats: dict[str, Any] = field(default_factory=dict)
     map_points: np.ndarray | None = None
+    counts: dict[str, FrameCounts] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,13 +164,15 @@ class FilterEstimate:
         stamps_s: the scan stamps, (N,).
         keep: one boolean mask per scan over its points, in the scan's point order.
         time_per_scan_s: processing time of each scan, s, (N,).
-        stats: counters (empty scans, ...).
+        stats: the filter's counters (empty scans, ...).
+        counts: the input counters by frame kind (:mod:`exobench.core.counters`).
     """
 
     stamps_s: np.ndarray
     keep: tuple[np.ndarray, ...]
     time_per_scan_s: np.ndarray
     stats: dict[str, Any] = field(default_factory=dict)
+    counts: dict[str, FrameCounts] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, eq=False)
@@ -177,6 +187,7 @@ class PlaceRecognitionEstimate:
         yaw_rad: relative yaw from the column-shift alignment, (K,).
         time_per_keyframe_s: description + query time per keyframe, s, (K,).
         stats: diagnostics.
+        counts: the input counters by frame kind (:mod:`exobench.core.counters`).
     """
 
     stamps_s: np.ndarray
@@ -185,3 +196,4 @@ class PlaceRecognitionEstimate:
     yaw_rad: np.ndarray
     time_per_keyframe_s: np.ndarray
     stats: dict[str, Any] = field(default_factory=dict)
+    counts: dict[str, FrameCounts] = field(default_factory=dict)

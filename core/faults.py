@@ -1,10 +1,12 @@
 """Faulty sensor data on demand: frames with no return, with NaN, and streams with gaps.
 
 Real logs contain what a simulation rarely does: a ToF that sees nothing, a LiDAR sweep that
-came back empty, a depth image of zeros, a driver that wrote NaN, a frame that never arrived.
-These functions make such frames from good ones, so that tests (and users checking their own
-pipelines) can feed every pipeline the faults it must survive and count. They change values
-only: stamps, sensor ids and array shapes stay as they were, except an empty sweep.
+came back empty, a depth image of zeros, a driver that wrote NaN, a frame that never arrived,
+a frame delivered twice or late. These functions make such frames from good ones, so that tests
+(and users checking their own pipelines) can feed every pipeline the faults it must survive and
+count (:mod:`exobench.core.counters`). They change values only: stamps, sensor ids and array
+shapes stay as they were, except an empty sweep; :func:`inject_stream_faults` also repeats and
+reorders frames.
 """
 
 from __future__ import annotations
@@ -172,3 +174,49 @@ def inject_absurd(
             k = idx[min(len(idx) - 1, int(a * len(idx)))]
             replaced[k] = absurd(frames[k], variant)
     return tuple(replaced.get(i, f) for i, f in enumerate(frames)), tuple(sorted(replaced))
+
+
+STREAM_FAULTS = ("dropped", "nan", "absurd", "repeated", "out_of_order")
+"""The faults :func:`inject_stream_faults` puts in every stream, named as their counters."""
+
+
+def inject_stream_faults(
+    frames: Sequence[Frame], at: tuple[float, float, float, float, float] = (0.1, 0.25, 0.45, 0.65, 0.85)
+) -> tuple[tuple[Frame, ...], dict[str, dict[str, tuple[Frame, ...]]]]:
+    """Every sensor stream of ``frames`` with one frame of each of :data:`STREAM_FAULTS`, at the
+    fractions ``at`` of its length (in that order): one removed, one with NaN (:func:`with_nan`),
+    one absurd (:func:`absurd`), one delivered twice in a row (an identical copy) and one
+    delivered after the next frame of its stream (its stamps kept). A stream of fewer than 10
+    frames is left as it is. Returns the frames and, per sensor id of a changed stream and per
+    fault, the frames concerned (the removed one, the NaN one, the absurd one, the copy, the
+    late one)."""
+    by_sensor: dict[str, list[int]] = {}
+    for i, f in enumerate(frames):
+        by_sensor.setdefault(f.sensor_id, []).append(i)
+    changed: dict[int, Frame] = {}
+    drop: set[int] = set()
+    copies: dict[int, Frame] = {}
+    late: dict[int, int] = {}  # index of a late frame -> index of the frame it follows
+    injected: dict[str, dict[str, tuple[Frame, ...]]] = {}
+    for sid, idx in by_sensor.items():
+        if len(idx) < 10:
+            continue
+        k_drop, k_nan, k_abs, k_rep, k_late = (idx[int(a * len(idx))] for a in at)
+        drop.add(k_drop)
+        changed[k_nan] = with_nan(frames[k_nan])
+        changed[k_abs] = absurd(frames[k_abs])
+        copies[k_rep] = replace(frames[k_rep])
+        late[k_late] = idx[idx.index(k_late) + 1]
+        injected[sid] = {"dropped": (frames[k_drop],), "nan": (changed[k_nan],), "absurd": (changed[k_abs],),
+                         "repeated": (copies[k_rep],), "out_of_order": (frames[k_late],)}  # fmt: skip
+    after: dict[int, int] = {nxt: k for k, nxt in late.items()}
+    out: list[Frame] = []
+    for i, f in enumerate(frames):
+        if i in drop or i in late:
+            continue
+        out.append(changed.get(i, f))
+        if i in copies:
+            out.append(copies[i])
+        if i in after:
+            out.append(frames[after[i]])
+    return tuple(out), injected

@@ -8,7 +8,7 @@ A dropped frame is simply absent from the stream. Ground truth is never part of 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
@@ -186,26 +186,3 @@ def frame_kind(frame: Frame) -> str:
         if isinstance(frame, cls):
             return kind
     raise TypeError(f"not an exobench frame: {type(frame).__name__}")
-
-
-@dataclass
-class StreamStats:
-    """Counts of faulty input a pipeline met; reported in the results."""
-
-    n_frames: int = 0
-    n_no_return: int = 0
-    n_nan: int = 0
-    n_out_of_order: int = 0
-    n_without_state: int = 0
-    extra: dict[str, int] = field(default_factory=dict)
-
-    def as_dict(self) -> dict[str, int]:
-        d = {
-            "n_frames": self.n_frames,
-            "n_no_return": self.n_no_return,
-            "n_nan": self.n_nan,
-            "n_out_of_order": self.n_out_of_order,
-            "n_without_state": self.n_without_state,
-        }
-        d.update(self.extra)
-        return d

@@ -19,7 +19,12 @@ calibration does not give falls back to a bound no real device reaches. Per fram
 - IMU sample: a non-finite value, a quaternion of norm outside ``(0.5, 1.5)``, an angular rate
   above :data:`MAX_GYRO_RAD_S` or a specific force above :data:`MAX_ACCEL_M_S2`;
 - joint state: a non-finite angle, or one beyond its URDF ``<limit>`` by more than
-  :data:`JOINT_LIMIT_MARGIN_RAD` (joints without a limit: only non-finite).
+  :data:`JOINT_LIMIT_MARGIN_RAD` (joints without a limit: only non-finite);
+- contact sample (finite): a negative force or one above :data:`MAX_FORCE_N`;
+- odometry sample (finite): a translation beyond :data:`FALLBACK_MAX_RANGE_M` on any axis.
+
+A pipeline counts the frames it skips for such values as ``absurd`` and those with non-finite
+values as ``nan`` (:mod:`exobench.core.counters`).
 """
 
 from __future__ import annotations
@@ -32,12 +37,13 @@ from typing import Any
 import numpy as np
 
 from .calibration import Calibration, SensorMount
-from .frames import ImuSample, JointState
+from .frames import ContactSample, ImuSample, JointState, OdometrySample
 
 FALLBACK_MAX_RANGE_M = 1e4  # no ranging sensor of a wearable device reports 10 km
 MAX_GYRO_RAD_S = 1e3  # ~57 000 deg/s; MEMS gyroscopes saturate below 100 rad/s
 MAX_ACCEL_M_S2 = 1e4  # ~1000 g; MEMS accelerometers saturate below 2000 m/s^2
 JOINT_LIMIT_MARGIN_RAD = 0.5
+MAX_FORCE_N = 1e5  # ~10 t: no insole pad under a foot reports it
 NOISE_SIGMAS = 6.0
 
 
@@ -122,6 +128,24 @@ def imu_absurd(frame: ImuSample) -> bool:
     if len(q) != 4 or len(w) != 3 or len(a) != 3 or not all(map(math.isfinite, q + w + a)):
         return True
     return not 0.5 < math.hypot(*q) < 1.5 or math.hypot(*w) > MAX_GYRO_RAD_S or math.hypot(*a) > MAX_ACCEL_M_S2
+
+
+def contact_absurd(frame: ContactSample) -> bool:
+    """Whether a contact sample's finite force is negative or above :data:`MAX_FORCE_N`."""
+    try:
+        f = float(frame.force_n)
+    except (TypeError, ValueError):
+        return False
+    return math.isfinite(f) and not 0.0 <= f <= MAX_FORCE_N
+
+
+def odometry_absurd(frame: OdometrySample) -> bool:
+    """Whether an odometry pose has a finite translation beyond :data:`FALLBACK_MAX_RANGE_M`."""
+    try:
+        p = np.asarray(frame.T_odom_body, dtype=float)[:3, 3]
+    except (TypeError, ValueError, IndexError):
+        return False
+    return bool(np.all(np.isfinite(p)) and np.any(np.abs(p) > FALLBACK_MAX_RANGE_M))
 
 
 def urdf_joint_limits(urdf: str) -> dict[str, tuple[float, float]]:

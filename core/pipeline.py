@@ -12,9 +12,10 @@ the class); it never reads files, owns a viewer or knows the simulator::
 ``process`` first calls :func:`check_frame`, which raises :class:`~.errors.PipelineStateError`
 before ``reset`` and :class:`~.errors.FrameTypeError` for anything that is not a frame (a dict,
 None, a string): every built-in pipeline does, and a third-party pipeline should do the same,
-so that a mistake in the caller is an error and never a silently ignored input. Values inside a
-frame that no sensor can report are not errors: a pipeline skips and counts them (see
-:mod:`exobench.core.limits`).
+so that a mistake in the caller is an error and never a silently ignored input. Then it admits
+the frame through :class:`~.counters.StreamCounters`, which counts it and refuses a repeated or
+out-of-order one. Values inside a frame that no sensor can report are not errors: a pipeline
+skips and counts them (see :mod:`exobench.core.limits` and :mod:`exobench.core.counters`).
 """
 
 from __future__ import annotations

@@ -7,10 +7,12 @@ A pipeline, a track or a gymnasium environment is covered here the moment it is 
   config is valid and saved whole as JSON, it returns the track's ``estimate_type``, the same
   frames give the same scores (timings aside), it survives a frame with no return, one with NaN
   and a dropped frame in every stream (:func:`exobench.core.faults.inject_faults`) and still
-  returns its estimate type with well-formed scores; it survives values no sensor can report
-  (:func:`exobench.core.faults.inject_absurd`: ranges of 1e308, 0 and 1e6 m, LiDAR points at
-  1e6 m and at the origin, depth of 1e6 m, IMU values of 1e308, ...) and counts them (one count
-  per track, :data:`ABSURD_COUNTS`); it refuses something that is not a frame
+  returns its estimate type with well-formed scores; fed in every stream a frame removed, one
+  with NaN, one with values no sensor can report (ranges of 1e308 m, LiDAR points at 1e6 m and
+  at the origin, depth of 1e6 m, IMU values of 1e308, ...), one repeated and one out of order
+  (:func:`exobench.core.faults.inject_stream_faults`), it counts each in the one vocabulary of
+  :mod:`exobench.core.counters`, per kind, exactly for the streams it reads (the same check for
+  every pipeline); it refuses something that is not a frame
   (:class:`FrameTypeError`) and ``process`` before ``reset`` (:class:`PipelineStateError`); and
   it refuses an unknown config key;
 - every track: its smoke episode carries only its declared streams, every case of every suite
@@ -42,10 +44,10 @@ from exobench.benchmarks.registry import default_registry
 from exobench.benchmarks.results import json_safe
 from exobench.benchmarks.runner import PipelineRun, run_pipelines, untimed_metrics
 from exobench.benchmarks.tracks.registry import default_track_registry
+from exobench.core.counters import FrameCounts, stream_rates
 from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownNameError
-from exobench.core.faults import inject_absurd, inject_faults, n_absurd_points
-from exobench.core.frames import FRAME_TYPES, LidarScan, RgbdFrame, ToFReading, frame_kind
-from exobench.perception.stairs.pipeline_base import sensor_flags
+from exobench.core.faults import STREAM_FAULTS, inject_faults, inject_stream_faults, n_absurd_points
+from exobench.core.frames import FRAME_TYPES, LidarScan, RgbdFrame, frame_kind
 
 # read once, at collection: a registration a test makes later (such as the toy track of
 # test_benchmarks_track_registry.py, which rebuilds the default registries) is not picked up
@@ -182,43 +184,56 @@ def test_pipeline_survives_no_return_nan_and_dropped_frames(name):
     assert not missing, f"{name} on faulty frames: no {sorted(missing)}"
 
 
-def _absurd_lidar_points(absurd_frames: list, estimate: Any) -> int:
-    return sum(n_absurd_points(f) for f in absurd_frames if isinstance(f, LidarScan))
+def _n_values(frame: Any) -> int:
+    """The values a frame holds as the counters count them: points, pixels, else one."""
+    if isinstance(frame, LidarScan):
+        return len(np.asarray(frame.points_xyz).reshape(-1, 3))
+    return int(np.asarray(frame.depth_m).size) if isinstance(frame, RgbdFrame) else 1
 
 
-# track -> (what the pipeline counts, what it should count given the frames made absurd, the
-# pipeline's default config); a track not listed is only checked to survive
-ABSURD_COUNTS: dict[str, tuple[Any, Any]] = {
-    "stairs": (
-        lambda est: est.stats["n_bad_range"],
-        lambda fs, est, cfg: sum(isinstance(f, ToFReading) and f.sensor_id in sensor_flags(cfg.leg) for f in fs),
-    ),
-    "lidar-filter": (lambda est: est.stats["n_absurd_points"], lambda fs, est, cfg: _absurd_lidar_points(fs, est)),
-    "odometry": (lambda est: est.stats["n_absurd_points"], lambda fs, est, cfg: _absurd_lidar_points(fs, est)),
-    "loop-closure": (lambda est: est.stats["absurd_points"], lambda fs, est, cfg: _absurd_lidar_points(fs, est)),
-    "locomotion": (
-        lambda est: est.stats["n_absurd_depth_frames"],
-        lambda fs, est, cfg: sum(isinstance(f, RgbdFrame) and f.sensor_id == est.stats["rgbd_sensor_id"] for f in fs),
-    ),
-}
+def _kind_counts(estimate: Any, where: str) -> dict[str, FrameCounts]:
+    counts = getattr(estimate, "counts", None)
+    assert isinstance(counts, dict) and counts, f"{where}: the estimate carries no input counters"
+    assert all(k in FRAME_TYPES and isinstance(c, FrameCounts) for k, c in counts.items()), f"{where}: {counts}"
+    return counts
 
 
 @pytest.mark.parametrize("name", PIPELINES)
-def test_pipeline_survives_and_counts_absurd_values(name):
+def test_pipeline_counts_every_fault_it_is_fed(name):
+    """One vocabulary for every pipeline: fed its smoke episode with, in every stream, a frame
+    removed, one with NaN, one absurd, one repeated and one out of order
+    (:func:`exobench.core.faults.inject_stream_faults`), it counts exactly those of the streams
+    it reads, per kind; every frame of a stream it does not read is ignored."""
     cls = PIPELINE_REGISTRY.load(name)
     track = _track(cls.track)
     episode = smoke_episode(cls.track)
-    frames, made = inject_absurd(episode.frames)
-    assert made, "no stream long enough to make absurd"
+    clean = _kind_counts(clean_run(name)[0], f"{name} (clean)")
+    for kind, c in clean.items():  # the simulator delivers none of these
+        assert (c.nan, c.absurd, c.repeated, c.out_of_order) == (0, 0, 0, 0), f"{name}: clean {kind}: {c}"
+    frames, injected = inject_stream_faults(episode.frames)
     estimate = _run(name, frames)  # must not raise
-    assert isinstance(estimate, track.estimate_type), f"{name} returned {type(estimate).__name__} on absurd values"
-    metrics = track.score(dataclasses.replace(episode, frames=frames), estimate)
-    _well_formed(metrics, f"{name} on absurd values")
-    if cls.track in ABSURD_COUNTS:
-        counted, expected = ABSURD_COUNTS[cls.track]
-        want = expected([frames[i] for i in made], estimate, cls.Config())
-        assert want > 0, f"{name}: no absurd frame of a stream it reads"
-        assert counted(estimate) == want, f"{name} counted {counted(estimate)} absurd values, {want} injected"
+    assert isinstance(estimate, track.estimate_type), f"{name} returned {type(estimate).__name__} on faulty frames"
+    _well_formed(track.score(dataclasses.replace(episode, frames=frames), estimate), f"{name} on faulty frames")
+    counts = _kind_counts(estimate, name)
+    rates = stream_rates(episode.calibration)
+    read_faulty = 0
+    for kind in {frame_kind(f) for f in frames}:
+        read = set(clean[kind].sensors) if kind in clean else set()
+        mine = [f for f in frames if frame_kind(f) == kind]
+        made = {fault: [f for sid in read for f in injected.get(sid, {}).get(fault, ())] for fault in STREAM_FAULTS}
+        want = {fault: len(fs) for fault, fs in made.items()}
+        # a late frame leaves a gap when the next one arrives: dropped too, where the rate is known
+        want["dropped"] = clean[kind].dropped + sum(2 * len(injected[sid]["dropped"]) for sid in read if sid in injected and sid in rates)
+        # every value of a NaN frame is NaN; an absurd LiDAR sweep has every other point absurd
+        want["nan_values"] = sum(_n_values(f) for f in made["nan"])
+        want["absurd_values"] = sum(n_absurd_points(f) if isinstance(f, LidarScan) else _n_values(f) for f in made["absurd"])
+        c = counts.get(kind, FrameCounts())
+        got = {fault: getattr(c, fault) for fault in want}
+        assert got == want, f"{name}, {kind} (reads {sorted(read)}): counted {got}, injected {want}"
+        assert c.seen == len(mine) and c.ignored == sum(f.sensor_id not in read for f in mine), f"{name}, {kind}: {c}"
+        assert c.used + c.ignored + c.repeated + c.out_of_order <= c.seen, f"{name}, {kind}: {c}"
+        read_faulty += sum(want[f] for f in ("nan", "absurd", "repeated", "out_of_order"))
+    assert read_faulty, f"{name}: no fault in a stream it reads"
 
 
 @pytest.mark.parametrize("name", PIPELINES)

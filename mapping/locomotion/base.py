@@ -21,9 +21,14 @@ Output: one :class:`ModePrediction` per processed RGB-D frame; ``finalize`` retu
 time from the frame's arrival in ``process`` to its mode. Faulty input never raises: a malformed
 frame, missing odometry, an all-invalid depth image or a numerical failure keep the state; the
 prediction carries the reason as its status (:data:`~.config.STATUSES`) and ``stats`` counts it.
-Depth pixels beyond what the camera can report (:func:`exobench.core.limits.max_depth_m`) are
-taken as invalid and counted (``n_absurd_depth_frames``, ``n_absurd_depth_pixels``); an odometry
-translation beyond :data:`~exobench.core.limits.FALLBACK_MAX_RANGE_M` counts as bad odometry.
+The input is counted on the estimate's ``counts`` (:mod:`exobench.core.counters`): frames of
+other kinds and sensors are ignored; repeated and out-of-order frames are not used; depth pixels
+beyond what the camera can report (:func:`exobench.core.limits.max_depth_m`) and NaN ones are
+taken as invalid and counted (``absurd_values``, ``nan_values``); an odometry sample that is not
+finite or whose translation is beyond :data:`~exobench.core.limits.FALLBACK_MAX_RANGE_M`, and a
+contact that is not finite or absurd (:func:`exobench.core.limits.contact_absurd`), are skipped
+and counted. A camera frame is ``used`` when it is processed (``every_k``: the others count in
+``stats["n_skipped_rate"]``).
 """
 
 from __future__ import annotations
@@ -47,8 +52,14 @@ from exobench.core import (
     RgbdFrame,
     UnknownNameError,
 )
+from exobench.core.counters import FrameCounts, StreamCounters, nan_values
 from exobench.core.errors import PipelineStateError
-from exobench.core.limits import FALLBACK_MAX_RANGE_M, absurd_depth, max_depth_m
+from exobench.core.limits import (
+    absurd_depth,
+    contact_absurd,
+    max_depth_m,
+    odometry_absurd,
+)
 from exobench.core.pipeline import check_frame
 from exobench.core.transforms import invert_T
 from exobench.perception.terrain.footprint import GaitDivider
@@ -104,7 +115,6 @@ class LocomotionPipeline(ABC):
             raise UnknownNameError("RGB-D sensor", "(first of the calibration)", [])
         self._rgbd_id = mount.sensor_id
         self._max_depth_m = max_depth_m(mount)
-        self._period_s = 1.0 / float(mount.params["rate_hz"]) if mount.params.get("rate_hz") else None
         self._odom_id = c.odometry_sensor_id or odometry_of(calibration, mount.sensor_id)
         self._cam_latency_s = mount_latency_s(mount.params)
         self._contact_latency_s = {m.sensor_id: mount_latency_s(m.params) for m in calibration.mounts_of_kind("contact")}
@@ -145,16 +155,14 @@ class LocomotionPipeline(ABC):
         self._plane_set = PlaneSet(c.planes)
         self._description: TerrainDescription | None = None
         self._odom: list[tuple[float, np.ndarray, np.ndarray]] = []  # the last ODOM_HISTORY_S of samples
-        self._last_stamp: dict[str, float] = {}
-        self._last_rgbd_s: float | None = None
+        self._counters = StreamCounters.of(calibration)
         self._n_rgbd = 0
         self._predictions: list[ModePrediction] = []
         self._stats: dict[str, Any] = {k: 0 for k in (
-            "n_frames", "n_rgbd_frames", "n_processed", "n_skipped_rate", "n_dropped_frames", "n_out_of_order",
-            "n_bad_frame", "n_no_depth", "n_no_odometry", "n_no_planes", "n_errors", "n_bad_odometry",
-            "n_odometry", "n_contact", "n_heel_strikes", "n_strikes_without_odometry", "n_direction_from_positions",
-            "n_current_remembered", "n_initial_contacts", "n_ignored", "n_height_from_odometry", "n_height_from_prior", "n_drop_ahead", "n_ramp_ahead", "n_onto_tread", "n_past_crease",
-            "n_standing_starts", "n_steps_after_start", "n_absurd_depth_frames", "n_absurd_depth_pixels")}
+            "n_skipped_rate", "n_bad_frame", "n_no_depth", "n_no_odometry", "n_no_planes", "n_errors",
+            "n_heel_strikes", "n_strikes_without_odometry", "n_direction_from_positions",
+            "n_current_remembered", "n_initial_contacts", "n_height_from_odometry", "n_height_from_prior", "n_drop_ahead", "n_ramp_ahead", "n_onto_tread", "n_past_crease",
+            "n_standing_starts", "n_steps_after_start")}
         self._stats.update(rgbd_sensor_id=self._rgbd_id, odometry_sensor_id=self._odom_id,
                            odometry_mount=self._odom_mount, errors=[], camera_ahead_m=self._camera_ahead_m, tracked_point=self._tracked,
                            camera_ahead_known=ahead is not None, lookup_m=self._lookup_m)
@@ -165,15 +173,18 @@ class LocomotionPipeline(ABC):
     def process(self, frame: Frame) -> ModePrediction | None:
         t0 = time.perf_counter()
         check_frame(self, frame, self._ready)
-        self._stats["n_frames"] += 1
         if isinstance(frame, OdometrySample):
-            self._on_odometry(frame)
+            c = self._counters.admit(frame, self._odom_id == "*" or frame.sensor_id == self._odom_id)
+            if c is not None:
+                self._on_odometry(frame, c)
         elif isinstance(frame, ContactSample):
-            self._on_contact(frame)
-        elif isinstance(frame, RgbdFrame) and frame.sensor_id == self._rgbd_id:
-            return self._on_rgbd(frame, t0)
+            c = self._counters.admit(frame, frame.sensor_id in self._heels)
+            if c is not None:
+                self._on_contact(frame, c)
         else:
-            self._stats["n_ignored"] += 1
+            c = self._counters.admit(frame, isinstance(frame, RgbdFrame) and frame.sensor_id == self._rgbd_id)
+            if c is not None:
+                return self._on_rgbd(frame, c, t0)
         return None
 
     def finalize(self) -> LocomotionEstimate:
@@ -192,7 +203,7 @@ class LocomotionPipeline(ABC):
         stats["n_planes"] = len(planes)
         stats["n_contact_chatter"] = self._divider.n_chatter
         stats["status_counts"] = {s: sum(p.status == s for p in self._predictions) for s in STATUSES}
-        return LocomotionEstimate(tuple(self._predictions), tuple(planes), stats)
+        return LocomotionEstimate(tuple(self._predictions), tuple(planes), stats, self._counters.snapshot())
 
     # --- subclass hooks ---
     @abstractmethod
@@ -204,27 +215,16 @@ class LocomotionPipeline(ABC):
         """Update the plane set from one valid depth frame; returns the number of planes detected."""
 
     # --- frames ---
-    def _in_order(self, frame: Frame) -> bool:
-        stamp = float(frame.stamp_s)
-        last = self._last_stamp.get(frame.sensor_id)
-        if not math.isfinite(stamp) or (last is not None and stamp < last):
-            self._stats["n_out_of_order"] += 1
-            return False
-        self._last_stamp[frame.sensor_id] = stamp
-        return True
-
-    def _on_odometry(self, frame: OdometrySample) -> None:
-        if self._odom_id != "*" and frame.sensor_id != self._odom_id:
-            self._stats["n_ignored"] += 1
-            return
-        if not self._in_order(frame):
-            return
+    def _on_odometry(self, frame: OdometrySample, c: FrameCounts) -> None:
         T = _finite_array(frame.T_odom_body, (4, 4))
         v = _finite_array(frame.v_odom_m_s, (3,))
-        if T is None or v is None or not np.all(np.abs(T[:3, 3]) <= FALLBACK_MAX_RANGE_M):
-            self._stats["n_bad_odometry"] += 1
+        if T is None or v is None or odometry_absurd(frame):
+            if nan_values(frame):
+                c.add_nan()
+            else:  # a malformed pose counts with the absurd ones
+                c.add_absurd()
             return
-        self._stats["n_odometry"] += 1
+        c.used += 1
         stamp = float(frame.stamp_s)
         self._odom.append((stamp, T.copy(), v.copy()))
         if self._odom[0][0] < stamp - ODOM_HISTORY_S:
@@ -243,14 +243,15 @@ class LocomotionPipeline(ABC):
             return None
         return self._odom[j][1], self._odom[j][2], t_s - stamps[j]
 
-    def _on_contact(self, frame: ContactSample) -> None:
-        side = self._heels.get(frame.sensor_id)
-        if side is None:
-            self._stats["n_ignored"] += 1
+    def _on_contact(self, frame: ContactSample, c: FrameCounts) -> None:
+        side = self._heels[frame.sensor_id]
+        if nan_values(frame):
+            c.add_nan()
             return
-        if not self._in_order(frame):
+        if contact_absurd(frame):
+            c.add_absurd()
             return
-        self._stats["n_contact"] += 1
+        c.used += 1
         odo = self._odometry_at(float(frame.stamp_s) - self._contact_latency_s.get(frame.sensor_id, 0.0))
         nan3 = np.full(3, np.nan)
         # the position at the strike instant: the nearest sample moved on at its velocity
@@ -279,26 +280,17 @@ class LocomotionPipeline(ABC):
         except (TypeError, ValueError):
             return 0
 
-    def _on_rgbd(self, frame: RgbdFrame, t0: float) -> ModePrediction | None:
+    def _on_rgbd(self, frame: RgbdFrame, counts: FrameCounts, t0: float) -> ModePrediction | None:
         st, c = self._stats, self.config
-        st["n_rgbd_frames"] += 1
-        if not self._in_order(frame):
-            return None
         n_absurd = self._absurd_pixels(frame.depth_m)
-        if n_absurd:
-            st["n_absurd_depth_frames"] += 1
-            st["n_absurd_depth_pixels"] += n_absurd
+        counts.add_absurd(n_absurd)
+        counts.add_nan(nan_values(frame))
         stamp = float(frame.stamp_s)
-        if self._last_rgbd_s is not None and self._period_s:
-            gap = round((stamp - self._last_rgbd_s) / self._period_s)
-            if stamp - self._last_rgbd_s > 1.5 * self._period_s:
-                st["n_dropped_frames"] += max(1, int(gap) - 1)
-        self._last_rgbd_s = stamp
         self._n_rgbd += 1
         if (self._n_rgbd - 1) % self.config.every_k:
             st["n_skipped_rate"] += 1
             return None
-        st["n_processed"] += 1
+        counts.used += 1
 
         status = "ok"
         depth = np.asarray(frame.depth_m) if frame.depth_m is not None else np.zeros(0)

@@ -26,7 +26,10 @@ Details:
   fed every frame; the mask of a scan is the one its ``process`` returns.
   :func:`run_kiss_icp` takes precomputed keep masks instead.
 - Points at a distance the LiDAR cannot report (:class:`exobench.core.limits.RangeLimits`) are
-  dropped as NaN ones and counted (``stats["n_absurd_points"]``).
+  dropped as NaN ones. The input is counted on ``TrajectoryEstimate.counts``
+  (:mod:`exobench.core.counters`): scans of another LiDAR are ignored, a repeated or
+  out-of-order scan is not registered (no pose); frames of other kinds are ignored, or, with a
+  filter stage, counted as the stage counts them.
 - Faults never raise: a scan with fewer than ``min_points`` usable points (empty, all NaN, or
   all removed by the filter) keeps the last pose with status ``"empty_scan"``; a registration
   that raises or returns a non-finite pose keeps the last pose with status ``"failed"`` (and the
@@ -46,6 +49,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
+from exobench.core.counters import StreamCounters, nan_values
 from exobench.core.errors import ConfigError, check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
@@ -223,11 +227,11 @@ class KissIcpPipeline:
         self._filter: Any = None
         self._lidar: str = self.config.lidar_id
         self._limits: dict[str, RangeLimits] | None = None  # None until reset
-        self._n_absurd = 0
+        self._counters = StreamCounters()
 
     def reset(self, calibration: Calibration) -> None:
         self._limits = {m.sensor_id: RangeLimits.of_mount(m) for m in calibration.mounts_of_kind("lidar")}
-        self._n_absurd = 0
+        self._counters = StreamCounters.of(calibration)
         self._odo = KissOdometry(self.config)
         self._lidar = self.config.lidar_id
         self._filter = None
@@ -242,19 +246,24 @@ class KissIcpPipeline:
 
     def process(self, frame: Frame) -> TrajectoryEstimate | None:
         check_frame(self, frame, self._limits is not None)
-        if self._filter is not None and not isinstance(frame, LidarScan):
-            self._filter.process(frame)
         if not isinstance(frame, LidarScan):
+            if self._filter is not None:  # the stage reads (and counts) the frames of other kinds
+                self._filter.process(frame)
+            else:
+                self._counters.admit(frame, consumed=False)
             return None
         if not self._lidar:
             self._lidar = frame.sensor_id
-        if frame.sensor_id != self._lidar:
+        c = self._counters.admit(frame, consumed=frame.sensor_id == self._lidar)
+        if c is None:
             return None
+        c.add_nan(nan_values(frame))
+        c.used += 1
         keep = None
         t0 = time.perf_counter()
         pts, n_absurd = scrub_points(frame.points_xyz, self._limits.get(frame.sensor_id) or RangeLimits())
         if n_absurd:
-            self._n_absurd += n_absurd
+            c.add_absurd(n_absurd)
             frame = dataclasses.replace(frame, points_xyz=pts)
         if self._filter is not None:
             online = self._filter.process(frame)  # the FilterEstimate of this scan alone
@@ -265,8 +274,11 @@ class KissIcpPipeline:
         return None
 
     def finalize(self) -> TrajectoryEstimate:
-        extra: dict[str, Any] = {"filter": self.config.filter.kind, "n_absurd_points": self._n_absurd}
+        extra: dict[str, Any] = {"filter": self.config.filter.kind}
+        counts = self._counters.snapshot()
         if self._filter is not None:
-            f = self._filter.finalize().stats
-            extra["filter_stats"] = {k: v for k, v in f.items() if isinstance(v, (int, float, str))}
-        return self._odo.estimate(extra)
+            stage = self._filter.finalize()
+            extra["filter_stats"] = {k: v for k, v in stage.stats.items() if isinstance(v, (int, float, str))}
+            # the stage saw every frame of the other kinds; the LiDAR is counted here
+            counts = {**{k: v for k, v in stage.counts.items() if k != "lidar"}, **counts}
+        return dataclasses.replace(self._odo.estimate(extra), counts=counts)

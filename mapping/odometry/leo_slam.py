@@ -25,10 +25,13 @@ One loop of Algorithm 2 per LiDAR sweep (:meth:`LeoSlamPipeline.process`):
    relative to their node) and the map follow the optimised nodes.
 
 Points at a distance the LiDAR cannot report (:class:`exobench.core.limits.RangeLimits`) are
-dropped as NaN ones and counted (``stats["n_absurd_points"]``). Faults never raise: an empty sweep, too few points or NaN points, or failed alignments keep the
+dropped as NaN ones. The input is counted on ``TrajectoryEstimate.counts``
+(:mod:`exobench.core.counters`): frames of other kinds and sweeps of another LiDAR are ignored;
+a repeated or out-of-order sweep (by ``sweep_start_s``) is not processed and has no pose. Faults
+never raise: an empty sweep, too few points or NaN points, or failed alignments keep the
 constant-velocity motion and are reported in ``status`` (``"ok"``, ``"s2s_only"`` when the
 scan-to-submaps alignment failed, ``"lost"`` when both failed, ``"empty_scan"``,
-``"too_few_points"``, ``"out_of_order"``) and in ``stats``. Poses are given at ``sweep_start_s``;
+``"too_few_points"``) and in ``stats``. Poses are given at ``sweep_start_s``;
 the first is the identity. Open3D runs single-threaded inside :meth:`process` (deterministic).
 
 Not in this implementation: the ground-aware intensity filter of the map branch (section 4.2.2,
@@ -46,6 +49,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from exobench.core.calibration import Calibration
+from exobench.core.counters import StreamCounters, nan_values
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
 from exobench.core.limits import RangeLimits, scrub_points
@@ -100,12 +104,12 @@ class LeoSlamPipeline:
         self._sensor_id = cfg.sensor_id
         lidars = calibration.mounts_of_kind("lidar") if calibration is not None else ()
         self._limits = {m.sensor_id: RangeLimits.of_mount(m) for m in lidars}
+        self._counters = StreamCounters.of(calibration)
         self._stamps: list[float] = []
         self._times: list[float] = []
         self._status: list[str] = []
         self._T_map_scan: list[np.ndarray] = []  # tracking pose of each scan at mid-sweep (map frame)
         self._T_mid_start: list[np.ndarray] = []  # sweep-start pose in the mid-sweep frame
-        self._last_start: float | None = None
         self._scan_node: list[int] = []  # node the scan belongs to (-1: open submap)
         self._T_node_scan: dict[int, np.ndarray] = {}
         self._nodes: list[Node] = []
@@ -124,25 +128,25 @@ class LeoSlamPipeline:
         # sweeps before the first velocity estimate, replayed deskewed once it is known
         self._first_scans: list[LidarScan] | None = [] if cfg.deskew else None
         self._stats: dict[str, Any] = {
-            "n_scans": 0, "n_empty": 0, "n_too_few_points": 0, "n_with_nan": 0, "n_out_of_order": 0,
+            "n_scans": 0, "n_empty": 0, "n_too_few_points": 0,
             "n_s2s_failed": 0, "n_s2map_failed": 0, "n_lost": 0, "n_S2S_failed": 0,
-            "n_loop_candidates": 0, "n_loop_rejected": 0, "n_ignored_frames": 0, "n_absurd_points": 0,
+            "n_loop_candidates": 0, "n_loop_rejected": 0,
         }
 
     def process(self, frame: Frame) -> None:
         """Consume one frame; LiDAR sweeps are processed, everything else is ignored."""
         check_frame(self, frame, self._was_reset)
-        if not isinstance(frame, LidarScan):
-            return None
-        if self._sensor_id == "":
+        if isinstance(frame, LidarScan) and self._sensor_id == "":
             self._sensor_id = frame.sensor_id
-        if frame.sensor_id != self._sensor_id:
-            self._stats["n_ignored_frames"] += 1
+        c = self._counters.admit(frame, consumed=isinstance(frame, LidarScan) and frame.sensor_id == self._sensor_id)
+        if c is None:
             return None
+        c.add_nan(nan_values(frame))
+        c.used += 1
         t0 = time.perf_counter()
         pts, n_absurd = scrub_points(frame.points_xyz, self._limits.get(frame.sensor_id) or RangeLimits())
         if n_absurd:
-            self._stats["n_absurd_points"] += n_absurd
+            c.add_absurd(n_absurd)
             frame = replace(frame, points_xyz=pts)
         n_before = len(self._stamps)
         try:
@@ -179,7 +183,7 @@ class LeoSlamPipeline:
         return TrajectoryEstimate(
             stamps_s=np.asarray(self._stamps, dtype=float), T_world_sensor=poses,
             time_per_scan_s=np.asarray(self._times, dtype=float), loop_edges=tuple(self._loop_edges),
-            status=tuple(self._status), stats=stats, map_points=map_points)
+            status=tuple(self._status), stats=stats, map_points=map_points, counts=self._counters.snapshot())
 
     # ------------------------------------------------------------------------------ one scan
 
@@ -204,9 +208,9 @@ class LeoSlamPipeline:
             return status
         frames, twist = self._first_scans, self._twist.copy()
         statuses, times, sensor_id = self._status, self._times, self._sensor_id
-        limits, n_absurd = self._limits, self._stats["n_absurd_points"]
+        limits, counters = self._limits, self._counters
         self.reset(None)
-        self._limits, self._stats["n_absurd_points"] = limits, n_absurd
+        self._limits, self._counters = limits, counters
         self._first_scans = None
         self._sensor_id, self._twist, self._times = sensor_id, twist, times
         replayed = [self._process_scan(f) for f in frames]
@@ -220,8 +224,6 @@ class LeoSlamPipeline:
         corrections move it with its node."""
         index = len(self._stamps)
         self._stamps.append(stamp_s)
-        if math.isfinite(stamp_s) and (self._last_start is None or stamp_s > self._last_start):
-            self._last_start = stamp_s
         self._T_map_scan.append(T_map)
         self._T_mid_start.append(np.eye(4) if T_mid_start is None else T_mid_start)
         self._scan_node.append(-1)
@@ -235,15 +237,6 @@ class LeoSlamPipeline:
         stamp = float(scan.sweep_start_s)
         pts = np.asarray(scan.points_xyz, dtype=float).reshape(-1, 3)
         valid = clean_points(pts)
-        if len(pts) and not np.all(np.isfinite(pts)):
-            self._stats["n_with_nan"] += 1
-        if not math.isfinite(stamp) or (self._last_start is not None and not stamp > self._last_start):
-            self._stats["n_out_of_order"] += 1
-            if self._T_map_scan:
-                self._record(stamp, self._T_map_scan[-1].copy(), self._T_mid_start[-1].copy())
-            else:
-                self._record(stamp, np.eye(4))
-            return "out_of_order"
         T_pred = self._predict(stamp)
         if int(valid.sum()) == 0 or int(valid.sum()) < cfg.min_points:
             key = "n_empty" if int(valid.sum()) == 0 else "n_too_few_points"

@@ -51,7 +51,6 @@ class FootprintKinematics:
         self._kin["l"].T_base_sensor(sensor_id)  # unknown mount: UnknownNameError now, not per scan
         self._contact: dict[str, bool] = {}  # pad sensor id -> in contact
         self._joint_limits = JointLimits(calibration)
-        self.n_bad_state = 0  # encoder or IMU states skipped: not finite or absurd (core.limits)
         self.stance_side: str | None = None
 
     @property
@@ -61,14 +60,12 @@ class FootprintKinematics:
     def update(self, frame: Frame) -> None:
         """Take an encoder state, an IMU orientation of the trunk IMU or an insole contact."""
         if isinstance(frame, JointState):
-            if self._joint_limits.absurd(frame):
-                self.n_bad_state += 1
+            if self._joint_limits.absurd(frame):  # not finite or absurd (core.limits): the state is kept
                 return
             for k in self._kin.values():
                 k.update_joints(frame)
         elif isinstance(frame, ImuSample) and frame.sensor_id == self.imu_sensor_id:
             if imu_absurd(frame):
-                self.n_bad_state += 1
                 return
             for k in self._kin.values():
                 k.update_imu(frame)

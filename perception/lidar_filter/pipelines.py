@@ -27,20 +27,22 @@ exoskeleton's kinematics and trunk tilt, not assumed level (:class:`FootprintKin
   same kinematics.
 
 The state used for a scan is the latest received before the scan (scans are stamped at the end
-of the sweep). Faults never raise; they are counted in ``FilterEstimate.stats``:
+of the sweep). The input is counted on ``FilterEstimate.counts`` (:mod:`exobench.core.counters`:
+scans of another LiDAR and, for the filters without a footprint, every other frame are
+ignored; a repeated or out-of-order scan gets no mask; an encoder state, IMU sample or contact
+that is not finite or absurd is skipped, the previous state kept). Faults never raise; the
+filter's own are counted in ``FilterEstimate.stats``:
 
 - an empty scan gets an empty mask (``empty_scans``);
 - before both an encoder state and an IMU orientation have arrived, or when the transform is not
   finite, the ground-aware filters fall back to the plain band of eq. (4.15) for that scan
   (``no_kinematics``) -- the conservative choice: nothing outside the band is kept;
 - non-finite points are dropped by the filters (``DROPPED_INVALID``; ``invalid_points``); those
-  the scan itself holds as NaN are counted apart (``n_nan_points``) and scored neither kept nor
-  removed;
+  the scan itself holds as NaN are counted apart (``counts["lidar"].nan_values``) and scored
+  neither kept nor removed;
 - absurd points (a distance from the sensor outside the mount's range limits, the origin
   included: :class:`exobench.core.limits.RangeLimits`) are dropped as non-finite ones
-  (``n_absurd_points``);
-- encoder states and IMU samples that are not finite or absurd (:mod:`exobench.core.limits`)
-  are skipped, the previous state kept (``n_bad_state``);
+  (``counts["lidar"].absurd_values``);
 - the normal filter counts the scans whose normals came from the range image
   (``normals_range_image_scans``) and from the knn fallback (``normals_knn_scans``);
 - the naive and floor filters count the scans whose ground test used the scan's own floor plane
@@ -58,10 +60,11 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
+from exobench.core.counters import FrameCounts, StreamCounters, nan_values
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import FilterEstimate
 from exobench.core.frames import ContactSample, Frame, ImuSample, JointState, LidarScan
-from exobench.core.limits import RangeLimits, scrub_points
+from exobench.core.limits import JointLimits, RangeLimits, contact_absurd, imu_absurd, scrub_points
 from exobench.core.pipeline import check_frame
 
 from .config import (
@@ -129,15 +132,18 @@ class _FilterPipeline:
         self._status: list[str] = []
         self._stance: list[str] = []
         self._stats = {"scans": 0, "empty_scans": 0, "no_kinematics": 0, "all_removed": 0, "invalid_points": 0,
-                       "points": 0, "kept_points": 0, "kept_ground_rescued": 0, "malformed_scans": 0,
-                       "n_nan_points": 0, "n_absurd_points": 0}  # fmt: skip
+                       "points": 0, "kept_points": 0, "kept_ground_rescued": 0, "malformed_scans": 0}  # fmt: skip
         self._limits: dict[str, RangeLimits] = {}
+        self._counters = StreamCounters()
+        self._joint_limits = JointLimits(None)
 
     def reset(self, calibration: Calibration) -> None:
         self._calibration = calibration
         self._kin = {}
         self._reset_state()
         self._limits = {m.sensor_id: RangeLimits.of_mount(m) for m in calibration.mounts_of_kind("lidar")}
+        self._counters = StreamCounters.of(calibration)
+        self._joint_limits = JointLimits(calibration)
         if not self.uses_footprint:
             return
         ids = [self.config.lidar_id] if self.config.lidar_id else [m.sensor_id for m in calibration.mounts_of_kind("lidar")]
@@ -150,17 +156,43 @@ class _FilterPipeline:
     def process(self, frame: Frame) -> FilterEstimate | None:
         check_frame(self, frame, self._calibration is not None)
         if isinstance(frame, LidarScan):
-            if self.config.lidar_id and frame.sensor_id != self.config.lidar_id:
+            c = self._counters.admit(frame, not self.config.lidar_id or frame.sensor_id == self.config.lidar_id)
+            if c is None:
                 return None
-            self._scan(frame)
+            self._scan(frame, c)
             return FilterEstimate(stamps_s=np.array(self._stamps[-1:], dtype=float), keep=(self._keep[-1],),
                                   time_per_scan_s=np.array(self._times[-1:], dtype=float))  # fmt: skip
-        elif self.uses_footprint and isinstance(frame, (JointState, ImuSample, ContactSample)):
-            for kin in self._kin.values():
-                kin.update(frame)
+        elif self.uses_footprint and self._reads_state(frame):
+            c = self._counters.admit(frame)
+            if c is not None and self._valid_state(c, frame):
+                for kin in self._kin.values():
+                    kin.update(frame)
+        else:
+            self._counters.admit(frame, consumed=False)
         return None
 
-    def _scan(self, scan: LidarScan) -> None:
+    def _reads_state(self, frame: Frame) -> bool:
+        """Whether the footprint kinematics read this frame (encoders, the trunk IMU, the pads)."""
+        return isinstance(frame, (JointState, ContactSample)) or (isinstance(frame, ImuSample) and frame.sensor_id == self.config.imu_id)
+
+    def _valid_state(self, c: FrameCounts, frame: Frame) -> bool:
+        """Count and refuse a state that is not finite or absurd (:mod:`exobench.core.limits`)."""
+        if isinstance(frame, JointState):
+            bad = self._joint_limits.absurd(frame)  # non-finite angles included
+        elif isinstance(frame, ImuSample):
+            bad = imu_absurd(frame)  # non-finite values included
+        else:
+            bad = contact_absurd(frame) or nan_values(frame) > 0
+        if bad:
+            if nan_values(frame):
+                c.add_nan()
+            else:
+                c.add_absurd()
+            return False
+        c.used += 1
+        return True
+
+    def _scan(self, scan: LidarScan, c: FrameCounts) -> None:
         t0 = time.perf_counter()
         T: np.ndarray | None = None
         stance = ""
@@ -201,8 +233,9 @@ class _FilterPipeline:
         if self.uses_footprint and T is None and len(pts):
             st["no_kinematics"] += 1
         st["malformed_scans"] += int(status == "malformed")
-        st["n_nan_points"] += n_nan
-        st["n_absurd_points"] += n_absurd
+        c.add_nan(n_nan)
+        c.add_absurd(n_absurd)
+        c.used += 1
         self._stamps.append(float(scan.stamp_s))
         self._keep.append(np.asarray(res_keep, dtype=bool))
         self._times.append(dt)
@@ -215,7 +248,6 @@ class _FilterPipeline:
         stats["filter"] = self.filter.name
         stats["status"] = list(self._status)
         if self.uses_footprint:
-            stats["n_bad_state"] = sum(k.n_bad_state for k in self._kin.values())
             stats["T_footprint_sensor"] = np.array(self._T).reshape(-1, 4, 4)
             stats["stance_side"] = list(self._stance)
         return FilterEstimate(
@@ -223,6 +255,7 @@ class _FilterPipeline:
             keep=tuple(self._keep),
             time_per_scan_s=np.array(self._times, dtype=float),
             stats=stats,
+            counts=self._counters.snapshot(),
         )
 
 

@@ -40,7 +40,13 @@ GSC cells are computed by :class:`~.component_gsc.ComponentGaussianScanContext` 
 and variance that eq. 4.28 reads; ``component_cells=False``: the full 4 x 4 covariance of the
 reference module, same cells).
 
-Faulty input never raises: non-finite points (coordinates or intensity) are dropped (counted); a
+The input is counted on the estimate's ``counts`` (:mod:`exobench.core.counters`): frames of
+other kinds, of another LiDAR or of another IMU are ignored; a repeated or out-of-order scan or
+IMU sample is not used (a scan so skipped does not advance the keyframe count); an IMU sample
+that is not finite or absurd (:func:`exobench.core.limits.imu_absurd`) is skipped; NaN and
+absurd points of a scan are counted and dropped.
+
+Faulty input never raises: non-finite points (coordinates or intensity) are dropped; a
 scan whose intensity array does not match its points keeps its geometry with zero intensity
 (``stats["bad_intensity_scans"]``; the intensity descriptor of it is then invalid); an empty scan, a scan with
 fewer than ``min_points`` points, or a degenerate one occupying fewer than
@@ -62,6 +68,7 @@ from typing import ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
+from exobench.core.counters import StreamCounters, nan_values
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import PlaceRecognitionEstimate
 from exobench.core.frames import Frame, ImuSample, LidarScan
@@ -118,8 +125,7 @@ class PlaceRecognitionPipeline(ABC):
         self._scan_index: list[int] = []
         self._desc_status: Counter[str] = Counter()
         self._match_status: Counter[str] = Counter()
-        self._n_nonfinite = 0
-        self._n_absurd = 0
+        self._counters = StreamCounters()
         self._limits = RangeLimits()
         self._no_imu = 0
         self._bad_intensity = 0
@@ -133,6 +139,7 @@ class PlaceRecognitionPipeline(ABC):
         """Forget all state; find the LiDAR and IMU mounts."""
         self._reset_state()
         self._was_reset = True
+        self._counters = StreamCounters.of(calibration)
         lidars = calibration.mounts_of_kind("lidar")
         lidar = None
         if self.config.lidar_id:
@@ -157,23 +164,33 @@ class PlaceRecognitionPipeline(ABC):
         """IMU samples are buffered; every keyframe scan is described and queried."""
         check_frame(self, frame, self._was_reset)
         if isinstance(frame, ImuSample):
-            if not self._imu_id or frame.sensor_id == self._imu_id:
+            c = self._counters.admit(frame, not self._imu_id or frame.sensor_id == self._imu_id)
+            if c is not None:
                 q = np.asarray(frame.quat_wxyz, dtype=float)
                 if q.shape == (4,) and not imu_absurd(frame):
+                    c.used += 1
                     self._imu_t.append(float(frame.stamp_s))
                     self._imu_R.append(quat_wxyz_to_matrix(q / np.linalg.norm(q)))
+                elif nan_values(frame):
+                    c.add_nan()
+                else:
+                    c.add_absurd()
             return None
-        if not isinstance(frame, LidarScan) or (self._lidar_id and frame.sensor_id != self._lidar_id):
+        lidar = isinstance(frame, LidarScan) and not (self._lidar_id and frame.sensor_id != self._lidar_id)
+        c = self._counters.admit(frame, lidar)
+        if c is None:
             return None
+        c.used += 1
         t0 = time.perf_counter()
-        pts, n_absurd = scrub_points(np.asarray(frame.points_xyz, dtype=float).reshape(-1, 3), self._limits)
-        self._n_absurd += n_absurd
+        pts = np.asarray(frame.points_xyz, dtype=float).reshape(-1, 3)
+        c.add_nan(int(np.count_nonzero(~np.all(np.isfinite(pts), axis=1))))
+        pts, n_absurd = scrub_points(pts, self._limits)
+        c.add_absurd(n_absurd)
         inten = np.asarray(frame.intensity, dtype=float).reshape(-1)
         if len(inten) != len(pts):  # a broken intensity channel: the geometry is still usable
             self._bad_intensity += 1
             inten = np.zeros(len(pts))
         ok = np.all(np.isfinite(pts), axis=1) & np.isfinite(inten)
-        self._n_nonfinite += int(np.count_nonzero(~ok))
         T = np.eye(4)
         T[:3, :3] = self._orientation(float(frame.sweep_start_s) + 0.5 * self._sweep_s)
         self._scans.append((pts[ok], inten[ok], T))
@@ -239,8 +256,6 @@ class PlaceRecognitionPipeline(ABC):
             "invalid_keyframes": sum(v for k, v in self._desc_status.items() if k != "ok"),
             "descriptor_status": dict(self._desc_status),
             "match_status": dict(self._match_status),
-            "nonfinite_points": self._n_nonfinite - self._n_absurd,
-            "absurd_points": self._n_absurd,
             "no_imu": self._no_imu,
             "bad_intensity_scans": self._bad_intensity,
             "ceiling_found": int(len(cuts)),
@@ -253,6 +268,7 @@ class PlaceRecognitionPipeline(ABC):
             yaw_rad=np.array(self._yaw, dtype=float),
             time_per_keyframe_s=np.array(self._time, dtype=float),
             stats=stats,
+            counts=self._counters.snapshot(),
         )
 
 

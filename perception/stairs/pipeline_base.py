@@ -3,17 +3,15 @@
 Every pipeline follows :class:`exobench.core.pipeline.Pipeline`. It consumes the encoder
 states, the trunk IMU and the two calf ToF sensors of the climbing leg, turns each valid range
 into a point of the ``stance_ground`` frame with :class:`TofKinematics` and estimates the
-surfaces S0..S4. Frames of other sensors are ignored. Faulty input never raises; it is counted
-in ``stats`` (:class:`exobench.core.frames.StreamStats` plus extras):
-
-- ``n_no_return``: ToF status not VALID; ``n_nan``: VALID status but a non-finite range;
-  ``n_bad_range``: a finite range the sensor cannot report (not positive, or outside the
-  mount's limits: :class:`exobench.core.limits.RangeLimits`); ``n_without_state``: no encoder or
-  IMU state yet; ``n_bad_state``: an encoder state with non-finite angles or angles beyond the
-  URDF limits, or an IMU sample that is not finite or absurd (:func:`exobench.core.limits.imu_absurd`;
-  the frame is ignored, the previous state kept);
-  ``n_out_of_order``: a frame older than the previous one of the same sensor (skipped; a stale
-  encoder or IMU state never replaces a newer one); ``n_ignored``: frames of other sensors.
+surfaces S0..S4. Faulty input never raises; it is counted on the estimate's ``counts``
+(:mod:`exobench.core.counters`: frames of other sensors are ignored; repeated and out-of-order
+frames are not used, so a stale encoder or IMU state never replaces a newer one; ``nan``: a
+VALID ToF status with a non-finite range, an encoder state or IMU sample with a non-finite
+value; ``absurd``: a finite range the sensor cannot report (not positive, or outside the mount's
+limits: :class:`exobench.core.limits.RangeLimits`), encoder angles beyond the URDF limits, an
+IMU sample no IMU can report (:func:`exobench.core.limits.imu_absurd`); such a state is skipped,
+the previous one kept). ``stats`` adds what only these pipelines know: ``n_no_return`` (ToF
+status not VALID) and ``n_without_state`` (a reading before any encoder and IMU state).
 
 Sensor flags: the paper's "right"/"left" sensor flags are the climbing leg's two calf sensors
 by their side: for the right leg ``tof_r_lat`` is "r" and ``tof_r_med`` is "l"; for the left leg
@@ -43,9 +41,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
+from exobench.core.counters import FrameCounts, StreamCounters, nan_values
 from exobench.core.errors import ConfigError, PipelineStateError, check_int, check_range
 from exobench.core.estimates import PlaneEstimate, PointAssignment, StaircaseEstimate
-from exobench.core.frames import Frame, ImuSample, JointState, StreamStats, ToFReading, TofStatus
+from exobench.core.frames import Frame, ImuSample, JointState, ToFReading, TofStatus
 from exobench.core.limits import JointLimits, RangeLimits, imu_absurd
 from exobench.core.pipeline import check_frame
 from exobench.perception.kinematics.tof_kinematics import ESTIMATOR_FRAME, TofKinematics
@@ -94,8 +93,8 @@ class StairsPipeline(ABC):
         self._sensor_of_flag = {f: s for s, f in self._flags.items()}
         self._config_dict = asdict(cfg)
         self._kin = TofKinematics(calibration, stance_side=cfg.stance_side, imu_sensor_id=cfg.imu_sensor_id)
-        self._stats = StreamStats(extra={"n_ignored": 0, "n_bad_range": 0, "n_bad_state": 0, "n_used": 0})
-        self._last_stamp: dict[str, float] = {}
+        self._counters = StreamCounters.of(calibration)
+        self._stats = {"n_no_return": 0, "n_without_state": 0}
         self._readings: list[tuple[float, str, tuple[float, float, float] | None, int]] = []  # stamp, sensor, point, uid
         self._uid_stamp: list[float] = []
         self._times_ns: list[float] = []  # ns per used point
@@ -103,18 +102,18 @@ class StairsPipeline(ABC):
 
     def process(self, frame: Frame) -> StaircaseEstimate | None:
         check_frame(self, frame, self._kin is not None)
-        st = self._stats
-        st.n_frames += 1
         if isinstance(frame, ToFReading):
             self._tof(frame)
         elif isinstance(frame, JointState):
-            if self._in_order(frame) and self._valid_joints(frame):
+            c = self._counters.admit(frame)
+            if c is not None and self._valid_state(c, frame, self._joint_limits.absurd(frame)):
                 self._kin.update_joints(frame)
         elif isinstance(frame, ImuSample) and frame.sensor_id == self.config.imu_sensor_id:
-            if self._in_order(frame) and self._valid_imu(frame):
+            c = self._counters.admit(frame)
+            if c is not None and self._valid_state(c, frame, imu_absurd(frame)):
                 self._kin.update_imu(frame)
         else:
-            st.extra["n_ignored"] += 1
+            self._counters.admit(frame, consumed=False)
         return self._online()
 
     def finalize(self) -> StaircaseEstimate:
@@ -123,66 +122,53 @@ class StairsPipeline(ABC):
         return self._finalize()
 
     # --- frames ---
-    def _in_order(self, frame: Frame) -> bool:
-        stamp = float(frame.stamp_s)
-        last = self._last_stamp.get(frame.sensor_id)
-        if not math.isfinite(stamp) or (last is not None and stamp < last):
-            self._stats.n_out_of_order += 1
+    @staticmethod
+    def _valid_state(c: FrameCounts, frame: Frame, bad: bool) -> bool:
+        """Whether an encoder or IMU state can be used (``bad``: not finite or absurd); count it."""
+        if bad:
+            if nan_values(frame):
+                c.add_nan()
+            else:
+                c.add_absurd()
             return False
-        self._last_stamp[frame.sensor_id] = stamp
+        c.used += 1
         return True
 
-    def _valid_joints(self, frame: JointState) -> bool:
-        if self._joint_limits.absurd(frame):
-            self._stats.extra["n_bad_state"] += 1
-            return False
-        return True
-
-    def _valid_imu(self, frame: ImuSample) -> bool:
-        if imu_absurd(frame):
-            self._stats.extra["n_bad_state"] += 1
-            return False
-        return True
-
-    def _usable_range(self, frame: ToFReading, r: float) -> bool:
+    def _usable_range(self, c: FrameCounts, frame: ToFReading, r: float) -> bool:
         """Whether a reading can become a point; otherwise count why not."""
-        st = self._stats
         if frame.status != TofStatus.VALID:
-            st.n_no_return += 1
+            self._stats["n_no_return"] += 1
         elif not math.isfinite(r):
-            st.n_nan += 1
+            c.add_nan()
         elif self._range_limits[frame.sensor_id].absurd(r):
-            st.extra["n_bad_range"] += 1
+            c.add_absurd()
         elif not self._kin.has_state:
-            st.n_without_state += 1
+            self._stats["n_without_state"] += 1
         else:
             return True
         return False
 
     def _tof(self, frame: ToFReading) -> None:
-        st = self._stats
         sid = frame.sensor_id
         flag = self._flags.get(sid)
-        if flag is None:
-            st.extra["n_ignored"] += 1
-            self._readings.append((frame.stamp_s, sid, None, -1))
-            return
-        try:
-            r = float(frame.range_m)
-        except (TypeError, ValueError):
-            r = float("nan")
-        if self._in_order(frame) and self._usable_range(frame, r):
-            uid = len(self._uid_stamp)
-            kin, consume, clock = self._kin, self._consume, time.perf_counter_ns
-            t0 = clock()
-            p = kin.point_xyz(sid, r)
-            consume(uid, p, flag)
-            t1 = clock()
-            self._times_ns.append(t1 - t0)
-            self._uid_stamp.append(float(frame.stamp_s))
-            self._readings.append((frame.stamp_s, sid, p, uid))
-            st.extra["n_used"] += 1
-            return
+        c = self._counters.admit(frame, consumed=flag is not None)
+        if c is not None:
+            try:
+                r = float(frame.range_m)
+            except (TypeError, ValueError):
+                r = float("nan")
+            if self._usable_range(c, frame, r):
+                uid = len(self._uid_stamp)
+                kin, consume, clock = self._kin, self._consume, time.perf_counter_ns
+                t0 = clock()
+                p = kin.point_xyz(sid, r)
+                consume(uid, p, flag)
+                t1 = clock()
+                self._times_ns.append(t1 - t0)
+                self._uid_stamp.append(float(frame.stamp_s))
+                self._readings.append((frame.stamp_s, sid, p, uid))
+                c.used += 1
+                return
         self._readings.append((frame.stamp_s, sid, None, -1))
 
     # --- estimator hooks ---
@@ -238,7 +224,7 @@ class StairsPipeline(ABC):
                 )
                 for s, sid, p, u in self._readings
             )
-        stats: dict[str, Any] = self._stats.as_dict()
+        stats: dict[str, Any] = dict(self._stats)
         stats.update(extra)
         stats["config"] = dict(self._config_dict)
         if readout is None:
@@ -251,6 +237,7 @@ class StairsPipeline(ABC):
             stats=stats,
             compute_time_s=self._compute_time_s() if surface_of_uid is not None else np.zeros(0),
             frame_id=ESTIMATOR_FRAME,
+            counts=self._counters.snapshot(),
         )
 
     def _compute_time_s(self) -> np.ndarray:

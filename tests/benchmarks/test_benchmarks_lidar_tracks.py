@@ -295,7 +295,8 @@ def test_nan_points_are_counted_not_scored_as_removed():
     pipe.reset(Calibration("<robot/>", "base", (), (), 0.1, 0.25, 0.05))
     pipe.process(LidarScan(0.1, "lidar", pts, np.full(4, 50, np.uint8), np.zeros(4, int), np.zeros(4), 0.0))
     est = pipe.finalize()
-    assert est.stats["n_nan_points"] == 2 and est.keep[0].tolist() == [False, True, True, False]
+    assert (est.counts["lidar"].nan, est.counts["lidar"].nan_values) == (1, 2)
+    assert est.keep[0].tolist() == [False, True, True, False]
 
 
 def test_glazed_loops_have_matt_floors_that_mirror_nothing_below_them():

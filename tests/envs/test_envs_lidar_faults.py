@@ -15,6 +15,7 @@ import pytest
 from scipy.stats import binom
 
 from exobench.core import ConfigError, LidarScan, ReturnKind
+from exobench.core.counters import admitted
 from exobench.envs.sensors.lidar import LidarConfig
 from exobench.envs.sensors.lidar.faults import LATE_PERIODS
 from exobench.envs.sim.scenarios.office import OfficeScenario, simulate_office
@@ -197,6 +198,10 @@ def test_every_lidar_pipeline_survives_all_faults(track):
     _aligned(episode)
     scans = _scans(episode)
     n_nan = sum(int(np.isnan(s.points_xyz).any(axis=1).sum()) for s in scans)
+    # a repeated or late sweep is counted and not used, nor scored: each instant once (core.counters)
+    use = dict(zip(map(id, episode.frames), admitted(episode.frames), strict=True))
+    n_unused = sum(not use[id(s)] for s in scans)
+    n_nan_used = sum(int(np.isnan(s.points_xyz).any(axis=1).sum()) for s in scans if use[id(s)])
     stamps, starts = np.array([s.stamp_s for s in scans]), np.array([s.sweep_start_s for s in scans])
     assert n_nan > 0 and np.any(np.diff(stamps) == 0) and np.any(np.diff(starts) < 0)  # NaN, duplicates, disorder
     assert np.any(np.abs(stamps - starts - PERIOD_S) > 1e-9)  # late sweeps
@@ -208,8 +213,9 @@ def test_every_lidar_pipeline_survives_all_faults(track):
         for k, v in m.items():
             if k.endswith("_frac") and not (isinstance(v, float) and math.isnan(v)):
                 assert 0.0 <= v <= 1.0, (name, k, v)
+        assert m["frames.lidar.repeated"] + m["frames.lidar.out_of_order"] == n_unused > 0, name
         if track == "lidar-filter":
-            assert m["n_nan"] == n_nan and not m["failed"], (name, m)
+            assert m["n_nan"] == n_nan_used and not m["failed"], (name, m)
 
 
 # ------------------------------------------------------------------ scoring and sessions

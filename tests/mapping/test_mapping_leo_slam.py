@@ -294,9 +294,12 @@ def test_faulty_scans_are_reported_and_tracking_continues(episode):
     imu = ImuSample(0.45, "imu", np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3))
     frames = [*s[:5], imu, *s[5:], s[-1]]  # an IMU sample (ignored) and a repeated sweep
     est = run(frames)
-    assert len(est.status) == n + 1 and est.T_world_sensor.shape == (n + 1, 4, 4)
-    assert est.status[n] == "out_of_order" and est.stats["n_out_of_order"] == 1
-    assert est.status[8] == "ok" and est.stats["n_with_nan"] == 2
+    # the repeated sweep is counted and not processed: no pose of its own
+    assert len(est.status) == n and est.T_world_sensor.shape == (n, 4, 4)
+    lidar = est.counts["lidar"]
+    assert (lidar.seen, lidar.repeated, lidar.used, est.counts["imu"].ignored) == (n + 1, 1, n, 1)
+    n_nan = int(np.count_nonzero(np.isnan(nan_pts[:, 0]))) + len(s[16].points_xyz)
+    assert est.status[8] == "ok" and (lidar.nan, lidar.nan_values) == (2, n_nan)
     assert est.status[12] == "empty_scan" and est.status[16] == "empty_scan" and est.stats["n_empty"] == 2
     assert est.status[20] == "too_few_points" and est.stats["n_too_few_points"] == 1
     assert est.status[24] == "lost" and est.stats["n_lost"] == 1

@@ -255,8 +255,8 @@ def check_modes(est, strikes, segs, wanted):
 def test_stairs_course_modes(stairs_walk, cls, cfg):
     segs, frames, strikes = stairs_walk
     est = run(cls(cfg), frames)
-    assert est.stats["n_processed"] == len([f for f in frames if isinstance(f, RgbdFrame)])
-    assert len(est.predictions) == est.stats["n_processed"]
+    assert est.counts["rgbd"].used == len([f for f in frames if isinstance(f, RgbdFrame)])
+    assert len(est.predictions) == est.counts["rgbd"].used
     assert all(p.mode in LOCOMOTION_MODES + ("",) for p in est.predictions)
     assert est.stats["n_heel_strikes"] == N_STEPS + 1
     check_modes(est, strikes, segs, {"LG", "SA", "SD"})
@@ -319,7 +319,7 @@ def test_faulty_frames_keep_the_state_and_are_reported(stairs_walk, cls, cfg):
             continue
         faulty.append(f)
         if isinstance(f, OdometrySample) and f.stamp_s == rgbd_t[10]:  # a corrupt pose after a good one
-            faulty.append(OdometrySample(f.stamp_s, f.sensor_id, np.full((4, 4), np.nan), f.v_odom_m_s))
+            faulty.append(OdometrySample(f.stamp_s + 1e-3, f.sensor_id, np.full((4, 4), np.nan), f.v_odom_m_s))
     est = run(cls(cfg), faulty)
     by_t = {p.stamp_s: p for p in est.predictions}
     assert len(est.predictions) == len(rgbd_t) - len(dropped)
@@ -327,8 +327,8 @@ def test_faulty_frames_keep_the_state_and_are_reported(stairs_walk, cls, cfg):
     assert by_t[nan_t].status == "no_depth" and by_t[bad_t].status == by_t[no_k_t].status == "bad_frame"
     assert by_t[rgbd_t[40]].status == by_t[rgbd_t[41]].status == "no_odometry"
     st = est.stats
-    assert (st["n_no_depth"], st["n_bad_frame"], st["n_no_odometry"], st["n_dropped_frames"]) == (4, 2, 2, 3)
-    assert st["n_bad_odometry"] == 1 and st["n_errors"] == 0
+    assert (st["n_no_depth"], st["n_bad_frame"], st["n_no_odometry"], est.counts["rgbd"].dropped) == (4, 2, 2, 3)
+    assert est.counts["odometry"].nan == 1 and st["n_errors"] == 0
     assert st["n_strikes_without_odometry"] == 0  # no heel strike fell in the gap
     # the kept state still predicts: every step decided on a good frame is right, and most overall
     steps = last_before_strike(expected(est, strikes, segs))
@@ -390,9 +390,9 @@ def test_processing_rate_and_config_errors(stairs_walk):
     short = [f for f in frames if f.stamp_s <= 3.0]
     n_rgbd = sum(isinstance(f, RgbdFrame) for f in short)
     est = run(SingleFramePipeline(SingleFramePipeline.Config(ahc=AHC, every_k=3, **GAIT)), short)
-    assert len(est.predictions) == est.stats["n_processed"] == -(-n_rgbd // 3)
-    assert est.stats["n_skipped_rate"] == n_rgbd - est.stats["n_processed"]
-    assert est.stats["n_dropped_frames"] == 0  # skipping by rate is not dropping
+    assert len(est.predictions) == est.counts["rgbd"].used == -(-n_rgbd // 3)
+    assert est.stats["n_skipped_rate"] == n_rgbd - est.counts["rgbd"].used
+    assert est.counts["rgbd"].dropped == 0  # skipping by rate is not dropping
     with pytest.raises(ConfigError):
         SingleFramePipeline.Config(every_k=0)
     with pytest.raises(ConfigError):
@@ -448,12 +448,13 @@ def test_exoskeleton_calibration():
     assert (st["rgbd_sensor_id"], st["odometry_sensor_id"], st["odometry_mount"]) == ("rgbd_head", "*", "camera")
     assert pipe.process(ContactSample(0.0, "contact_l_heel", 300.0, True)) is None
     assert pipe.process(ContactSample(0.0, "contact_l_toe", 300.0, True)) is None
-    st = pipe.finalize().stats  # standing at the start is not a heel strike
-    assert (st["n_contact"], st["n_initial_contacts"], st["n_strikes_without_odometry"], st["n_ignored"]) == (2, 1, 0, 0)
+    est = pipe.finalize()  # standing at the start is not a heel strike
+    st, contact = est.stats, est.counts["contact"]
+    assert (contact.used, st["n_initial_contacts"], st["n_strikes_without_odometry"], contact.ignored) == (2, 1, 0, 0)
     heel_only = TerrainReconstructionPipeline(replace(TerrainReconstructionPipeline.Config(), strike_pads="heel"))
     heel_only.reset(exo_calibration(ExoSpec()))
     heel_only.process(ContactSample(0.0, "contact_l_toe", 300.0, True))
-    assert heel_only.finalize().stats["n_ignored"] == 1
+    assert heel_only.finalize().counts["contact"].ignored == 1
     pipe.process(ContactSample(0.005, "contact_l_toe", 0.0, False))
     pipe.process(ContactSample(0.01, "contact_l_heel", 0.0, False))  # the whole foot off ...
     pipe.process(ContactSample(0.02, "contact_l_heel", 300.0, True))  # ... for 10 ms: chatter, not a strike
@@ -645,5 +646,5 @@ def test_insole_pads_are_known_by_their_calibration_not_their_ids():
     pipe.process(ContactSample(0.0, "insole_a", 300.0, True))
     pipe.process(ContactSample(0.0, "insole_b", 300.0, True))
     pipe.process(ContactSample(0.0, "contact_l_heel", 300.0, True))  # not a pad of this calibration
-    st = pipe.finalize().stats
-    assert (st["n_contact"], st["n_ignored"]) == (2, 1)
+    contact = pipe.finalize().counts["contact"]
+    assert (contact.used, contact.ignored) == (2, 1)

@@ -118,7 +118,7 @@ def test_pipeline_reconstructs_the_first_step(cls, yaw_deg):
     assert np.all(got[truth == -1] == -2)
     used = got >= 0
     assert used.mean() > 0.25 and (got[used] == truth[used]).mean() > 0.9
-    assert len(est.compute_time_s) == est.stats["n_used"] == int(np.sum(truth >= 0))
+    assert len(est.compute_time_s) == est.counts["tof"].used == int(np.sum(truth >= 0))
     assert np.all(est.compute_time_s > 0)
     tof_stamps = {a.stamp_s for a in est.assignments}
     assert S2.reliable_stamp_s in tof_stamps
@@ -173,19 +173,20 @@ def test_faulty_input_is_counted_not_fatal(cls):
     bad.append(ImuSample(t_end, "imu_trunk", np.zeros(4), np.zeros(3), np.zeros(3)))
     bad.append(ToFReading(t_end + 0.001, "tof_r_lat", 0.4))
     est, _ = _run(cls(), bad)
-    st = est.stats
-    assert st["n_bad_state"] == 2 and est.assignments[-1].surface_index != -2
+    st, counts = est.stats, est.counts
+    assert (counts["joints"].nan, counts["imu"].absurd) == (1, 1) and est.assignments[-1].surface_index != -2
     assert np.all(np.isfinite(est.assignments[-1].point))
     assert st["n_without_state"] == 2
-    assert st["n_nan"] == n_nan and st["n_no_return"] == n_none and st["n_bad_range"] == n_neg
-    assert st["n_out_of_order"] == n_late + 1
-    assert st["n_frames"] == len(bad)
+    assert counts["tof"].nan == n_nan and st["n_no_return"] == n_none and counts["tof"].absurd == n_neg
+    assert (counts["joints"].out_of_order, counts["tof"].out_of_order) == (n_late, 1)
+    assert sum(c.seen for c in counts.values()) == len(bad)
+    assert counts["imu"].ignored == 1 and counts["tof"].ignored == sum(f.sensor_id == "tof_l_med" for f in bad)
     n_tof = sum(isinstance(f, ToFReading) for f in bad)
     assert len(est.assignments) == n_tof
     n_skipped = sum(a.surface_index == -2 for a in est.assignments)
     n_left = sum(isinstance(f, ToFReading) and f.sensor_id == "tof_l_med" for f in bad)
     assert n_skipped == 2 + n_nan + n_none + n_neg + 1 + n_left
-    assert st["n_used"] == n_tof - n_skipped == len(est.compute_time_s)
+    assert counts["tof"].used == n_tof - n_skipped == len(est.compute_time_s)
     assert est.plane(0) is not None and est.plane(0).reliable  # still estimates from what is left
 
 

@@ -143,7 +143,8 @@ def test_faulty_scans_give_invalid_keyframes_and_never_raise(cls):
     assert est.match_index[4] == 0
     assert est.stats["invalid_keyframes"] == 3
     assert est.stats["descriptor_status"].get("too_few_cells") == 1
-    assert est.stats["nonfinite_points"] == 300 + 50
+    lidar = est.counts["lidar"]
+    assert (lidar.nan, lidar.nan_values, lidar.absurd, lidar.used) == (2, 300 + 50, 0, 5)
 
 
 def test_submap_levels_scans_with_the_imu_and_removes_the_ceiling():

@@ -16,8 +16,9 @@ every fraction, whether the filter keeps or removes them. Pooled over all scans 
 - ``time_per_scan_ms``: median compute time per scan.
 
 Points the scan itself holds as NaN (a faulty driver) were never measured: they count neither as
-kept nor as removed, nor in ``n_points``; the pipeline's own counts (``FilterEstimate.stats``,
-e.g. ``n_nan_points`` and ``n_absurd_points``) are reported as ``stat_*``.
+kept nor as removed, nor in ``n_points``; the filter's own counts (``FilterEstimate.stats``,
+e.g. ``empty_scans``) are reported as ``stat_*``. A repeated or out-of-order scan, which a
+pipeline does not use (:mod:`exobench.core.counters`), is not scored: each instant once.
 
 Through odometry (Table 5.4 layout, when asked): kiss-icp on the kept points, scored by
 :func:`..lidar_trajectory.score_trajectory` with the keys prefixed ``odom_`` (``odom_te_m``, ``odom_oe_rad``,
@@ -34,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from exobench.core.counters import admitted
 from exobench.core.episode import Episode
 from exobench.core.estimates import FilterEstimate
 
@@ -100,18 +102,24 @@ def mask_fractions(classes: Sequence[np.ndarray], ground: Sequence[np.ndarray], 
     }  # fmt: skip
 
 
+def scored_pairs(episode: Episode) -> list[tuple[Any, Any]]:
+    """:func:`..office_walks.lidar_pairs` of the scans a pipeline uses (not repeated, in order)."""
+    used = {id(f) for f, ok in zip(episode.frames, admitted(episode.frames), strict=True) if ok}
+    return [(s, t) for s, t in lidar_pairs(episode) if id(s) in used]
+
+
 def kiss_on_kept(episode: Episode, keep: Sequence[np.ndarray], downsample: str = "single") -> Any:
-    """kiss-icp's :class:`TrajectoryEstimate` on the kept points of every scan of :func:`lidar_pairs`."""
+    """kiss-icp's :class:`TrajectoryEstimate` on the kept points of every scan of :func:`scored_pairs`."""
     from exobench.mapping.odometry.kiss_icp import KissConfig, run_kiss_icp
 
-    scans = [s for s, _ in lidar_pairs(episode)]
+    scans = [s for s, _ in scored_pairs(episode)]
     return run_kiss_icp(scans, keep, KissConfig(downsample=downsample))
 
 
 def kiss_trajectories(episode: Episode, estimates: Mapping[str, Any], downsample: str = "single") -> dict[str, Any]:
     """``kiss-icp+<name>`` -> :func:`kiss_on_kept` of each estimate whose masks fit every scan
     (those :func:`score_filter` scores through odometry)."""
-    pairs = lidar_pairs(episode)
+    pairs = scored_pairs(episode)
     out = {}
     for name, est in estimates.items():
         if not isinstance(est, FilterEstimate) or not pairs:
@@ -167,7 +175,7 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
     count in its reason and NaN fractions.
     """
     try:
-        pairs = lidar_pairs(episode)
+        pairs = scored_pairs(episode)
         if not pairs:
             return failure_metrics(episode, "the episode has no LiDAR scan with point truth")
         classes, ground, measured = [], [], []
