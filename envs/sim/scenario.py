@@ -87,6 +87,9 @@ def scenario_base(name: str, kind: str, params: dict[str, ParamSpec], base: type
 
         rig = self.rig()
         if getattr(self, "segmentation_truth", False):
+            if not any(s.kind == "rgbd" for s in rig):  # it would be ignored
+                raise ConfigError("segmentation_truth", True, "false on a rig without an RGB-D camera (add one: "
+                                  "extra_sensors=rgbd_head, rgbd_chest or rgbd_thigh)")  # fmt: skip
             rig = with_segmentation_truth(rig)
         build_calibration(self.exo_spec(), rig)
 

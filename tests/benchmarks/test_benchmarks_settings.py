@@ -22,8 +22,13 @@ TRUE_SPELLINGS = ("true", "True", "TRUE", "1", "yes", "on", " true ")
 FALSE_SPELLINGS = ("false", "False", "0", "no", "off", "OFF")
 
 # A value allowed only together with another parameter: (track, name) -> the other values under
-# which the whole of its range is valid (the office's rooms must fit its corridor).
+# which the whole of its range is valid (the office's rooms must fit its corridor; a segmentation
+# truth needs a camera, which the office rig has only when one is added).
 CONTEXT = {
+    **{
+        (t, "segmentation_truth"): {"extra_sensors": "rgbd_head"}
+        for t in ("odometry", "lidar-filter", "loop-closure")
+    },
     ("loop-closure", "n_offices"): {"corridor_length_m": "80"},
     ("loop-closure", "corridor_length_m"): {"n_offices": "1", "meeting_room_m": "1.5"},
     ("loop-closure", "meeting_room_m"): {"corridor_length_m": "80"},
@@ -176,3 +181,12 @@ def test_list_shows_the_allowed_values_of_every_parameter_with_choices():
             ], rows[p.name]
             n_checked += 1
     assert n_checked >= 20  # facade, route, lidar, mount, terrain, walls, segmentation_truth, ...
+
+
+def test_segmentation_truth_without_a_camera_is_refused_not_ignored():
+    with pytest.raises(ConfigError, match="segmentation_truth.*RGB-D camera"):
+        plan_run("odometry", "quick", None, [0], {"segmentation_truth": "true"})
+    plan = plan_run(
+        "odometry", "quick", None, [0], {"segmentation_truth": "true", "extra_sensors": "rgbd_chest"}
+    )
+    assert plan.episodes[0].scenario["segmentation_truth"] is True
