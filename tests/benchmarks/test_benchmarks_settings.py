@@ -190,3 +190,40 @@ def test_segmentation_truth_without_a_camera_is_refused_not_ignored():
         "odometry", "quick", None, [0], {"segmentation_truth": "true", "extra_sensors": "rgbd_chest"}
     )
     assert plan.episodes[0].scenario["segmentation_truth"] is True
+
+
+def _flat_fields(cfg, prefix=""):
+    import dataclasses
+
+    for f in dataclasses.fields(cfg):
+        v = getattr(cfg, f.name)
+        if dataclasses.is_dataclass(v):
+            yield from _flat_fields(v, f"{prefix}{f.name}.")
+        else:
+            yield f"{prefix}{f.name}", v
+
+
+def test_tuple_pipeline_parameters_are_parsed_from_the_command_line_or_refused():
+    """A pipeline parameter that is a tuple of numbers (a footprint offset) takes ``--set
+    NAME.KEY=a,b,c`` as numbers; any other text is refused at plan time (it was kept as the
+    string and failed in the run)."""
+    from exobench.benchmarks.registry import default_registry
+
+    reg = default_registry()
+    n_checked = 0
+    for name in reg.names():
+        cls = reg.load(name)
+        for key, default in _flat_fields(cls.Config()):
+            if not (isinstance(default, tuple) and default and all(isinstance(x, float) for x in default)):
+                continue
+            wanted = tuple(x + 0.5 for x in default)
+            plan = plan_run(cls.track, None, [name], [0], {f"{name}.{key}": ", ".join(map(repr, wanted))})
+            got = plan.pipelines[0].config
+            for part in key.split("."):
+                got = getattr(got, part)
+            assert got == wanted
+            for bad in ("nan", "0,0", ",".join(["inf"] * len(default)), "a,b,c"):
+                with pytest.raises(ConfigError, match=key.split(".")[-1]):
+                    plan_run(cls.track, None, [name], [0], {f"{name}.{key}": bad})
+            n_checked += 1
+    assert n_checked >= 2
