@@ -227,3 +227,11 @@ def test_tuple_pipeline_parameters_are_parsed_from_the_command_line_or_refused()
                     plan_run(cls.track, None, [name], [0], {f"{name}.{key}": bad})
             n_checked += 1
     assert n_checked >= 2
+
+
+def test_an_iteration_count_that_would_never_end_is_refused_at_plan_time():
+    """batch-ransac draws every hypothesis (no early exit): 1e30 of them ran for ever."""
+    with pytest.raises(ConfigError, match="ransac_iterations"):
+        plan_run("stairs", "quick", ["batch-ransac"], [0], {"batch-ransac.ransac_iterations": "1e30"})
+    plan = plan_run("stairs", "quick", ["batch-ransac"], [0], {"batch-ransac.ransac_iterations": "1000000"})
+    assert plan.pipelines[0].config.ransac_iterations == 10**6
