@@ -98,8 +98,9 @@ def scenario_base(name: str, kind: str, params: dict[str, ParamSpec], base: type
 
     fields = [(n, _type(s), dataclasses.field(default=s.default)) for n, s in params.items()]
     ns = {"__post_init__": __post_init__, "from_dict": from_dict, "as_dict": as_dict, "PARAMS": params,
-          "check_composition": check_composition, "configured": configured,
-          "__doc__": f"One {kind} episode; see ``PARAMS`` for units, ranges and meaning."}  # fmt: skip
+          "configured": configured, "__doc__": f"One {kind} episode; see ``PARAMS`` for units, ranges and meaning."}  # fmt: skip
+    if base is None:  # an extension keeps its base's checks (a world adds its own to this one)
+        ns["check_composition"] = check_composition
     return dataclasses.make_dataclass(name, fields, bases=(base,) if base else (), frozen=True, namespace=ns)
 
 

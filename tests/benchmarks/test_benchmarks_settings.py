@@ -235,3 +235,19 @@ def test_an_iteration_count_that_would_never_end_is_refused_at_plan_time():
         plan_run("stairs", "quick", ["batch-ransac"], [0], {"batch-ransac.ransac_iterations": "1e30"})
     plan = plan_run("stairs", "quick", ["batch-ransac"], [0], {"batch-ransac.ransac_iterations": "1000000"})
     assert plan.pipelines[0].config.ransac_iterations == 10**6
+
+
+@pytest.mark.parametrize("track_name", ["odometry", "loop-closure"])
+def test_an_office_that_cannot_be_built_is_refused_at_plan_time(track_name):
+    """Ten offices do not fit the default 24 m corridors (2.52 m each): refused before anything
+    runs, on the office tracks (n_offices at most 9) and on loop-closure (corridor_length_m)."""
+    with pytest.raises(ConfigError, match="n_offices|corridor_length_m"):
+        plan_run(
+            track_name,
+            "quick",
+            None,
+            [0],
+            {"n_offices": "10", "meeting_room_m": "6"}
+            if track_name == "loop-closure"
+            else {"n_offices": "10"},
+        )
