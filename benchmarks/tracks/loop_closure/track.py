@@ -52,8 +52,8 @@ OFFICE_EXTRA: dict[str, ParamSpec] = {  # rows of the walk's table beyond Office
                            "2.52 m each)", feeds=("office.n_offices",)),
     "corridor_length_m": ParamSpec(24.0, 8.0, 80.0, "m", "inside length of the building (office.corridor_length_m)",
                                    feeds=("office.corridor_length_m",)),
-    "room_depth_m": ParamSpec(4.0, 1.5, 10.0, "m", "depth of the offices and meeting room; the two corridors are this + 2 m "
-                              "apart", feeds=("office.room_depth_m",)),
+    "room_depth_m": ParamSpec(4.0, 1.6, 10.0, "m", "depth of the offices and meeting room (an open door, 0.94 m, and 0.6 m "
+                              "must fit); the two corridors are this + 2 m apart", feeds=("office.room_depth_m",)),
     "meeting_room_m": ParamSpec(6.0, 1.5, 30.0, "m", "length of the meeting room (office.meeting_room_m)",
                                 feeds=("office.meeting_room_m",)),
     "lidar_azimuth_step_deg": ParamSpec(0.0, 0.0, 2.0, "deg", "azimuth step of the spinning LiDAR (0 = the pattern's own; "
