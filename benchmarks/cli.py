@@ -75,8 +75,10 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
     if seed is not None and seeds is not None:
         raise ConfigError("--seed/--seeds", f"{seed}/{seeds}", "one of --seed N or --seeds N")
     if seeds is not None:
-        if seeds < 1:
-            raise ConfigError("--seeds", seeds, "--seeds >= 1")
+        from .runner import MAX_SEEDS
+
+        if not 1 <= seeds <= MAX_SEEDS:  # before the list is built: click takes any integer
+            raise ConfigError("--seeds", seeds, f"1 <= --seeds <= {MAX_SEEDS}")
         return list(range(seeds))
     if seed is not None and seed < 0:
         raise ConfigError("--seed", seed, "--seed >= 0")

@@ -154,8 +154,15 @@ def plan_run(
         cls = reg.load(name)
         if getattr(cls, "track", trk.name) != trk.name:
             raise ConfigError("pipeline", name, f"a pipeline of track {trk.name!r} (it serves {cls.track!r})")
+    try:  # the count first: a huge range is refused before anything is built from it
+        n_seeds = len(seeds)
+    except OverflowError:
+        n_seeds = MAX_SEEDS + 1
+    if not 1 <= n_seeds <= MAX_SEEDS:
+        raise ConfigError("seeds", f"{n_seeds if n_seeds <= MAX_SEEDS else 'more than ' + str(MAX_SEEDS)} seeds",
+                          f"1 to {MAX_SEEDS} distinct integers >= 0")
     seeds = [int(coerce_like("seed", s, 0)) for s in seeds]
-    if not seeds or len(seeds) > MAX_SEEDS or min(seeds) < 0 or len(set(seeds)) != len(seeds):
+    if min(seeds) < 0 or len(set(seeds)) != len(seeds):
         raise ConfigError("seeds", seeds, f"1 to {MAX_SEEDS} distinct integers >= 0")
 
     scen_raw, pipe_raw = split_overrides(overrides or {}, names)
@@ -165,10 +172,12 @@ def plan_run(
     # case-major order (each case with every seed); a drawn suite has its own cases per seed
     planned: list[tuple[int, int, EpisodePlan]] = []
     typed: dict[str, Any] = {}
+    defaults = {p.name: p.default for p in trk.params()} if scen else {}
     for j, s in enumerate(seeds):
         for i, case in enumerate(trk.cases(suite, s)):
             scenario = trk.validate_scenario({**case.scenario, **scen})
-            typed = {k: scenario[k] for k in scen}
+            # a scenario may leave out a parameter at its neutral default (segmentation_truth=false)
+            typed = {k: scenario.get(k, defaults[k]) for k in scen}
             case = dataclasses.replace(case, group=trk.group_label(case, scenario))
             planned.append((i, j, EpisodePlan(f"{case.name}/s{s}", suite, case, scenario, s, episode_seed(s, case.name))))
     episodes = [e for _, _, e in sorted(planned, key=lambda x: (x[0], x[1]))]

@@ -127,7 +127,20 @@ def _build(config_cls: type, base: Any, values: Mapping[str, Any], kind: str, pr
 
 
 def coerce_like(field_name: str, raw: Any, default: Any) -> Any:
-    """Convert ``raw`` to the type of ``default`` (bool, int, float, str), or raise ConfigError."""
+    """Convert ``raw`` to the type of ``default`` (bool, int, float, str, or a tuple of numbers:
+    ``"0, 0.08, 0"`` from the command line, each a finite number), or raise ConfigError."""
+    if isinstance(default, tuple) and default and all(_is_number(x) for x in default):
+        parts = raw.strip().strip("()[]").split(",") if isinstance(raw, str) else raw
+        try:
+            parts = list(parts)
+        except TypeError:
+            parts = None
+        if parts is None or len(parts) != len(default):
+            raise ConfigError(field_name, raw, f"{len(default)} numbers separated by commas")
+        out = tuple(coerce_like(field_name, p, d) for p, d in zip(parts, default))
+        if not all(math.isfinite(x) for x in out):
+            raise ConfigError(field_name, raw, f"{len(default)} finite numbers")
+        return out
     if isinstance(default, bool):
         if isinstance(raw, bool):
             return raw
@@ -153,3 +166,7 @@ def coerce_like(field_name: str, raw: Any, default: Any) -> Any:
     if isinstance(default, str):
         return str(raw)
     return raw
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)

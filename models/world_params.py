@@ -13,12 +13,16 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any, NamedTuple
 
 from exobench.core.errors import ConfigError, UnknownNameError, check_range
+from exobench.core.pipeline import coerce_like
 
 
 class ParamSpec(NamedTuple):
     """One parameter: default, bounds (None if not numeric), unit, description.
 
-    ``low_open`` makes the low bound strict; ``choices`` lists the allowed values of a name.
+    ``low_open`` makes the low bound strict; ``choices`` lists the allowed values of a name;
+    ``feeds`` names the config fields the value is handed to as it is, ``"<config>.<field>"``
+    (``"lidar.range_noise_m"``), so that a scenario builds its configs from its table
+    (``envs.sim.scenario``) instead of mapping each value by hand.
     """
 
     default: Any
@@ -28,6 +32,7 @@ class ParamSpec(NamedTuple):
     doc: str
     low_open: bool = False
     choices: tuple = ()
+    feeds: tuple[str, ...] = ()
 
 
 DIRECTIONS = ("up", "down")
@@ -110,11 +115,11 @@ COURSE_PARAMS: dict[str, ParamSpec] = {
 def check_param(field: str, value: Any, spec: ParamSpec) -> Any:
     """Validate and normalise one value against its spec (strings from the CLI are converted)."""
     if spec.choices:
-        if isinstance(spec.default, bool):
-            if not isinstance(value, bool):
-                raise ConfigError(field, value, "true or false")
-            return value
-        if value not in spec.choices:
+        # the command line gives every value as a string: convert it to the type of the choices
+        # (booleans in any spelling coerce_like knows) before comparing
+        if isinstance(spec.default, bool) or (isinstance(value, str) and not isinstance(spec.default, str)):
+            value = coerce_like(field, value, spec.default)
+        if value not in spec.choices or isinstance(value, bool) != isinstance(spec.default, bool):
             raise ConfigError(field, value, "one of " + ", ".join(map(str, spec.choices)))
         return value
     if isinstance(spec.default, tuple):

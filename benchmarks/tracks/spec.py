@@ -32,9 +32,14 @@ class ParamInfo:
     unit: str
     doc: str
     low_open: bool = False
+    choices: tuple = ()
+    """The allowed values of a parameter that takes one of a list (empty: a range or free)."""
 
     def range_text(self) -> str:
-        """E.g. ``(0, 0.3]`` or ``[0.15, 0.6]``; empty when the parameter is not numeric."""
+        """E.g. ``(0, 0.3]`` or ``[0.15, 0.6]``, the choices as ``plain|windows|curtain`` (booleans
+        ``false|true``, as ``--set`` takes them); empty when the parameter takes any string."""
+        if self.choices:
+            return "|".join(str(c).lower() if isinstance(c, bool) else str(c) for c in self.choices)
         if self.low is None and self.high is None:
             return ""
         return f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}]"
@@ -42,15 +47,16 @@ class ParamInfo:
 
 def param_infos(table: Mapping[str, Any]) -> list[ParamInfo]:
     """Rows of a scenario parameter table (name -> a row with ``default``, ``low``, ``high``,
-    ``unit``, ``doc`` and optionally ``low_open``, such as ``ParamSpec``) as :class:`ParamInfo`,
-    in the table's order; :class:`ParamInfo` rows are kept as they are."""
+    ``unit``, ``doc`` and optionally ``low_open`` and ``choices``, such as ``ParamSpec``) as
+    :class:`ParamInfo`, in the table's order; :class:`ParamInfo` rows are kept as they are."""
     out = []
     for name, row in table.items():
         if isinstance(row, ParamInfo):
             out.append(row)
         else:
             low_open = bool(getattr(row, "low_open", False))
-            out.append(ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, low_open))
+            choices = tuple(getattr(row, "choices", ()))
+            out.append(ParamInfo(name, row.default, row.low, row.high, row.unit, row.doc, low_open, choices))
     return out
 
 

@@ -119,7 +119,9 @@ def climb_step(
     front = grid[:, 0] >= 0.0  # ankle to toe must rest on the tread; a heel may overhang
     above = np.isfinite(z_td) & (z_td > z_tread + 1e-9)
     if np.any(ids[front] != tread.surface_id) or np.any(above):
-        raise ConfigError("tread_m", tread.surface_id, "a tread that holds the foot from the ankle to the toe")
+        going = float((nxt.point_w - riser.point_w) @ d) if nxt is not None else hi - lo
+        raise ConfigError("tread_m", round(going, 4), "a tread that holds the foot from the ankle to the toe "
+                          "under the nosing above it")  # fmt: skip
 
     h_stand = leg_length_for_knee(exo, STAND_KNEE_RAD)
     options = end_pelvis_options(exo, a1, z_tread, CLIMB_LEAN_RAD)

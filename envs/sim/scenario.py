@@ -8,17 +8,23 @@ is None also takes None; a free string parameter takes any string and is checked
 scenario). ``from_dict`` refuses unknown names (``UnknownNameError``) and converts strings;
 ``as_dict`` gives the plain values (a scenario may leave out parameters at their neutral default,
 :data:`OMIT_WHEN_EMPTY`, so that records of scenarios without them are unchanged).
+
+``check_composition`` checks what can be known of an episode without building its world: the
+rig it records (presets added, ids unique, sensor configs valid) calibrated on the user's
+exoskeleton; a scenario extends it with its world's parameters. :func:`check_scenario` runs it
+once per distinct scenario, so a run's plan checks every episode before anything simulates.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Any
 
 from exobench.core import ConfigError
 from exobench.models.world_params import ParamSpec, check_param, from_dict_checked
 
-from .rig import preset_names
+from .rig import preset_names, with_segmentation_truth
 
 OMIT_WHEN_EMPTY = ("extra_sensors", "segmentation_truth")
 
@@ -27,8 +33,12 @@ def _is_free_string(spec: ParamSpec) -> bool:
     return isinstance(spec.default, str) and not spec.choices
 
 
-def scenario_base(name: str, kind: str, params: dict[str, ParamSpec]) -> type:
-    """A frozen dataclass over ``params`` (see the module docstring); subclass it to add methods."""
+def scenario_base(name: str, kind: str, params: dict[str, ParamSpec], base: type | None = None) -> type:
+    """A frozen dataclass over ``params`` (see the module docstring); subclass it to add methods.
+
+    With ``base`` (a scenario class) the new class extends it: ``params`` is its whole table (the
+    base's rows, some perhaps with other ranges, and its own), and it keeps the base's methods.
+    """
 
     def __post_init__(self: Any) -> None:
         for f in dataclasses.fields(self):
@@ -63,10 +73,39 @@ def scenario_base(name: str, kind: str, params: dict[str, ParamSpec]) -> type:
                 del d[k]
         return d
 
+    def configured(self: Any, config: str, cls: type, **by_hand: Any) -> Any:
+        """``cls`` built from the rows that feed ``config`` (``ParamSpec.feeds``) and ``by_hand``
+        (the values a scenario derives itself)."""
+        fed = {t.partition(".")[2]: getattr(self, n) for n, spec in params.items() for t in spec.feeds
+               if t.partition(".")[0] == config}  # fmt: skip
+        return cls(**fed, **by_hand)
+
+    def check_composition(self: Any) -> None:
+        """Compose the rig this scenario records and calibrate it on its user's device (no world is
+        built): an impossible rig raises ``ConfigError`` here, not in the simulation."""
+        from .calibration import build_calibration
+
+        rig = self.rig()
+        if getattr(self, "segmentation_truth", False):
+            if not any(s.kind == "rgbd" for s in rig):  # it would be ignored
+                raise ConfigError("segmentation_truth", True, "false on a rig without an RGB-D camera (add one: "
+                                  "extra_sensors=rgbd_head, rgbd_chest or rgbd_thigh)")  # fmt: skip
+            rig = with_segmentation_truth(rig)
+        build_calibration(self.exo_spec(), rig)
+
     def _type(spec: ParamSpec) -> Any:
         return Any if spec.default is None else type(spec.default)
 
     fields = [(n, _type(s), dataclasses.field(default=s.default)) for n, s in params.items()]
     ns = {"__post_init__": __post_init__, "from_dict": from_dict, "as_dict": as_dict, "PARAMS": params,
-          "__doc__": f"One {kind} episode; see ``PARAMS`` for units, ranges and meaning."}  # fmt: skip
-    return dataclasses.make_dataclass(name, fields, frozen=True, namespace=ns)
+          "configured": configured, "__doc__": f"One {kind} episode; see ``PARAMS`` for units, ranges and meaning."}  # fmt: skip
+    if base is None:  # an extension keeps its base's checks (a world adds its own to this one)
+        ns["check_composition"] = check_composition
+    return dataclasses.make_dataclass(name, fields, bases=(base,) if base else (), frozen=True, namespace=ns)
+
+
+@functools.lru_cache(maxsize=512)
+def check_scenario(scenario: Any) -> None:
+    """``scenario.check_composition()``, once per distinct (frozen, hashable) scenario: a suite's
+    cases repeat over the run seeds, and a plan checks every episode."""
+    scenario.check_composition()

@@ -113,17 +113,17 @@ class BatchRansacStairs(StairsPipeline):
             check_range("distance_threshold_m", self.distance_threshold_m, 0.0, 1.0, low_open=True)
             check_range("link_radius_m", self.link_radius_m, 0.0, 10.0, low_open=True)
             check_range("voxel_m", self.voxel_m, 0.0, 1.0, low_open=True)
-            for name, low in (
-                ("ransac_iterations", 1),
-                ("sample_window", 1),
-                ("min_run_points", 2),
-                ("max_run_gap", 0),
-                ("min_plane_cells", 3),
-                ("max_planes", 1),
-                ("refine_iterations", 0),
-                ("seed", 0),
+            for name, low, high in (
+                ("ransac_iterations", 1, 10**6),  # every hypothesis is drawn (no early exit): bound the time
+                ("sample_window", 1, None),
+                ("min_run_points", 2, None),
+                ("max_run_gap", 0, None),
+                ("min_plane_cells", 3, None),
+                ("max_planes", 1, None),
+                ("refine_iterations", 0, None),
+                ("seed", 0, None),
             ):
-                object.__setattr__(self, name, check_int(name, getattr(self, name), low))
+                object.__setattr__(self, name, check_int(name, getattr(self, name), low, high))
 
     def _reset_estimator(self) -> None:
         self._points: list[tuple[float, float, float]] = []

@@ -299,7 +299,7 @@ def test_level_is_one_ground_surface() -> None:
 
 @pytest.mark.parametrize("field,value", [("riser_m", 0.0), ("riser_m", 0.31), ("tread_m", 0.1), ("riser_m", float("nan")),
                                          ("n_steps", 2.5), ("n_steps", 0), ("nosing_m", 0.06), ("yaw_deg", 91.0),
-                                         ("direction", "sideways"), ("position_m", (0.0, float("inf"))), ("walls", "yes")])
+                                         ("direction", "sideways"), ("position_m", (0.0, float("inf"))), ("walls", "maybe")])
 def test_invalid_staircase_params_name_the_field(field: str, value: object) -> None:
     with pytest.raises(ConfigError) as err:
         StaircaseParams(**{field: value})

@@ -220,9 +220,12 @@ class LocomotionTrack:
         return param_infos(PARAMS)
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        from exobench.envs.sim.scenario import check_scenario
         from exobench.envs.sim.scenarios.course import LocomotionScenario
 
-        return LocomotionScenario.from_dict(dict(values)).as_dict()
+        scenario = LocomotionScenario.from_dict(dict(values))
+        check_scenario(scenario)
+        return scenario.as_dict()
 
     def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
         return case.group

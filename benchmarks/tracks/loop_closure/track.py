@@ -12,11 +12,12 @@ true positive when its match is within 5 m. Metrics: the exact precision-recall 
 (Table 5.5's figure), best F1, time per keyframe, keyframes, revisits, invalid keyframes and the
 relative-yaw error of the correct matches.
 
-Scenario: the office walk's parameters plus the office's size and glazing (the office
-parameters :class:`~exobench.models.office.OfficeParams` that ``OfficeScenario`` does not
-expose) and the LiDAR's azimuth step. ``revisit_m`` and ``exclude_recent_s`` are its scoring
-settings (``scoring_keys``): set like the scenario's values and stored with each record, they
-never reach the simulation; the runner hands them to ``score``.
+Scenario: the office walk's parameters (every row of ``OfficeScenario``'s table, up to 24
+offices) plus the office's size (:data:`OFFICE_EXTRA`: parameters of
+:class:`~exobench.models.office.OfficeParams` that ``OfficeScenario`` does not expose) and the
+LiDAR's azimuth step. ``revisit_m`` and ``exclude_recent_s`` are its scoring settings
+(``scoring_keys``): set like the scenario's values and stored with each record, they never reach
+the simulation; the runner hands them to ``score``.
 
 Suites (the run seed drives the sensor noise; the office layout is ``office_seed``):
 
@@ -31,6 +32,7 @@ Suites (the run seed drives the sensor noise; the office layout is ``office_seed
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
@@ -45,15 +47,20 @@ from ..spec import Case, ParamInfo, Reference, SummaryRow
 from .metrics import EXCLUDE_RECENT_S, REVISIT_M, failure_metrics, score_place_recognition
 from .report import figure_arrays
 
-OFFICE_KEYS = ("corridor_length_m", "room_depth_m", "meeting_room_m", "glass_fraction", "polished_fraction")
 SCORING_KEYS = ("revisit_m", "exclude_recent_s")
-EXTRA: dict[str, ParamSpec] = {
-    "corridor_length_m": ParamSpec(24.0, 8.0, 80.0, "m", "inside length of the building (office.corridor_length_m)"),
-    "room_depth_m": ParamSpec(4.0, 1.5, 10.0, "m", "depth of the offices and meeting room; the two corridors are this + 2 m apart"),
-    "meeting_room_m": ParamSpec(6.0, 1.5, 30.0, "m", "length of the meeting room (office.meeting_room_m)"),
-    "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass"),
-    "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished (reflective)"),
-    "lidar_azimuth_step_deg": ParamSpec(0.0, 0.0, 2.0, "deg", "azimuth step of the spinning LiDAR (0 = the pattern's own; coarser = fewer rays, faster)"),
+OFFICE_EXTRA: dict[str, ParamSpec] = {  # rows of the walk's table beyond OfficeScenario's (they reach the simulation)
+    "n_offices": ParamSpec(3, 1, 24, "", "cellular offices along the north corridor (as many as fit corridor_length_m: "
+                           "2.52 m each)", feeds=("office.n_offices",)),
+    "corridor_length_m": ParamSpec(24.0, 8.0, 80.0, "m", "inside length of the building (office.corridor_length_m)",
+                                   feeds=("office.corridor_length_m",)),
+    "room_depth_m": ParamSpec(4.0, 1.6, 10.0, "m", "depth of the offices and meeting room (an open door, 0.94 m, and 0.6 m "
+                              "must fit); the two corridors are this + 2 m apart", feeds=("office.room_depth_m",)),
+    "meeting_room_m": ParamSpec(6.0, 1.5, 30.0, "m", "length of the meeting room (office.meeting_room_m)",
+                                feeds=("office.meeting_room_m",)),
+    "lidar_azimuth_step_deg": ParamSpec(0.0, 0.0, 2.0, "deg", "azimuth step of the spinning LiDAR (0 = the pattern's own; "
+                                        "coarser = fewer rays, faster)"),
+}  # fmt: skip
+EXTRA: dict[str, ParamSpec] = {  # scoring only
     "revisit_m": ParamSpec(REVISIT_M, 0.5, 50.0, "m", "a revisit: an earlier keyframe within this distance (scoring)", low_open=True),
     "exclude_recent_s": ParamSpec(EXCLUDE_RECENT_S, 0.0, 600.0, "s", "keyframes younger than this are no revisit (scoring; the thesis' xi)"),
 }
@@ -92,25 +99,17 @@ SUMMARY_ROWS = [
 ]
 
 
+@functools.cache  # one class, so that equal scenarios are equal (and checked once)
 def _scenario_class() -> type:
-    from exobench.envs.sim.scenarios.office import OfficeScenario
+    from exobench.envs.sim.scenario import scenario_base
+    from exobench.envs.sim.scenarios.office import PARAMS, OfficeScenario
 
-    @dataclasses.dataclass(frozen=True)
-    class LoopOfficeScenario(OfficeScenario):
-        """``OfficeScenario`` with the office's size and glazing and the LiDAR's azimuth step."""
+    table = {**PARAMS, **OFFICE_EXTRA}
+    base = scenario_base("LoopOfficeScenario", "loop-closure office", table, OfficeScenario)
 
-        corridor_length_m: float = EXTRA["corridor_length_m"].default
-        room_depth_m: float = EXTRA["room_depth_m"].default
-        meeting_room_m: float = EXTRA["meeting_room_m"].default
-        glass_fraction: float = EXTRA["glass_fraction"].default
-        polished_fraction: float = EXTRA["polished_fraction"].default
-        lidar_azimuth_step_deg: float = EXTRA["lidar_azimuth_step_deg"].default
-
-        def office_params(self) -> object:
-            from exobench.models.office import OfficeParams
-
-            return OfficeParams(seed=self.office_seed, n_offices=self.n_offices,
-                                **{k: getattr(self, k) for k in OFFICE_KEYS})  # fmt: skip
+    class LoopOfficeScenario(base):  # type: ignore[misc,valid-type]
+        """``OfficeScenario`` over :data:`OFFICE_EXTRA` too: the office's size (its rows feed
+        ``office_params``) and the LiDAR's azimuth step."""
 
         def lidar_config(self) -> Any:
             cfg = super().lidar_config()
@@ -177,18 +176,10 @@ class LoopClosureTrack:
     )
 
     def params(self) -> list[ParamInfo]:
-        return office_params(EXTRA)
+        return office_params(EXTRA, _scenario_class())
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        out = validate_office_scenario(dict(values), EXTRA)
-        self._check_office(out)
-        return out
-
-    @staticmethod
-    def _check_office(values: Mapping[str, Any]) -> None:
-        from exobench.models.office import OfficeParams
-
-        OfficeParams(seed=values["office_seed"], n_offices=values["n_offices"], **{k: values[k] for k in OFFICE_KEYS})
+        return validate_office_scenario(dict(values), EXTRA, _scenario_class())
 
     def group_label(self, case: Case, scenario: Mapping[str, Any]) -> str:
         return case.group

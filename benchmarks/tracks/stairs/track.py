@@ -175,8 +175,11 @@ class StairsTrack:
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
         from exobench.envs.sim import StairScenario
+        from exobench.envs.sim.scenario import check_scenario
 
-        return dataclasses.asdict(StairScenario.from_dict(dict(values)))
+        scenario = StairScenario.from_dict(dict(values))
+        check_scenario(scenario)
+        return dataclasses.asdict(scenario)
 
     def noise_off(self) -> dict[str, Any]:
         """Scenario values that switch every sensor noise, orientation error and dropout off."""

@@ -118,6 +118,7 @@ from ..pose import pose_rows
 from ..recorder import record
 from ..rig import Rig, camera_rig, segmentation_truths, with_presets, with_segmentation_truth
 from ..scenario import scenario_base
+from .common import COMMON_PARAMS
 from .course_world import step_truths
 
 TERRAINS = ("stairs", "ramp", "parallel")
@@ -143,30 +144,34 @@ PARAMS: dict[str, ParamSpec] = {
     "stops": ParamSpec("none", None, None, "", "none: walk through every transition without stopping, as the paper's subjects did; transitions: stop-and-go, standing with the feet together just before every transition from level ground to stairs or a ramp (and after the parallel course's U-turn), as exoskeleton users often do", choices=STOPS),
     "mount": ParamSpec("head", None, None, "", "camera mount: head (helmet), chest (chest bag), thigh", choices=MOUNTS),
     "pattern": ParamSpec("walk", None, None, "", "walking pattern: wander, walk, jog (step length and cadence, see PATTERNS)", choices=PATTERNS_NAMES),
-    "user_height_m": ParamSpec(1.75, 1.60, 1.90, "m", "user's standing height (paper: 1.65-1.88)"),
-    "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
+    "user_height_m": COMMON_PARAMS["user_height_m"],  # the paper's subjects: 1.65-1.88 m
+    "user_mass_kg": COMMON_PARAMS["user_mass_kg"],
     "view": ParamSpec("normal", None, None, "", "camera view: normal, or unconventional (large slow pitch/yaw excursions, walls fill the image)", choices=VIEWS),
     "head_pitch_mean_rad": ParamSpec(0.14, -0.3, 0.6, "rad", "mean camera pitch below the horizon of the head mount (paper Fig. 4(b): 0.14)"),
     "head_pitch_std_rad": ParamSpec(0.26, 0.0, 0.5, "rad", "standard deviation of the head-mount camera pitch (paper: 0.26); the chest sways with a third of it"),
     "gaze": ParamSpec("transitions", None, None, "", "head mount: transitions, the wearer looks down at each terrain transition about two steps ahead (the pitch keeps head_pitch_mean_rad and head_pitch_std_rad over the episode); random, the pitch ignores the terrain", choices=GAZES),
     "pedestrians": ParamSpec(0, 0, 4, "", "people walking across the view (paper: 2 in the disturbance test)"),
-    "width_px": ParamSpec(424, 16, 1280, "px", "image width (D455 424x240 / 640x480 / 848x480)"),
-    "height_px": ParamSpec(240, 16, 720, "px", "image height"),
-    "fx_px": ParamSpec(None, 0.0, 1e5, "px", "focal length (None: the D455 value for the resolution)", low_open=True),
-    "rate_hz": ParamSpec(30.0, 1.0, 90.0, "Hz", "RGB-D frame rate (the odometry runs at the same rate)"),
-    "latency_s": ParamSpec(0.0, 0.0, 0.5, "s", "RGB-D delivery latency"),
+    "width_px": ParamSpec(424, 16, 1280, "px", "image width (D455 424x240 / 640x480 / 848x480)", feeds=("rgbd.width_px",)),
+    "height_px": ParamSpec(240, 16, 720, "px", "image height", feeds=("rgbd.height_px",)),
+    "fx_px": ParamSpec(None, 0.0, 1e5, "px", "focal length (None: the D455 value for the resolution)", low_open=True,
+                       feeds=("rgbd.fx_px", "rgbd.fy_px")),
+    "rate_hz": ParamSpec(30.0, 1.0, 90.0, "Hz", "RGB-D frame rate (the odometry runs at the same rate)",
+                         feeds=("rgbd.rate_hz", "odometry.rate_hz")),
+    "latency_s": ParamSpec(0.0, 0.0, 0.5, "s", "RGB-D delivery latency", feeds=("rgbd.latency_s",)),
     "depth_noise_scale": ParamSpec(1.0, 0.0, 10.0, "", "multiplier of the D455 stereo depth noise (subpixel 0.08)"),
-    "min_depth_m": ParamSpec(0.4, 0.0, 5.0, "m", "no depth closer than this (D455: 0.4)"),
-    "max_depth_m": ParamSpec(6.0, 0.5, 20.0, "m", "no depth farther than this (D455: about 6)"),
-    "frame_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability an RGB-D frame is lost"),
-    "imu_rate_hz": ParamSpec(200.0, 200.0, 400.0, "Hz", "camera IMU rate (BMI055 in the D455: 200-400)"),
-    "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the BMI055 noise densities and random walks"),
-    "odom_drift_pct": ParamSpec(1.0, 0.0, 20.0, "%", "odometry translation drift, percent of the distance travelled"),
-    "odom_yaw_drift_deg_per_m": ParamSpec(0.5, 0.0, 20.0, "deg/m", "odometry heading drift per metre travelled"),
+    "min_depth_m": ParamSpec(0.4, 0.0, 5.0, "m", "no depth closer than this (D455: 0.4)", feeds=("rgbd.min_depth_m",)),
+    "max_depth_m": ParamSpec(6.0, 0.5, 20.0, "m", "no depth farther than this (D455: about 6)", feeds=("rgbd.max_depth_m",)),
+    "frame_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability an RGB-D frame is lost", feeds=("rgbd.dropout_prob",)),
+    "imu_rate_hz": ParamSpec(200.0, 200.0, 400.0, "Hz", "camera IMU rate (BMI055 in the D455: 200-400)", feeds=("imu.rate_hz",)),
+    "imu_noise_scale": COMMON_PARAMS["imu_noise_scale"],
+    "odom_drift_pct": ParamSpec(1.0, 0.0, 20.0, "%", "odometry translation drift, percent of the distance travelled",
+                                feeds=("odometry.drift_pct",)),
+    "odom_yaw_drift_deg_per_m": ParamSpec(0.5, 0.0, 20.0, "deg/m", "odometry heading drift per metre travelled",
+                                          feeds=("odometry.yaw_drift_deg_per_m",)),
     "duration_cap_s": ParamSpec(60.0, 2.0, 600.0, "s", "the episode is cut after this time (frames and steps)"),
-    "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: lidar_trunk, tof_calves, encoders, ...)"),
-    "segmentation_truth": ParamSpec(False, None, None, "", "keep per-pixel segmentation truth of every RGB-D frame (EpisodeTruth.segmentation)", choices=(False, True)),
-}
+    "extra_sensors": COMMON_PARAMS["extra_sensors"],
+    "segmentation_truth": COMMON_PARAMS["segmentation_truth"],
+}  # fmt: skip
 
 
 class LocomotionScenario(scenario_base("LocomotionScenario", "locomotion", PARAMS)):  # type: ignore[misc]
@@ -260,11 +265,7 @@ def _compiled(key: tuple, exo: ExoSpec, pattern: str, sites: tuple[tuple[str, An
 
 def _rgbd_config(sc: LocomotionScenario) -> RgbdConfig:
     try:
-        return RgbdConfig(
-            width_px=sc.width_px, height_px=sc.height_px, fx_px=sc.fx_px, fy_px=sc.fx_px, rate_hz=sc.rate_hz,
-            latency_s=sc.latency_s, min_depth_m=sc.min_depth_m, max_depth_m=sc.max_depth_m,
-            subpixel=0.08 * sc.depth_noise_scale, dropout_prob=sc.frame_dropout,
-        )  # fmt: skip
+        return sc.configured("rgbd", RgbdConfig, subpixel=0.08 * sc.depth_noise_scale)
     except ConfigError as err:  # name the scenario's field
         name = err.field.split(".", 1)[-1] if hasattr(err, "field") else "width_px"
         raise ConfigError(name, getattr(err, "value", None), getattr(err, "allowed", str(err))) from None
@@ -274,9 +275,8 @@ def default_rig(sc: LocomotionScenario) -> Rig:
     """The camera's IMU, the insoles, the camera's odometry and the camera (ties in that order), plus
     ``extra_sensors``."""
     imu, odom, cam = camera_rig(
-        sc.mount, _rgbd_config(sc), ImuConfig(rate_hz=sc.imu_rate_hz, noise_scale=sc.imu_noise_scale),
-        OdometryConfig(rate_hz=sc.rate_hz, drift_pct=sc.odom_drift_pct, yaw_drift_deg_per_m=sc.odom_yaw_drift_deg_per_m),
-    )  # fmt: skip
+        sc.mount, _rgbd_config(sc), sc.configured("imu", ImuConfig), sc.configured("odometry", OdometryConfig)
+    )
     contacts = tuple(MountedSensor(pid, "contact", ContactConfig()) for pid in CONTACT_ORDER)
     return with_presets((imu, *contacts, odom, cam), sc.extra_sensors)
 

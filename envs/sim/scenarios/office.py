@@ -57,6 +57,7 @@ from ..pose import pose_rows
 from ..recorder import TRACK_RATE_HZ, TRACKED_BODIES, record
 from ..rig import LIDAR_TRUNK, Rig, scalar_rig, segmentation_truths, with_presets, with_segmentation_truth
 from ..scenario import scenario_base
+from .common import COMMON_PARAMS
 
 LIDAR_ID = LIDAR_TRUNK
 PENETRATION_RATE_HZ = 1000.0
@@ -68,22 +69,28 @@ LIDAR_MOUNTS = ("mast", "pelvis")
 RETURN_MODES = ("sampled", "strongest", "last")
 
 PARAMS: dict[str, ParamSpec] = {
-    "office_seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the office layout"),
-    "n_offices": ParamSpec(3, 1, 24, "", "cellular offices along the north corridor"),
-    "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass (the meeting room's south one first)"),
-    "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished stone (the south corridor first)"),
+    "office_seed": ParamSpec(0, 0, 2**31 - 1, "", "random seed of the office layout (and of its panes' shapes)",
+                             feeds=("office.seed", "lidar.glass_shape_seed")),
+    "n_offices": ParamSpec(3, 1, 9, "", "cellular offices along the north corridor (at most 9 fit its 24 m)",
+                           feeds=("office.n_offices",)),
+    "glass_fraction": ParamSpec(0.4, 0.0, 1.0, "", "share of corridor partitions that are glass (the meeting room's south one first)",
+                                feeds=("office.glass_fraction",)),
+    "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas that are polished stone (the south corridor first)",
+                                   feeds=("office.polished_fraction",)),
     "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain, a row of windows "
                         "(windows) or glazing from the floor between slim mullions (curtain), against a dark outside "
-                        "(models.office: a window-lined building)", choices=FACADES),
+                        "(models.office: a window-lined building)", choices=FACADES, feeds=("office.facade",)),
     "facade_glass": ParamSpec("glass", None, None, "", "material of the exterior windows (glass; float_glass, lowe_glass: "
                               "Fresnel reflectance rising towards grazing incidence; igu_float, igu_lowe: double-glazed "
-                              "units of them and a float pane; models.materials)", choices=FACADE_GLASSES),
+                              "units of them and a float pane; models.materials)", choices=FACADE_GLASSES,
+                              feeds=("office.facade_glass",)),
     "partition_glass": ParamSpec("glass", None, None, "", "material of the glass partitions and glass doors (as "
-                                 "facade_glass)", choices=FACADE_GLASSES),
+                                 "facade_glass)", choices=FACADE_GLASSES, feeds=("office.partition_glass",)),
     "glass_bow_mm_per_m": ParamSpec(0.0, 0.0, 20.0, "mm/m", "overall bow of every glass pane, centre deflection per metre "
-                                    "of its diagonal (0: flat; EN 12150-1 allows 3 for toughened float glass, models.materials)"),
+                                    "of its diagonal (0: flat; EN 12150-1 allows 3 for toughened float glass, models.materials)",
+                                    feeds=("lidar.glass_bow_mm_per_m",)),
     "glass_roller_wave_mm": ParamSpec(0.0, 0.0, 5.0, "mm", "roller wave of every glass pane, peak-to-valley (0: none; "
-                                      "toughened glass, models.materials)"),
+                                      "toughened glass, models.materials)", feeds=("lidar.glass_roller_wave_mm",)),
     "route": ParamSpec("corridor", None, None, "", "office route walked (loop: every office and two laps, "
                        "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor)",
                        choices=ROUTES),
@@ -102,23 +109,29 @@ PARAMS: dict[str, ParamSpec] = {
                                 "(lidar_mount=pelvis; 0.68 m: a VLP-16 on a Unitree B1, the thesis' robot)"),
     "lidar_rate_hz": ParamSpec(10.0, 5.0, 20.0, "Hz", "LiDAR sweeps per second"),
     "lidar_return": ParamSpec("sampled", None, None, "", "echo reported where a pulse splits at glass: sampled "
-                              "(one path drawn per beam), strongest (the VLP-16 default) or last", choices=RETURN_MODES),
-    "lidar_noise_m": ParamSpec(0.015, 0.0, 0.1, "m", "LiDAR range noise, standard deviation"),
-    "lidar_resolution_m": ParamSpec(0.002, 0.0, 0.1, "m", "LiDAR range quantisation (0 = off)"),
-    "lidar_scan_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a LiDAR sweep is lost"),
-    "lidar_point_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a LiDAR return is lost"),
-    "lidar_nan_points": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR return is reported as NaN (its truth kept, kind NAN)"),
-    "lidar_duplicate_scans": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR sweep is delivered twice (same stamp)"),
-    "lidar_out_of_order": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR sweep is delivered after the next one"),
-    "lidar_time_jump_prob": ParamSpec(0.0, 0.0, 1.0, "", "probability the LiDAR clock steps by lidar_time_jump_s at a sweep (and stays stepped)"),
-    "lidar_time_jump_s": ParamSpec(1.0, -10.0, 10.0, "s", "size of one LiDAR clock step (negative: back in time)"),
-    "user_height_m": ParamSpec(1.75, 1.55, 1.95, "m", "user's standing height (scales every segment)"),
-    "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
-    "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks"),
-    "encoder_noise_rad": ParamSpec(1e-4, 0.0, 0.05, "rad", "joint encoder white noise, standard deviation"),
-    "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: rgbd_thigh, rgbd_head, rgbd_chest, tof_calves, ...)"),
-    "segmentation_truth": ParamSpec(False, None, None, "", "keep per-pixel segmentation truth of every RGB-D frame (EpisodeTruth.segmentation)", choices=(False, True)),
-}
+                              "(one path drawn per beam), strongest (the VLP-16 default) or last", choices=RETURN_MODES,
+                              feeds=("lidar.return_mode",)),
+    "lidar_noise_m": ParamSpec(0.015, 0.0, 0.1, "m", "LiDAR range noise, standard deviation", feeds=("lidar.range_noise_m",)),
+    "lidar_resolution_m": ParamSpec(0.002, 0.0, 0.1, "m", "LiDAR range quantisation (0 = off)", feeds=("lidar.resolution_m",)),
+    "lidar_scan_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a LiDAR sweep is lost", feeds=("lidar.dropout_prob",)),
+    "lidar_point_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a LiDAR return is lost", feeds=("lidar.point_dropout_prob",)),
+    "lidar_nan_points": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR return is reported as NaN (its truth kept, kind NAN)",
+                                  feeds=("lidar.nan_point_prob",)),
+    "lidar_duplicate_scans": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR sweep is delivered twice (same stamp)",
+                                       feeds=("lidar.duplicate_prob",)),
+    "lidar_out_of_order": ParamSpec(0.0, 0.0, 1.0, "", "probability a LiDAR sweep is delivered after the next one",
+                                    feeds=("lidar.out_of_order_prob",)),
+    "lidar_time_jump_prob": ParamSpec(0.0, 0.0, 1.0, "", "probability the LiDAR clock steps by lidar_time_jump_s at a sweep "
+                                      "(and stays stepped)", feeds=("lidar.time_jump_prob",)),
+    "lidar_time_jump_s": ParamSpec(1.0, -10.0, 10.0, "s", "size of one LiDAR clock step (negative: back in time)",
+                                   feeds=("lidar.time_jump_s",)),
+    "user_height_m": COMMON_PARAMS["user_height_m"],
+    "user_mass_kg": COMMON_PARAMS["user_mass_kg"],
+    "imu_noise_scale": COMMON_PARAMS["imu_noise_scale"],
+    "encoder_noise_rad": COMMON_PARAMS["encoder_noise_rad"],
+    "extra_sensors": COMMON_PARAMS["extra_sensors"],
+    "segmentation_truth": COMMON_PARAMS["segmentation_truth"],
+}  # fmt: skip
 
 
 class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type: ignore[misc]
@@ -131,9 +144,7 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
     def office_params(self) -> object:
         from exobench.models.office import OfficeParams
 
-        return OfficeParams(seed=self.office_seed, n_offices=self.n_offices, glass_fraction=self.glass_fraction,
-                            polished_fraction=self.polished_fraction, facade=self.facade,
-                            facade_glass=self.facade_glass, partition_glass=self.partition_glass)  # fmt: skip
+        return self.configured("office", OfficeParams)
 
     def lidar_config(self) -> LidarConfig:
         r = self.lidar_rate_hz
@@ -143,17 +154,16 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
             "ouster64": lambda: LidarPattern.ouster(64, 1024, r),
             "livox": lambda: LidarPattern.livox_like(rate_hz=r),
         }[self.lidar]()
-        return LidarConfig(pattern=pattern, range_noise_m=self.lidar_noise_m, resolution_m=self.lidar_resolution_m,
-                           dropout_prob=self.lidar_scan_dropout, point_dropout_prob=self.lidar_point_dropout,
-                           nan_point_prob=self.lidar_nan_points, duplicate_prob=self.lidar_duplicate_scans,
-                           out_of_order_prob=self.lidar_out_of_order, time_jump_prob=self.lidar_time_jump_prob,
-                           time_jump_s=self.lidar_time_jump_s, return_mode=self.lidar_return,
-                           glass_bow_mm_per_m=self.glass_bow_mm_per_m, glass_roller_wave_mm=self.glass_roller_wave_mm,
-                           glass_shape_seed=self.office_seed)  # fmt: skip
+        return self.configured("lidar", LidarConfig, pattern=pattern)
+
+    def check_composition(self) -> None:
+        """The rig (see the base class) and the office's parameters, without building it."""
+        super().check_composition()
+        self.office_params()
 
     def rig(self) -> Rig:
         """Encoders, trunk IMU, insoles and the trunk LiDAR, plus ``extra_sensors``."""
-        cfg = SensorsConfig(imu=ImuConfig(noise_scale=self.imu_noise_scale), encoders=EncoderConfig(noise_rad=self.encoder_noise_rad),
+        cfg = SensorsConfig(imu=self.configured("imu", ImuConfig), encoders=self.configured("encoders", EncoderConfig),
                             contact=ContactConfig())  # fmt: skip
         base = (*scalar_rig(cfg, tof=False), MountedSensor(LIDAR_ID, "lidar", self.lidar_config()))
         return with_presets(base, self.extra_sensors)

@@ -40,6 +40,7 @@ from ..compose import attached_sites, compose_rig
 from ..recorder import TRACKED_BODIES, Recording, record
 from ..rig import Rig, scalar_rig, with_presets
 from ..scenario import scenario_base
+from .common import COMMON_PARAMS
 
 FOOT_TRACK_RATE_HZ = 100.0
 PENETRATION_RATE_HZ = 1000.0
@@ -52,18 +53,20 @@ PARAMS: dict[str, ParamSpec] = {
     "width_m": ParamSpec(1.2, 0.5, 5.0, "m", "width of the flight"),
     "yaw_deg": ParamSpec(0.0, -45.0, 45.0, "deg", "exoskeleton turned counter-clockwise relative to the stairs (paper case B: +23)"),
     "distance_m": ParamSpec(0.305, 0.15, 0.8, "m", "perpendicular distance from the climbing foot's toe tip to the first riser (paper's L)"),
-    "user_height_m": ParamSpec(1.75, 1.55, 1.95, "m", "user's standing height (scales every segment)"),
-    "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
+    "user_height_m": COMMON_PARAMS["user_height_m"],
+    "user_mass_kg": COMMON_PARAMS["user_mass_kg"],
     "duration_s": ParamSpec(3.0, 1.2, 6.0, "s", "episode length: 0.3 s still, the swing, 0.3 s after touch-down (a 2.4 s climbing swing by default, as slow exoskeleton gaits are [A])"),
-    "tof_noise_m": ParamSpec(1.5e-3, 0.0, 0.05, "m", "ToF static range noise, standard deviation"),
-    "tof_rate_hz": ParamSpec(50.0, 1.0, 100.0, "Hz", "ToF ranging rate"),
-    "tof_latency_s": ParamSpec(0.0, 0.0, 0.1, "s", "ToF delivery latency"),
-    "tof_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a ToF frame is lost"),
-    "tof_cone_rays": ParamSpec(1, 1, 64, "", "rays per ToF reading: 1 = central beam, more = 27 deg cone mixture"),
-    "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks (BMI055)"),
-    "imu_orientation_deg": ParamSpec(0.2, 0.0, 10.0, "deg", "rms error of the IMU's orientation (AHRS)"),
-    "encoder_noise_rad": ParamSpec(1e-4, 0.0, 0.05, "rad", "joint encoder white noise, standard deviation"),
-    "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated (envs.sim.rig.PRESETS: lidar_trunk, rgbd_head, rgbd_chest, rgbd_thigh, ...)"),
+    "tof_noise_m": ParamSpec(1.5e-3, 0.0, 0.05, "m", "ToF static range noise, standard deviation", feeds=("tof.noise_m",)),
+    "tof_rate_hz": ParamSpec(50.0, 1.0, 100.0, "Hz", "ToF ranging rate", feeds=("tof.rate_hz",)),
+    "tof_latency_s": ParamSpec(0.0, 0.0, 0.1, "s", "ToF delivery latency", feeds=("tof.latency_s",)),
+    "tof_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability a ToF frame is lost", feeds=("tof.dropout_prob",)),
+    "tof_cone_rays": ParamSpec(1, 1, 64, "", "rays per ToF reading: 1 = central beam, more = 27 deg cone mixture",
+                               feeds=("tof.n_cone_rays",)),
+    "imu_noise_scale": COMMON_PARAMS["imu_noise_scale"],
+    "imu_orientation_deg": ParamSpec(0.2, 0.0, 10.0, "deg", "rms error of the IMU's orientation (AHRS)",
+                                     feeds=("imu.orientation_rms_deg",)),
+    "encoder_noise_rad": COMMON_PARAMS["encoder_noise_rad"],
+    "extra_sensors": COMMON_PARAMS["extra_sensors"],
 }
 
 # paper section V-A: case -> (distance_m, yaw_deg)
@@ -95,14 +98,14 @@ class StairScenario(scenario_base("StairScenario", "stairs", PARAMS)):  # type: 
 
     def sensors_config(self) -> SensorsConfig:
         return SensorsConfig(
-            tof=ToFConfig(
-                rate_hz=self.tof_rate_hz, latency_s=self.tof_latency_s, noise_m=self.tof_noise_m,
-                dropout_prob=self.tof_dropout, n_cone_rays=self.tof_cone_rays,
-            ),
-            imu=ImuConfig(noise_scale=self.imu_noise_scale, orientation_rms_deg=self.imu_orientation_deg),
-            encoders=EncoderConfig(noise_rad=self.encoder_noise_rad),
-            contact=ContactConfig(),
+            tof=self.configured("tof", ToFConfig), imu=self.configured("imu", ImuConfig),
+            encoders=self.configured("encoders", EncoderConfig), contact=ContactConfig(),
         )  # fmt: skip
+
+    def check_composition(self) -> None:
+        """The rig (see the base class) and the staircase's parameters, without building it."""
+        super().check_composition()
+        self.staircase_params()
 
     def rig(self) -> Rig:
         """The default rig (encoders, trunk IMU, insoles, calf ToF) plus ``extra_sensors``."""

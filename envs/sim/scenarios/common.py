@@ -1,0 +1,27 @@
+"""Scenario parameters every world has, defined once: the user, the device's own sensors' noise,
+the sensors added to a rig and the segmentation truth kept. Each world's table (:mod:`.stairs`,
+:mod:`.office`, :mod:`.course`) takes its rows from :data:`COMMON_PARAMS` by name, in its own
+order; a world changes a row only by ``_replace`` in its table, never by copying it.
+
+The user's height is 1.55-1.95 m in every world (the courses had 1.60-1.90 m, the staircase and
+the offices 1.55-1.95 m: the wider range refuses nothing that was accepted).
+"""
+
+from __future__ import annotations
+
+from exobench.models.world_params import ParamSpec
+
+from ..rig import PRESETS
+
+COMMON_PARAMS: dict[str, ParamSpec] = {
+    "user_height_m": ParamSpec(1.75, 1.55, 1.95, "m", "user's standing height (scales every segment)"),
+    "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
+    "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks (BMI055)",
+                                 feeds=("imu.noise_scale",)),
+    "encoder_noise_rad": ParamSpec(1e-4, 0.0, 0.05, "rad", "joint encoder white noise, standard deviation",
+                                   feeds=("encoders.noise_rad",)),
+    "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated "
+                               f"(envs.sim.rig.PRESETS: {', '.join(PRESETS)}; not those already on it)"),
+    "segmentation_truth": ParamSpec(False, None, None, "", "keep per-pixel segmentation truth of every RGB-D frame "
+                                    "(EpisodeTruth.segmentation)", choices=(False, True)),
+}  # fmt: skip

@@ -1,0 +1,171 @@
+"""Conformance of every scenario key of every registered track: a key a track accepts changes the
+simulated episode, or is refused at plan time (``validate_scenario``). No key is accepted and
+silently ignored (loop-closure took ``--set facade=windows`` and built the same office).
+
+What is compared, and why it is enough. Simulating two whole episodes per key (some 150 keys)
+would take many minutes, so the test stops each simulation where everything a scenario decides
+has been handed to the simulator: the call of the recorder (``envs.sim.recorder.record``, the one
+function every world's ``simulate_*`` hands the compiled model, the world truth, the device, the
+planned motion, the rig, the seed and the hooks to). Everything the episode is made of comes
+from those arguments, so two scenarios whose recorder calls differ simulate from different
+inputs; the test compares a fingerprint of that call: the compiled MuJoCo model's bytes (world
+geometry, materials, the device's size, the rig's sites, pedestrians), the world truth, the
+device, the motion sampled at 40 instants, the rig's sensors with their configs, the seed, the
+duration and what the hooks do at those instants (the camera's view motion, the people's
+paths). A key that changes none of that (e.g. ``lidar_truth``, applied to the recording) is
+simulated whole, both ways, and the frames, truth and calibration compared. Every key is moved
+away from the track's smoke scenario to the first of its low, high, middle (a quarter, a tenth)
+or other choice that the track accepts and the planner can walk; a key that only acts together with another one (the pelvis LiDAR's height)
+is tried where it acts (:data:`CONTEXT`).
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+from typing import Any
+
+import numpy as np
+import pytest
+
+import exobench.envs.sim.scenarios.course as course
+import exobench.envs.sim.scenarios.office as office
+import exobench.envs.sim.scenarios.stairs as stairs
+from exobench.benchmarks.tracks import get_track, track_names
+from exobench.core.errors import ConfigError
+
+# (track or None for every track, key) -> the values under which the key acts (the other keys
+# are tried on the smoke scenario)
+CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
+    (None, "lidar_height_m"): {"lidar_mount": "pelvis"},  # the mast LiDAR's height follows the user
+    (None, "slope_deg"): {"terrain": "ramp"},
+    (None, "ramp_length_m"): {"terrain": "ramp"},
+    (None, "parallel_first"): {"terrain": "parallel"},
+    (None, "segmentation_truth"): {"extra_sensors": "rgbd_head"},  # it needs a camera
+    (None, "max_turn_deg"): {"route": "loop", "max_distance_m": 3.0},  # a corner 2.5 m along the loop
+    ("locomotion", "segmentation_truth"): {},  # which it has
+}
+
+
+# a shorter course than the smoke scenario's, so that each of the ~15 courses is planned quickly
+BASE: dict[str, dict[str, Any]] = {"locomotion": {"n_steps": 2, "approach_m": 1.0, "landing_m": 1.2}}
+
+
+def _context(track_name: str, key: str) -> dict[str, Any]:
+    return {**BASE.get(track_name, {}), **CONTEXT.get((track_name, key), CONTEXT.get((None, key), {}))}
+
+
+TIMES_FRACTION = np.linspace(0.0, 1.0, 40)
+
+
+class _Recorded(Exception):
+    """Raised by the stand-in recorder once it has the call's arguments."""
+
+    def __init__(self, fingerprint: bytes) -> None:
+        self.fingerprint = fingerprint
+
+
+def _model_bytes(model: Any) -> bytes:
+    import mujoco
+
+    buf = np.zeros(mujoco.mj_sizeModel(model), dtype=np.uint8)
+    mujoco.mj_saveModel(model, None, buf)
+    return buf.tobytes()
+
+
+def _fingerprint(model, truth, exo, motion, rig, seed, *, duration_s=None, hooks=(), **kw) -> bytes:
+    dur = float(motion.duration_s if duration_s is None else duration_s)
+    t = TIMES_FRACTION * dur
+    st = motion.state(t)
+    moved = [st.pelvis_w, st.yaw, st.pitch, st.joints, *st.ankle_w.values(), *st.foot_pitch.values()]
+    hooked = []
+    for h in hooks:
+        if hasattr(h, "view"):
+            hooked += list(h.view.values(t).values())
+        if hasattr(h, "positions"):
+            xy, z = h.positions(t)
+            hooked += [*xy, *z, np.array([p.height_m for p in h.paths]), np.array([p.yaw for p in h.paths])]
+    parts = [_model_bytes(model), pickle.dumps(truth), repr(exo).encode(), pickle.dumps(tuple(rig)), str(seed).encode(),
+             str(dur).encode(), repr(sorted(kw.items())).encode(), *(np.ascontiguousarray(a).tobytes() for a in moved),
+             *(np.ascontiguousarray(a).tobytes() for a in hooked)]  # fmt: skip
+    return b"\x00".join(parts)
+
+
+def _stop_at_the_recorder(monkeypatch) -> None:
+    def record(*args, **kw):
+        raise _Recorded(_fingerprint(*args, **kw))
+
+    for module in (office, stairs, course):
+        monkeypatch.setattr(module, "record", record)
+
+
+def _recorder_inputs(track, scenario: dict[str, Any]) -> bytes:
+    try:
+        track.simulate(scenario, 0)
+    except _Recorded as r:
+        return r.fingerprint
+    raise AssertionError(f"{track.name}: simulate() never called the recorder")
+
+
+def _episode_bytes(track, scenario: dict[str, Any]) -> bytes:
+    ep = track.simulate(scenario, 0)
+    return pickle.dumps((ep.frames, ep.truth, ep.calibration))
+
+
+def _candidates(p, base: Any) -> list[str]:
+    """Values of a parameter other than ``base``, as the command line gives them."""
+    if p.choices:
+        return [str(c) for c in p.choices if c != base]
+    if p.name == "extra_sensors":
+        from exobench.envs.sim.rig import PRESETS
+
+        return list(PRESETS)
+    lo, hi = p.low, p.high
+    vals = [lo if not p.low_open else None, hi] + [lo + f * (hi - lo) for f in (0.5, 0.25, 0.1)]
+    if isinstance(p.default, int) and not isinstance(p.default, bool):
+        vals = [None if v is None else int(round(v)) for v in vals]
+    return [repr(v) for v in vals if v is not None and math.isfinite(v) and v != base]
+
+
+def _accepted(track, p) -> list[tuple[str, dict[str, Any]]]:
+    """(value, validated scenario) of every candidate the track accepts at plan time."""
+    ctx = {**track.smoke_scenario, **_context(track.name, p.name)}
+    base = track.validate_scenario(ctx)
+    out = []
+    for text in _candidates(p, base.get(p.name, p.default)):
+        try:
+            out.append((text, track.validate_scenario({**ctx, p.name: text})))
+        except ConfigError:
+            continue
+    return out
+
+
+@pytest.mark.parametrize("track_name", track_names())
+def test_every_scenario_key_changes_the_simulation_or_is_refused(track_name, monkeypatch):
+    track = get_track(track_name)
+    _stop_at_the_recorder(monkeypatch)
+    inert, no_value = [], []
+    for p in track.params():
+        if p.name in track.scoring_keys:  # they change the score, not the episode (the runner hands them to score)
+            continue
+        base = track.validate_scenario({**track.smoke_scenario, **_context(track_name, p.name)})
+        before = _recorder_inputs(track, base)
+        tried = []
+        for text, other in _accepted(track, p):
+            try:  # a geometry the motion planner cannot walk is refused here (it needs the built world)
+                after = _recorder_inputs(track, other)
+            except ConfigError:
+                continue
+            tried.append(text)
+            if after != before:
+                break
+            monkeypatch.undo()  # the key may act after the recorder: simulate both whole
+            same = _episode_bytes(track, base) == _episode_bytes(track, other)
+            _stop_at_the_recorder(monkeypatch)
+            if not same:
+                break
+        else:
+            (inert if tried else no_value).append(f"{p.name} ({', '.join(tried)})")
+    assert not inert and not no_value, (
+        f"{track_name}: accepted and without effect on the simulation: {inert}; no other value accepted: {no_value}"
+    )
