@@ -47,7 +47,8 @@ from exobench.benchmarks.tracks.registry import default_track_registry
 from exobench.core.counters import FrameCounts, stream_rates
 from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownNameError
 from exobench.core.faults import STREAM_FAULTS, inject_faults, inject_stream_faults, n_absurd_points
-from exobench.core.frames import FRAME_TYPES, LidarScan, RgbdFrame, frame_kind
+from exobench.core.frames import LidarScan, RgbdFrame
+from exobench.core.kinds import FRAME_TYPES, frame_kind
 
 # read once, at collection: a registration a test makes later (such as the toy track of
 # test_benchmarks_track_registry.py, which rebuilds the default registries) is not picked up

@@ -46,7 +46,7 @@ compact=False)`` still writes version 4. Writing gives version 5.
 """
 
 from .calibration import calibration_from_dict, calibration_to_dict
-from .codecs import CODECS, FrameCodec, frame_from_dict, frame_to_dict, register_codec
+from .codecs import CODECS, FrameCodec, codec_table, frame_from_dict, frame_to_dict, register_codec
 from .io import (
     FORMAT,
     SUPPORTED_VERSIONS,
@@ -76,6 +76,7 @@ __all__ = [
     "iter_frames",
     "read_meta",
     "read_session",
+    "codec_table",
     "register_codec",
     "truth_from_dict",
     "truth_to_dict",
