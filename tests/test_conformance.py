@@ -19,9 +19,14 @@ A pipeline, a track or a gymnasium environment is covered here the moment it is 
   validates and case names are unique per suite, a failed episode and a bad estimate are scored
   well-formed with the reason, the summary rows and the published references name metrics the
   scorer gives, groups its suites have and pipelines that serve it;
+- every sensor kind: both of its records are registered whole (the core record of its frames
+  and its adapter and codec, :func:`exobench.envs.sensors.kinds.registration_problems`), and on
+  the frames it recorded in a smoke episode its fault forms, NaN-value counter, absurd-value rule
+  and codec do what they promise (``tests/kind_conformance.py``, which the toy sensor passes too);
 - every gymnasium environment whose id starts with ``exobench/`` passes gymnasium's ``check_env``.
 
-Every sensor kind's session round trip is in ``test_session_codecs.py``, driven by the codec table.
+Every sensor kind's session round trip on its codec's example frame is in
+``test_session_codecs.py``, driven by the same table.
 Each smoke episode is simulated once per test session and each pipeline's clean run is kept.
 """
 
@@ -38,6 +43,7 @@ from typing import Any
 import gymnasium
 import numpy as np
 import pytest
+from kind_conformance import kind_problems
 
 import exobench.envs  # noqa: F401  (registers the gymnasium environments)
 from exobench.benchmarks.registry import default_registry
@@ -49,6 +55,7 @@ from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownName
 from exobench.core.faults import STREAM_FAULTS, inject_faults, inject_stream_faults, n_absurd_points
 from exobench.core.frames import LidarScan, RgbdFrame
 from exobench.core.kinds import FRAME_TYPES, frame_kind
+from exobench.envs.sensors.kinds import SENSOR_KINDS, registration_problems
 
 # read once, at collection: a registration a test makes later (such as the toy track of
 # test_benchmarks_track_registry.py, which rebuilds the default registries) is not picked up
@@ -345,6 +352,23 @@ def test_track_summary_rows_and_references_resolve(name):
         assert ref.metric in rows, f"{name}: reference to {ref.metric!r}, which no summary row shows"
         assert set(ref.pipelines) <= set(pipes), f"{name}: reference to pipelines {sorted(set(ref.pipelines) - set(pipes))}"
         assert set(ref.groups) <= groups, f"{name}: reference to groups {sorted(set(ref.groups) - groups)}"
+
+
+# ------------------------------------------------------------------ sensor kinds
+
+
+def test_every_kind_is_registered_in_both_tables():
+    assert not registration_problems(), "\n".join(registration_problems())
+
+
+@pytest.mark.parametrize("name", sorted(SENSOR_KINDS))
+def test_sensor_kind_does_what_its_records_promise(name, tmp_path):
+    frame_kind_name = SENSOR_KINDS[name].codec.kind
+    carriers = [t for t in TRACKS if frame_kind_name in _track(t).streams]
+    assert carriers, f"sensor kind {name!r}: no track streams its frames {frame_kind_name!r}"
+    episode = smoke_episode(carriers[0])
+    problems = kind_problems(name, list(episode.frames), episode.calibration, tmp_path / "s")
+    assert not problems, "\n".join(problems)
 
 
 # ------------------------------------------------------------------ gymnasium

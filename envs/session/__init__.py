@@ -20,8 +20,8 @@ Layout of a session directory (format ``exobench-session``, version 5)::
     truth/segmentation/<id>.npz    per-pixel segmentation truth of every frame of that RGB-D camera
                                    (only when the episode has some)
 
-Modules: :mod:`.codecs` (the one table saying how each frame kind is written and read: a new
-sensor kind is one entry there), :mod:`.store` (lossless JSON values and the .npz files),
+Modules: :mod:`.codecs` (how each frame kind is written and read; the codecs are registered by
+the sensor kind table, :mod:`exobench.envs.sensors.kinds`, one line per kind), :mod:`.store` (lossless JSON values and the .npz files),
 :mod:`.lidar_pack` and :mod:`.packing` (the compact LiDAR streams and their bit-exact residuals),
 :mod:`.calibration`, :mod:`.truth` (the ``truth/`` folder; :mod:`.segmentation` its per-pixel
 part), :mod:`.io` (writing and reading directories).
