@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -166,7 +166,6 @@ def nan_in(*fields: str) -> Callable[[Any], int]:
 
 def nan_form(*fields: str) -> FrameFn:
     """A NaN form: the frame with every value of ``fields`` NaN (a float field becomes ``nan``)."""
-    from dataclasses import replace
 
     def form(frame: Any) -> Any:
         values = {
