@@ -3,6 +3,7 @@
 numpy and the standard library only. Everything else in exobench builds on these types.
 """
 
+from . import frame_kinds  # noqa: F401  (registers the shipped frame kinds)
 from .calibration import Calibration, SensorMount
 from .counters import FrameCounts, StreamCounters
 from .episode import Episode, EpisodeTruth
@@ -27,7 +28,6 @@ from .estimates import (
     TrajectoryEstimate,
 )
 from .frames import (
-    FRAME_TYPES,
     ContactSample,
     Frame,
     ImuSample,
@@ -37,8 +37,8 @@ from .frames import (
     RgbdFrame,
     ToFReading,
     TofStatus,
-    frame_kind,
 )
+from .kinds import FRAME_TYPES, KINDS, FrameKind, frame_kind, kind_of, register_kind, unregister_kind
 from .pipeline import Pipeline, coerce_like, config_from_dict
 from .truth import (
     SURFACE_KINDS,
@@ -91,6 +91,11 @@ __all__ = [
     "StaircaseEstimate",
     "StreamCounters",
     "FrameCounts",
+    "FrameKind",
+    "KINDS",
+    "kind_of",
+    "register_kind",
+    "unregister_kind",
     "ToFReading",
     "ToFTruth",
     "TofStatus",

@@ -1,7 +1,7 @@
 """Counters of the frames a pipeline met: one vocabulary for every pipeline and every track.
 
 Every built-in pipeline counts its input per frame kind (the keys of
-:data:`~exobench.core.frames.FRAME_TYPES`) in a :class:`FrameCounts` and returns them on its
+:data:`~exobench.core.kinds.KINDS`) in a :class:`FrameCounts` and returns them on its
 estimate as ``estimate.counts`` (kind -> :class:`FrameCounts`); the runner writes them into each
 record as flat metrics ``frames.<kind>.<counter>`` (:func:`count_metrics`), for every kind the
 track streams, the same way in every track. The counters of one kind:
@@ -48,32 +48,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from .calibration import Calibration
-from .frames import (
-    FRAME_TYPES,
-    ContactSample,
-    Frame,
-    ImuSample,
-    JointState,
-    LidarScan,
-    OdometrySample,
-    RgbdFrame,
-    ToFReading,
-    TofStatus,
-    frame_kind,
-)
+from .frames import Frame
+from .kinds import kind_of
 
 COUNTERS: tuple[str, ...] = (
     "seen", "used", "ignored", "repeated", "out_of_order", "dropped", "nan", "absurd", "nan_values", "absurd_values",
 )  # fmt: skip
 """The counters of :class:`FrameCounts`, in the order they are reported."""
-
-_KIND_OF_TYPE: dict[type, str] = {cls: kind for kind, cls in FRAME_TYPES.items()}
 
 
 @dataclass(slots=True)
@@ -114,8 +99,8 @@ class FrameCounts:
 
 
 def measured_s(frame: Frame) -> float:
-    """The time the frame was measured, which orders its stream (module docstring)."""
-    return float(frame.sweep_start_s if isinstance(frame, LidarScan) else frame.stamp_s)
+    """The time the frame was measured, which orders its stream (its kind's ``measured`` field)."""
+    return float(getattr(frame, kind_of(frame).measured))
 
 
 def stream_rates(calibration: Calibration | None) -> dict[str, float]:
@@ -167,7 +152,8 @@ class StreamCounters:
     def admit(self, frame: Frame, consumed: bool = True) -> FrameCounts | None:
         """Count ``frame`` as seen; return its kind's counters when the pipeline is to use it,
         or None when it is ignored (``consumed`` False), repeated or out of order (counted)."""
-        kind = _KIND_OF_TYPE.get(type(frame)) or frame_kind(frame)
+        record = kind_of(frame)
+        kind = record.name
         c = self._counts.get(kind) or self.kind(kind)
         c.seen += 1
         if not consumed:
@@ -175,7 +161,7 @@ class StreamCounters:
             return None
         sid = frame.sensor_id
         try:
-            t = measured_s(frame)
+            t = float(getattr(frame, record.measured))
         except (TypeError, ValueError):  # a time that is not a number orders nothing
             t = math.nan
         last = self._last.get(sid)
@@ -196,8 +182,19 @@ class StreamCounters:
         """A copy of the counters by kind (for an estimate: later frames do not change it)."""
         sensors = self._sensors
         return {  # field by field: an online estimate takes a copy per update, so this is kept cheap
-            kind: FrameCounts(c.seen, c.used, c.ignored, c.repeated, c.out_of_order, c.dropped, c.nan, c.absurd,
-                              c.nan_values, c.absurd_values, tuple(sensors[kind]) if kind in sensors else ())
+            kind: FrameCounts(
+                c.seen,
+                c.used,
+                c.ignored,
+                c.repeated,
+                c.out_of_order,
+                c.dropped,
+                c.nan,
+                c.absurd,
+                c.nan_values,
+                c.absurd_values,
+                tuple(sensors[kind]) if kind in sensors else (),
+            )
             for kind, c in self._counts.items()
         }
 
@@ -224,27 +221,8 @@ def count_metrics(counts: Mapping[str, Any] | None, kinds: Iterable[str] = ()) -
 
 
 def nan_values(frame: Frame) -> int:
-    """How many non-finite values ``frame`` holds where it carries a measurement: LiDAR points and
-    depth pixels one by one, one for any other frame with a non-finite value (a ToF reading only
-    when its status is VALID: no target is a measurement). 0 for values that are not numbers."""
-    try:
-        if isinstance(frame, ToFReading):
-            return int(frame.status == TofStatus.VALID and not math.isfinite(float(frame.range_m)))
-        if isinstance(frame, LidarScan):
-            p = np.asarray(frame.points_xyz, dtype=float).reshape(-1, 3)
-            return int(np.count_nonzero(~np.all(np.isfinite(p), axis=1)))
-        if isinstance(frame, RgbdFrame):
-            return int(np.count_nonzero(~np.isfinite(np.asarray(frame.depth_m, dtype=float))))
-        if isinstance(frame, ContactSample):
-            return int(not math.isfinite(float(frame.force_n)))
-        if isinstance(frame, ImuSample):
-            arrays: tuple[Any, ...] = (frame.quat_wxyz, frame.gyro_rad_s, frame.accel_m_s2)
-        elif isinstance(frame, JointState):
-            arrays = (frame.position_rad,)
-        elif isinstance(frame, OdometrySample):
-            arrays = (frame.T_odom_body, frame.v_odom_m_s)
-        else:  # a frame type added later: every value but the stamp, the id and names
-            arrays = tuple(getattr(frame, f.name) for f in fields(frame) if f.name not in ("stamp_s", "sensor_id", "names"))
-        return int(not all(np.isfinite(np.asarray(a, dtype=float)).all() for a in arrays))
-    except (TypeError, ValueError):
-        return 0
+    """How many non-finite values ``frame`` holds where it carries a measurement (its kind's
+    ``nan_values``): LiDAR points and depth pixels one by one, one for any other frame with a
+    non-finite value (a ToF reading only when its status is VALID: no target is a measurement).
+    0 for values that are not numbers."""
+    return kind_of(frame).nan_values(frame)

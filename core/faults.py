@@ -11,76 +11,33 @@ reorders frames.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
 
-from .frames import (
-    ContactSample,
-    Frame,
-    ImuSample,
-    JointState,
-    LidarScan,
-    OdometrySample,
-    RgbdFrame,
-    ToFReading,
-    TofStatus,
-)
-
-
-def _nan_like(a: np.ndarray) -> np.ndarray:
-    return np.full(np.shape(a), np.nan, dtype=np.result_type(np.asarray(a).dtype, np.float32))
-
-
-def _empty_scan(f: LidarScan) -> LidarScan:
-    return replace(
-        f,
-        points_xyz=np.zeros((0, 3)),
-        intensity=np.zeros(0, dtype=np.asarray(f.intensity).dtype),
-        ring=np.zeros(0, dtype=np.asarray(f.ring).dtype),
-        time_offset_s=np.zeros(0),
-    )
-
-
-# frame type -> the same frame as the sensor reports when it measured nothing
-_NO_RETURN: dict[type, Callable[[Frame], Frame]] = {
-    ToFReading: lambda f: replace(f, range_m=float("nan"), status=int(TofStatus.NO_TARGET)),
-    LidarScan: _empty_scan,
-    RgbdFrame: lambda f: replace(f, depth_m=np.zeros_like(f.depth_m)),
-}
-
-# frame type -> the same frame with NaN wherever it carries a measured number
-_NAN: dict[type, Callable[[Frame], Frame]] = {
-    ToFReading: lambda f: replace(f, range_m=float("nan"), status=int(TofStatus.VALID)),
-    ImuSample: lambda f: replace(
-        f, quat_wxyz=_nan_like(f.quat_wxyz), gyro_rad_s=_nan_like(f.gyro_rad_s), accel_m_s2=_nan_like(f.accel_m_s2)
-    ),
-    JointState: lambda f: replace(f, position_rad=_nan_like(f.position_rad)),
-    ContactSample: lambda f: replace(f, force_n=float("nan")),
-    LidarScan: lambda f: replace(f, points_xyz=_nan_like(f.points_xyz)),
-    RgbdFrame: lambda f: replace(f, depth_m=_nan_like(f.depth_m).astype(np.asarray(f.depth_m).dtype)),
-    OdometrySample: lambda f: replace(f, T_odom_body=_nan_like(f.T_odom_body), v_odom_m_s=_nan_like(f.v_odom_m_s)),
-}
+from .frame_kinds import ABSURD_DEPTH_M, ABSURD_POINT_M, ABSURD_RANGES_M, ABSURD_VALUE  # noqa: F401  (the values absurd() writes)
+from .frames import Frame, LidarScan
+from .kinds import kind_of
 
 
 def no_return(frame: Frame) -> Frame:
-    """The frame as its sensor reports a measurement that found nothing (ToF: NaN range with
-    status NO_TARGET; LiDAR: an empty sweep; RGB-D: depth 0 everywhere, the invalid value).
-    Sensors without such a state (IMU, encoders, contacts, odometry) are returned unchanged."""
-    fn = _NO_RETURN.get(type(frame))
+    """The frame as its sensor reports a measurement that found nothing (its kind's
+    ``no_return``: ToF NaN range with status NO_TARGET; LiDAR an empty sweep; RGB-D depth 0
+    everywhere, the invalid value). Kinds without such a state (IMU, encoders, contacts,
+    odometry) return the frame unchanged. A frame of no registered kind is a FrameTypeError."""
+    fn = kind_of(frame).no_return
     return frame if fn is None else fn(frame)
 
 
 def with_nan(frame: Frame) -> Frame:
-    """The frame with NaN in every measured value (a faulty driver), shapes kept."""
-    fn = _NAN.get(type(frame))
-    if fn is None:
-        raise TypeError(f"not an exobench frame: {type(frame).__name__}")
-    return fn(frame)
+    """The frame with NaN in every measured value (a faulty driver), shapes kept (its kind's ``nan``)."""
+    return kind_of(frame).nan(frame)
 
 
-def inject_faults(frames: Sequence[Frame], at: tuple[float, float, float] = (0.25, 0.5, 0.75)) -> tuple[Frame, ...]:
+def inject_faults(
+    frames: Sequence[Frame], at: tuple[float, float, float] = (0.25, 0.5, 0.75)
+) -> tuple[Frame, ...]:
     """Every sensor stream of ``frames`` with three faults: at the fractions ``at`` of each
     stream's length, one frame with no return, one with NaN, and one dropped. Deterministic;
     a stream of fewer than four frames is left as it is. Time order is kept."""
@@ -99,37 +56,14 @@ def inject_faults(frames: Sequence[Frame], at: tuple[float, float, float] = (0.2
     return tuple(f for f in out if f is not None)
 
 
-# the absurd values :func:`absurd` writes (see :mod:`exobench.core.limits` for what is absurd)
-ABSURD_RANGES_M = (1e308, 0.0, 1e6)
-ABSURD_POINT_M = 1e6
-ABSURD_DEPTH_M = 1e6
-ABSURD_VALUE = 1e308
-
-
-def _absurd_scan(f: LidarScan) -> LidarScan:
-    p = np.array(f.points_xyz, dtype=float).reshape(-1, 3)
-    n = len(p)
-    far, origin = np.arange(0, n, 4), np.arange(2, n, 4)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        r = np.linalg.norm(p[far], axis=1, keepdims=True)
-        u = np.where(r > 0, p[far] / np.where(r > 0, r, 1.0), np.array([1.0, 0.0, 0.0]))
-    p[far] = ABSURD_POINT_M * u
-    p[origin] = 0.0
-    return replace(f, points_xyz=p)
-
-
 def n_absurd_points(scan: LidarScan) -> int:
     """How many points :func:`absurd` makes absurd in a scan: every other one (1e6 m, origin)."""
     return (len(np.asarray(scan.points_xyz).reshape(-1, 3)) + 1) // 2
 
 
-def _absurd_imu(f: ImuSample) -> ImuSample:
-    big = ABSURD_VALUE
-    return replace(f, quat_wxyz=np.full(4, big), gyro_rad_s=np.full(3, big), accel_m_s2=np.full(3, big))
-
-
 def absurd(frame: Frame, variant: int = 0) -> Frame:
-    """The frame with values its sensor cannot have measured (a broken driver or unit error):
+    """The frame with values its sensor cannot have measured (a broken driver or unit error), its
+    kind's ``absurd`` form. The shipped kinds (:mod:`exobench.core.frame_kinds`):
 
     - ToF: status VALID with range ``ABSURD_RANGES_M[variant % 3]`` (1e308, 0 or 1e6 m);
     - LiDAR: every other point absurd, alternately at 1e6 m along its ray and at the origin
@@ -137,23 +71,7 @@ def absurd(frame: Frame, variant: int = 0) -> Frame:
     - RGB-D: depth 1e6 m everywhere; IMU: 1e308 in the quaternion, rate and force;
     - encoders: 1e308 rad; contact: 1e308 N; odometry: a translation of 1e308 m.
     """
-    if isinstance(frame, ToFReading):
-        return replace(frame, range_m=ABSURD_RANGES_M[variant % len(ABSURD_RANGES_M)], status=int(TofStatus.VALID))
-    if isinstance(frame, LidarScan):
-        return _absurd_scan(frame)
-    if isinstance(frame, RgbdFrame):
-        return replace(frame, depth_m=np.full_like(frame.depth_m, ABSURD_DEPTH_M))
-    if isinstance(frame, ImuSample):
-        return _absurd_imu(frame)
-    if isinstance(frame, JointState):
-        return replace(frame, position_rad=np.full(np.shape(frame.position_rad), ABSURD_VALUE))
-    if isinstance(frame, ContactSample):
-        return replace(frame, force_n=ABSURD_VALUE)
-    if isinstance(frame, OdometrySample):
-        T = np.array(frame.T_odom_body, dtype=float)
-        T[:3, 3] = ABSURD_VALUE
-        return replace(frame, T_odom_body=T)
-    raise TypeError(f"not an exobench frame: {type(frame).__name__}")
+    return kind_of(frame).absurd(frame, variant)
 
 
 def inject_absurd(

@@ -4,6 +4,10 @@ Each frame is a frozen dataclass with a time stamp ``stamp_s`` (seconds since th
 episode, on the exoskeleton's clock: the time the measurement was *delivered*, latency included)
 and the ``sensor_id`` of the mount that produced it (see :class:`exobench.core.calibration`).
 A dropped frame is simply absent from the stream. Ground truth is never part of a frame.
+
+What else a kind is (its fault forms, NaN and absurd-value rules) is its record in
+:mod:`exobench.core.frame_kinds`; the table of kinds, :data:`~exobench.core.kinds.KINDS`
+(``FRAME_TYPES``, ``frame_kind``), is :mod:`exobench.core.kinds`.
 """
 
 from __future__ import annotations
@@ -168,21 +172,3 @@ class OdometrySample:
 
 
 Frame = ToFReading | ImuSample | JointState | ContactSample | LidarScan | RgbdFrame | OdometrySample
-
-FRAME_TYPES: dict[str, type] = {
-    "tof": ToFReading,
-    "imu": ImuSample,
-    "joints": JointState,
-    "contact": ContactSample,
-    "lidar": LidarScan,
-    "rgbd": RgbdFrame,
-    "odometry": OdometrySample,
-}
-
-
-def frame_kind(frame: Frame) -> str:
-    """The short kind name of a frame (the key of :data:`FRAME_TYPES`)."""
-    for kind, cls in FRAME_TYPES.items():
-        if isinstance(frame, cls):
-            return kind
-    raise TypeError(f"not an exobench frame: {type(frame).__name__}")

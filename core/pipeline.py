@@ -27,9 +27,8 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 from .calibration import Calibration
 from .errors import ConfigError, FrameTypeError, PipelineStateError, UnknownNameError
-from .frames import FRAME_TYPES, Frame
-
-_FRAME_CLASSES = tuple(FRAME_TYPES.values())
+from .frames import Frame
+from .kinds import frame_classes
 
 
 @runtime_checkable
@@ -57,12 +56,13 @@ class Pipeline(Protocol):
 
 def check_frame(pipeline: object, frame: object, was_reset: bool) -> None:
     """Refuse a call of ``pipeline.process(frame)`` that cannot be right: before ``reset``
-    (``was_reset`` False) with :class:`PipelineStateError`, and with ``frame`` not one of
-    :data:`~.frames.FRAME_TYPES` with :class:`FrameTypeError`. Call it first in ``process``."""
+    (``was_reset`` False) with :class:`PipelineStateError`, and with ``frame`` not of a
+    registered kind (:data:`~.kinds.KINDS`) with :class:`FrameTypeError`. Call it first in ``process``."""
     if not was_reset:
         raise PipelineStateError(getattr(pipeline, "name", "") or type(pipeline).__name__, "process()")
-    if not isinstance(frame, _FRAME_CLASSES):
-        raise FrameTypeError(frame, [c.__name__ for c in _FRAME_CLASSES])
+    classes = frame_classes()
+    if not isinstance(frame, classes):
+        raise FrameTypeError(frame, [c.__name__ for c in classes])
 
 
 def config_from_dict(config_cls: type, values: Mapping[str, Any], *, prefix: str = "") -> Any:

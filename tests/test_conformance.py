@@ -1,7 +1,8 @@
 """Conformance of every registered piece, driven by the registries (as dm_control's suite test).
 
 A pipeline, a track or a gymnasium environment is covered here the moment it is registered
-(the default registries: built-ins and installed entry points):
+(the default registries: built-ins and installed entry points; and the toy track of
+``docs/adding-a-track.md``, ``tests/toy_track.py``, with its pipeline):
 
 - every pipeline, on its track's smoke episode (``Track.smoke_scenario``, seed 0): the default
   config is valid and saved whole as JSON, it returns the track's ``estimate_type``, the same
@@ -19,9 +20,14 @@ A pipeline, a track or a gymnasium environment is covered here the moment it is 
   validates and case names are unique per suite, a failed episode and a bad estimate are scored
   well-formed with the reason, the summary rows and the published references name metrics the
   scorer gives, groups its suites have and pipelines that serve it;
+- every sensor kind: both of its records are registered whole (the core record of its frames
+  and its adapter and codec, :func:`exobench.envs.sensors.kinds.registration_problems`), and on
+  the frames it recorded in a smoke episode its fault forms, NaN-value counter, absurd-value rule
+  and codec do what they promise (``tests/kind_conformance.py``, which the toy sensor passes too);
 - every gymnasium environment whose id starts with ``exobench/`` passes gymnasium's ``check_env``.
 
-Every sensor kind's session round trip is in ``test_session_codecs.py``, driven by the codec table.
+Every sensor kind's session round trip on its codec's example frame is in
+``test_session_codecs.py``, driven by the same table.
 Each smoke episode is simulated once per test session and each pipeline's clean run is kept.
 """
 
@@ -38,21 +44,29 @@ from typing import Any
 import gymnasium
 import numpy as np
 import pytest
+from kind_conformance import kind_problems
+from toy_track import ToyScale, ToyScaleTrack
 
 import exobench.envs  # noqa: F401  (registers the gymnasium environments)
-from exobench.benchmarks.registry import default_registry
+from exobench.benchmarks.registry import build_registry
 from exobench.benchmarks.results import json_safe
 from exobench.benchmarks.runner import PipelineRun, run_pipelines, untimed_metrics
-from exobench.benchmarks.tracks.registry import default_track_registry
+from exobench.benchmarks.tracks.registry import build_track_registry
 from exobench.core.counters import FrameCounts, stream_rates
 from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownNameError
 from exobench.core.faults import STREAM_FAULTS, inject_faults, inject_stream_faults, n_absurd_points
-from exobench.core.frames import FRAME_TYPES, LidarScan, RgbdFrame, frame_kind
+from exobench.core.frames import LidarScan, RgbdFrame
+from exobench.core.kinds import FRAME_TYPES, frame_kind
+from exobench.envs.sensors.kinds import SENSOR_KINDS, registration_problems
 
-# read once, at collection: a registration a test makes later (such as the toy track of
-# test_benchmarks_track_registry.py, which rebuilds the default registries) is not picked up
-PIPELINE_REGISTRY = default_registry()
-TRACK_REGISTRY = default_track_registry()
+# built once, at collection, with the toy track of docs/adding-a-track.md (tests/toy_track.py)
+# beside the registered ones: it passes what they pass. A registration a test makes later (such
+# as the toy of test_benchmarks_track_registry.py, which rebuilds the default registries) is not
+# picked up.
+PIPELINE_REGISTRY = build_registry()
+PIPELINE_REGISTRY.register("toy-scale", ToyScale)
+TRACK_REGISTRY = build_track_registry()
+TRACK_REGISTRY.register("toy-scale", ToyScaleTrack)
 PIPELINES = PIPELINE_REGISTRY.names()
 TRACKS = TRACK_REGISTRY.names()
 GYM_IDS = sorted(k for k in gymnasium.registry if k.startswith("exobench/"))
@@ -344,6 +358,23 @@ def test_track_summary_rows_and_references_resolve(name):
         assert ref.metric in rows, f"{name}: reference to {ref.metric!r}, which no summary row shows"
         assert set(ref.pipelines) <= set(pipes), f"{name}: reference to pipelines {sorted(set(ref.pipelines) - set(pipes))}"
         assert set(ref.groups) <= groups, f"{name}: reference to groups {sorted(set(ref.groups) - groups)}"
+
+
+# ------------------------------------------------------------------ sensor kinds
+
+
+def test_every_kind_is_registered_in_both_tables():
+    assert not registration_problems(), "\n".join(registration_problems())
+
+
+@pytest.mark.parametrize("name", sorted(SENSOR_KINDS))
+def test_sensor_kind_does_what_its_records_promise(name, tmp_path):
+    frame_kind_name = SENSOR_KINDS[name].codec.kind
+    carriers = [t for t in TRACKS if frame_kind_name in _track(t).streams]
+    assert carriers, f"sensor kind {name!r}: no track streams its frames {frame_kind_name!r}"
+    episode = smoke_episode(carriers[0])
+    problems = kind_problems(name, list(episode.frames), episode.calibration, tmp_path / "s")
+    assert not problems, "\n".join(problems)
 
 
 # ------------------------------------------------------------------ gymnasium

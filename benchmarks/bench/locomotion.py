@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from exobench.core.episode import Episode
-from exobench.core.frames import frame_kind
+from exobench.core.kinds import frame_kind
 
 LOCOMOTION_BENCH_SCENARIO: dict[str, Any] = {
     "terrain": "stairs", "riser_m": 0.15, "mount": "head", "pattern": "walk", "n_steps": 3, "approach_m": 1.5,

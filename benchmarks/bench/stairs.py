@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from exobench.core.episode import Episode
-from exobench.core.frames import frame_kind
+from exobench.core.kinds import frame_kind
 
 PAPER_MS_PER_POINT = {"rtls": 0.685, "rtls-htvr": 0.427}  # Cortex-M4 at 168 MHz, Sec. V-B
 

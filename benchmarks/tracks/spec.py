@@ -150,7 +150,7 @@ class Track(Protocol):
     suites: ClassVar[tuple[str, ...]]
     default_suite: ClassVar[str]
     streams: ClassVar[tuple[str, ...]]
-    """Frame kinds its episodes carry (keys of ``exobench.core.frames.FRAME_TYPES``)."""
+    """Frame kinds its episodes carry (keys of ``exobench.core.kinds.FRAME_TYPES``)."""
     estimate_type: ClassVar[type]
     """The estimate class its pipelines return from ``finalize()`` (from ``exobench.core.estimates``).
     The runner checks it once, before scoring: any other value (None included) is recorded as

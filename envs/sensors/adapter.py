@@ -57,7 +57,7 @@ class MountedSensor:
 
     Attributes:
         sensor_id: the stream's id (also the MuJoCo site or camera it is read from).
-        kind: the sensor kind (a key of :data:`exobench.envs.sensors.kinds.ADAPTERS`).
+        kind: the sensor kind (a key of :data:`exobench.envs.sensors.kinds.SENSOR_KINDS`).
         config: the kind's config (``ToFConfig``, ``ImuConfig``, ``LidarConfig``, ...).
         attached_to: None: the device's own mount of ``sensor_id`` (:func:`exobench.models.exo.sensor_mounts`);
             else the id of an RGB-D camera whose optical frame this sensor shares (a camera's IMU

@@ -20,8 +20,8 @@ Layout of a session directory (format ``exobench-session``, version 5)::
     truth/segmentation/<id>.npz    per-pixel segmentation truth of every frame of that RGB-D camera
                                    (only when the episode has some)
 
-Modules: :mod:`.codecs` (the one table saying how each frame kind is written and read: a new
-sensor kind is one entry there), :mod:`.store` (lossless JSON values and the .npz files),
+Modules: :mod:`.codecs` (how each frame kind is written and read; the codecs are registered by
+the sensor kind table, :mod:`exobench.envs.sensors.kinds`, one line per kind), :mod:`.store` (lossless JSON values and the .npz files),
 :mod:`.lidar_pack` and :mod:`.packing` (the compact LiDAR streams and their bit-exact residuals),
 :mod:`.calibration`, :mod:`.truth` (the ``truth/`` folder; :mod:`.segmentation` its per-pixel
 part), :mod:`.io` (writing and reading directories).
@@ -46,7 +46,7 @@ compact=False)`` still writes version 4. Writing gives version 5.
 """
 
 from .calibration import calibration_from_dict, calibration_to_dict
-from .codecs import CODECS, FrameCodec, frame_from_dict, frame_to_dict, register_codec
+from .codecs import CODECS, FrameCodec, codec_table, frame_from_dict, frame_to_dict, register_codec
 from .io import (
     FORMAT,
     SUPPORTED_VERSIONS,
@@ -76,6 +76,7 @@ __all__ = [
     "iter_frames",
     "read_meta",
     "read_session",
+    "codec_table",
     "register_codec",
     "truth_from_dict",
     "truth_to_dict",

@@ -10,9 +10,10 @@ refers to the file:
   ``points_xyz`` (N, 3), ``intensity`` (N,), ``ring`` (N,), ``time_offset_s`` (N,);
 - ``rgbd``: ``shape`` [H, W], ``file``, ``index``; the file holds ``rgb``, ``depth_m`` and ``K``.
 
-A new sensor kind is one more entry in :data:`CODECS` (:func:`register_codec`): its frame type,
-its kind name, its encode and decode functions, and an example frame, with which the conformance
-test writes and reads back every registered kind.
+The codecs of the shipped kinds are defined here (the on-disk format in one place); a new kind
+defines its codec in its sensor folder. Either way the kind's line in the sensor kind table
+(:mod:`exobench.envs.sensors.kinds`) registers it into :data:`CODECS`, which this module loads
+the first time a frame is written or read, so reading a session needs no other import.
 """
 
 from __future__ import annotations
@@ -70,11 +71,24 @@ class FrameCodec:
 
 
 CODECS: dict[str, FrameCodec] = {}
-"""Every frame kind a session reads and writes, by kind name."""
+"""Every frame kind a session reads and writes, by kind name (filled by the sensor kind table)."""
+
+_TABLE_LOADED: list[bool] = [False]
+
+
+def codec_table() -> dict[str, FrameCodec]:
+    """:data:`CODECS`, with the sensor kind table that registers the codecs loaded."""
+    if not _TABLE_LOADED[0]:
+        # imported here, not above: the table imports this module to register its codecs
+        import exobench.envs.sensors.kinds  # noqa: F401
+
+        _TABLE_LOADED[0] = True
+    return CODECS
 
 
 def register_codec(codec: FrameCodec) -> FrameCodec:
-    """Add a kind to :data:`CODECS`; a kind name or frame type registered twice is refused."""
+    """Add a kind to :data:`CODECS`; a kind name or frame type registered twice is refused.
+    A sensor kind registers its codec with :func:`exobench.envs.sensors.kinds.register_sensor_kind`."""
     if codec.kind in CODECS or any(c.frame_type is codec.frame_type for c in CODECS.values()):
         raise ValueError(f"frame kind {codec.kind!r} ({codec.frame_type.__name__}) has a codec already")
     CODECS[codec.kind] = codec
@@ -83,7 +97,7 @@ def register_codec(codec: FrameCodec) -> FrameCodec:
 
 def codec_of(frame: Frame) -> FrameCodec:
     """The codec of a frame, by its type."""
-    for codec in CODECS.values():
+    for codec in codec_table().values():
         if isinstance(frame, codec.frame_type):
             return codec
     raise TypeError(f"not an exobench frame: {type(frame).__name__}")
@@ -105,7 +119,7 @@ def frame_to_dict(frame: Frame, store: BinaryStore | None = None) -> dict[str, A
 def frame_from_dict(d: dict[str, Any], root: str | os.PathLike | None = None) -> Frame:
     """A frame from its ``frames.jsonl`` object; ``root`` (the session) resolves binary files."""
     kind, stamp, sid = d["kind"], float(d["stamp_s"]), d["sensor_id"]
-    codec = CODECS.get(kind)
+    codec = codec_table().get(kind)
     if codec is None:
         raise SessionError(f"frames.jsonl: unknown frame kind {kind!r}; valid: {', '.join(CODECS)}")
     if codec.binary and root is None:
@@ -142,29 +156,29 @@ def _nan_at(a: np.ndarray, k: int = 0) -> np.ndarray:
     return a
 
 
-register_codec(line_codec(
+TOF = line_codec(
     "tof", ToFReading, lambda rng: ToFReading(0.02, "tof_r_med", float("nan"), int(TofStatus.NO_TARGET)),
     range_m=FLOAT, status=INT,
-))  # fmt: skip
-register_codec(line_codec(
+)  # fmt: skip
+IMU = line_codec(
     "imu", ImuSample,
     lambda rng: ImuSample(0.005, "imu_trunk", rng.normal(size=4), _nan_at(rng.normal(size=3), 1), rng.normal(size=3)),
     quat_wxyz=ARRAY, gyro_rad_s=ARRAY, accel_m_s2=ARRAY,
-))  # fmt: skip
-register_codec(line_codec(
+)  # fmt: skip
+JOINTS = line_codec(
     "joints", JointState,
     lambda rng: JointState(0.005, "encoders", ("hip_l", "knee_l", "ankle_l"), _nan_at(rng.normal(size=3), 2)),
     names=NAMES, position_rad=ARRAY,
-))  # fmt: skip
-register_codec(line_codec(
+)  # fmt: skip
+CONTACT = line_codec(
     "contact", ContactSample, lambda rng: ContactSample(0.01, "contact_l_heel", float("nan"), True),
     force_n=FLOAT, in_contact=BOOL,
-))  # fmt: skip
-register_codec(line_codec(
+)  # fmt: skip
+ODOMETRY = line_codec(
     "odometry", OdometrySample,
     lambda rng: OdometrySample(0.1, "odom_head", rng.normal(size=(4, 4)), _nan_at(rng.normal(size=3))),
     T_odom_body=ARRAY, v_odom_m_s=ARRAY,
-))  # fmt: skip
+)  # fmt: skip
 
 
 # --- binary kinds: arrays in per-frame .npz files ------------------------------------------------
@@ -263,5 +277,5 @@ def _rgbd_example(rng: np.random.Generator) -> RgbdFrame:
     return RgbdFrame(1 / 30, "rgbd_head", rng.integers(0, 256, (4, 6, 3)).astype(np.uint8), depth, K)
 
 
-register_codec(FrameCodec("lidar", LidarScan, _lidar_encode, _lidar_decode, _lidar_example, binary=True))
-register_codec(FrameCodec("rgbd", RgbdFrame, _rgbd_encode, _rgbd_decode, _rgbd_example, binary=True))
+LIDAR = FrameCodec("lidar", LidarScan, _lidar_encode, _lidar_decode, _lidar_example, binary=True)
+RGBD = FrameCodec("rgbd", RgbdFrame, _rgbd_encode, _rgbd_decode, _rgbd_example, binary=True)

@@ -36,7 +36,7 @@ from exobench.models.exo_spec import ExoSpec
 from ..motion import Motion
 from ..sensors import imu_dynamics, sample_times
 from ..sensors.adapter import MountedSensor, PoseFn, SensorOutput
-from ..sensors.kinds import ADAPTERS, adapter_class
+from ..sensors.kinds import SENSOR_KINDS, adapter_class
 from .pose import RigidPose
 
 TRACKED_BODIES = ("pelvis", "thigh_l", "shank_l", "foot_l", "thigh_r", "shank_r", "foot_r", "head")
@@ -216,7 +216,7 @@ class Recorder:
         (frame, truth or None) pairs delivered by ``t_s`` and not returned before, in time order."""
         slow = sorted({s.kind for s in self.ctx.rig if not adapter_class(s.kind).streams})
         if slow:
-            streaming = sorted(k for k, a in ADAPTERS.items() if a.streams)
+            streaming = sorted(k for k, sk in SENSOR_KINDS.items() if sk.adapter.streams)
             raise ConfigError("rig", slow, f"sensor kinds that can be stepped ({', '.join(streaming)})")
         if motion is not None:
             old = self.ctx.motion.segments

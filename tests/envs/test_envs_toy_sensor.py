@@ -1,25 +1,37 @@
 """A toy sensor kind, defined in this file only, mounted anywhere on the exoskeleton in any world.
 
-A barometer on the left shank: its frame type, config, adapter and session codec live here and
-are registered for the test (``envs/sensors/kinds.ADAPTERS``, ``envs/session.register_codec``);
-no other file of exobench knows it. It records on an office walk beside the default rig, its
-readings follow the true height of its mount, the calibration carries its mount, and a session
-keeps it bit for bit. This is the worked example of ``docs/adding-a-sensor.md``.
+A barometer on the left shank. Its frame module (the ``PressureSample`` frame and its core
+record: fault forms, NaN-value counter, absurd-value rule) and its sensor folder (config,
+adapter, codec) live here, and it is registered through the public API for this module, one
+call per table (:func:`exobench.core.kinds.register_kind`,
+:func:`exobench.envs.sensors.kinds.register_sensor_kind`); no other file of exobench knows it.
+It records on an office walk beside the default rig, its readings follow the true height of its
+mount, the calibration carries its mount, a session keeps it bit for bit, a shipped pipeline
+accepts and counts its frames, and it passes the same kind conformance checks as the shipped
+kinds (``tests/kind_conformance.py``), whose checker is also shown to name what a
+half-registered kind lacks. This is the worked example of ``docs/adding-a-sensor.md``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, replace
 from typing import Any, ClassVar
 
 import numpy as np
 import pytest
+from kind_conformance import kind_problems
 
+from exobench.core import Calibration
+from exobench.core.errors import FrameTypeError
+from exobench.core.kinds import FrameKind, nan_form, nan_in, record_problems, register_kind, unregister_kind
+from exobench.core.pipeline import check_frame
 from exobench.core.transforms import make_T, quat_wxyz_to_matrix
-from exobench.envs.sensors import kinds
 from exobench.envs.sensors.adapter import BaseAdapter, Mount, MountedSensor, RecordContext, SensorOutput
 from exobench.envs.sensors.common import sample_times, sensor_rngs
-from exobench.envs.session import CODECS, FrameCodec, read_session, register_codec, write_session
+from exobench.envs.sensors.kinds import register_sensor_kind, registration_problems, unregister_sensor_kind
+from exobench.envs.session import read_session, write_session
+from exobench.envs.session.codecs import FLOAT, line_codec
 from exobench.envs.sim import OfficeScenario, simulate_office
 
 P0_PA = 101_325.0
@@ -35,6 +47,24 @@ class PressureSample:
     pressure_pa: float
 
 
+# --- the frame module: the frame type and its core record ----------------------------------------
+MIN_PA, MAX_PA = 30_000.0, 120_000.0  # from the summit of Everest (~33 kPa) to a deep mine (~110 kPa)
+ABSURD_PA = (1e308, -1.0, 0.0)
+
+
+def baro_absurd_values(calibration: Calibration | None):
+    """A finite pressure outside what air on Earth has (the limits need nothing of the calibration)."""
+    return lambda f: int(np.isfinite(f.pressure_pa) and not MIN_PA <= f.pressure_pa <= MAX_PA)
+
+
+BARO_KIND = FrameKind(
+    "barometer", PressureSample, nan=nan_form("pressure_pa"), nan_values=nan_in("pressure_pa"),
+    absurd=lambda f, variant: replace(f, pressure_pa=ABSURD_PA[variant % len(ABSURD_PA)]),
+    absurd_values=baro_absurd_values,
+)  # fmt: skip
+
+
+# --- the sensor folder: config, adapter, codec -----------------------------------------------------
 @dataclass(frozen=True)
 class BarometerConfig:
     rate_hz: float = 25.0
@@ -70,22 +100,20 @@ class BarometerAdapter(BaseAdapter):
         return {"rate_hz": sensor.config.rate_hz, "noise_pa": sensor.config.noise_pa}
 
 
+BARO_CODEC = line_codec(
+    "barometer", PressureSample, lambda rng: PressureSample(0.5, "baro", float("nan")), pressure_pa=FLOAT
+)
 BARO = MountedSensor("baro_shank_l", "barometer", BarometerConfig(), mount=Mount("shank_l", (0.03, 0.0, -0.12)))
 
 
 @pytest.fixture(scope="module")
 def toy_kind():
-    """The barometer registered as a sensor kind and a session frame kind, for this module."""
-    kinds.ADAPTERS["barometer"] = BarometerAdapter
-    register_codec(FrameCodec(
-        "barometer", PressureSample,
-        encode=lambda f, store: {"pressure_pa": f.pressure_pa},
-        decode=lambda d, stamp, sid, root: PressureSample(stamp, sid, d["pressure_pa"]),
-        example=lambda rng: PressureSample(0.5, "baro", float(rng.normal(P0_PA, 10.0))),
-    ))  # fmt: skip
+    """The barometer registered in the two tables for this module: one call each."""
+    register_kind(BARO_KIND)
+    register_sensor_kind("barometer", BarometerAdapter, BARO_CODEC)
     yield
-    del kinds.ADAPTERS["barometer"]
-    del CODECS["barometer"]
+    unregister_sensor_kind("barometer")
+    unregister_kind("barometer")
 
 
 @pytest.fixture(scope="module")
@@ -133,3 +161,76 @@ def test_toy_frames_survive_a_session_bit_for_bit(walk, tmp_path):
     a = [f for f in walk.frames if isinstance(f, PressureSample)]
     b = [f for f in back.frames if isinstance(f, PressureSample)]
     assert [(f.stamp_s, f.sensor_id, f.pressure_pa) for f in a] == [(f.stamp_s, f.sensor_id, f.pressure_pa) for f in b]
+
+
+def test_toy_kind_passes_the_conformance_of_every_kind(walk, tmp_path):
+    assert not registration_problems()
+    assert kind_problems("barometer", list(walk.frames), walk.calibration, tmp_path / "s") == []
+
+
+def test_a_shipped_pipeline_accepts_and_counts_the_toy_frames(walk):
+    """check_frame accepts a registered kind: a LiDAR filter fed the walk with the barometer
+    counts every pressure sample as seen and ignored, and filters as it does without them."""
+    from exobench.benchmarks.registry import default_registry
+
+    registry = default_registry()
+    n_baro = sum(isinstance(f, PressureSample) for f in walk.frames)
+    estimates = []
+    for frames in (walk.frames, tuple(f for f in walk.frames if not isinstance(f, PressureSample))):
+        pipe = registry.make(registry.names(track="lidar-filter")[0])
+        pipe.reset(walk.calibration)
+        for f in frames:
+            pipe.process(f)
+        estimates.append(pipe.finalize())
+    c = estimates[0].counts["barometer"]
+    assert (c.seen, c.ignored, c.used) == (n_baro, n_baro, 0)
+    assert "barometer" not in estimates[1].counts
+    assert estimates[0].counts["lidar"].as_dict() == estimates[1].counts["lidar"].as_dict()
+
+
+@dataclass(frozen=True, eq=False)
+class ThermoSample:
+    stamp_s: float
+    sensor_id: str
+    temperature_k: float
+
+
+THERMO_KIND = FrameKind(
+    "thermo", ThermoSample, nan=nan_form("temperature_k"), nan_values=nan_in("temperature_k"),
+    absurd=lambda f, variant: replace(f, temperature_k=-1.0), absurd_values=lambda c: lambda f: int(f.temperature_k < 0),
+)  # fmt: skip
+THERMO_CODEC = line_codec("thermo", ThermoSample, lambda rng: ThermoSample(0.5, "t", float("nan")), temperature_k=FLOAT)
+
+
+def test_the_checker_names_what_a_half_registered_kind_lacks(walk, tmp_path):
+    """The kind checks can fail: each half of a registration, a record without a rule and a rule
+    that does not see its own absurd form are named."""
+    register_sensor_kind("thermo", BarometerAdapter, THERMO_CODEC)  # no core record
+    try:
+        problems = registration_problems()
+        assert any("'thermo' has no core record" in p and "no absurd-value rule" in p for p in problems), problems
+        with pytest.raises(FrameTypeError, match="ThermoSample"):
+            check_frame(None, ThermoSample(0.0, "t", 300.0), True)
+    finally:
+        unregister_sensor_kind("thermo")
+    register_kind(THERMO_KIND)  # no adapter, no codec
+    try:
+        assert any("frame kind 'thermo': no adapter and no session codec" in p for p in registration_problems())
+    finally:
+        unregister_kind("thermo")
+    assert not registration_problems()
+
+    no_rule = dataclasses.replace(THERMO_KIND, absurd_values=None)
+    assert record_problems(no_rule) == ["no absurd-value rule (absurd_values)"]
+    with pytest.raises(ValueError, match="'thermo': no absurd-value rule"):
+        register_kind(no_rule)
+
+    unregister_kind("barometer")  # the barometer with a rule that never finds its absurd form
+    register_kind(dataclasses.replace(BARO_KIND, absurd_values=lambda calibration: lambda f: 0))
+    try:
+        problems = kind_problems("barometer", list(walk.frames), walk.calibration, tmp_path / "s")
+    finally:
+        unregister_kind("barometer")
+        register_kind(BARO_KIND)
+    assert any("absurd form 0 is not counted by its absurd-value rule" in p for p in problems), problems
+    assert any("faults injected" in p and "'absurd': 1" in p for p in problems), problems

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from exobench.benchmarks.tracks import get_track
-from exobench.core.frames import frame_kind
+from exobench.core.kinds import frame_kind
 from exobench.envs.sim.scenarios import course, office, stairs
 
 TABLES = {"stairs": stairs.PARAMS, "office": office.PARAMS, "course": course.PARAMS}
