@@ -1,13 +1,15 @@
-"""The wheel holds every module: pyproject's package list matches the package's folders.
+"""The wheel holds every module: the packages setup.py discovers are the package's folders.
 
-The repository root is the package ``exobench`` (``package-dir = {"exobench" = "."}``), which
-setuptools' package discovery cannot express, so the list in pyproject.toml is written out. An
-editable install finds a folder left out of it anyway, a wheel does not: these tests compare
-the list with the folders, and the package data with the files, without building anything.
+The repository root is the package ``exobench`` (``package-dir = {"exobench" = "."}``);
+``setup.py`` names every package folder below it ``exobench.<folder>``. An editable install finds
+a folder that is not a package anyway (no ``__init__.py``), a wheel does not: these tests compare
+the discovered list with the folders that hold modules, and the package data with the files,
+without building anything.
 """
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 try:
@@ -19,9 +21,17 @@ ROOT = Path(__file__).resolve().parents[1]
 NOT_PACKAGES = {"tests", "docs", "build", "dist", "runs", ".venv", ".git", "__pycache__"}
 
 
+def _setup_module():
+    spec = importlib.util.spec_from_file_location("exobench_setup", ROOT / "setup.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)  # setup() runs only as __main__
+    return module
+
+
 def package_folders(root: Path) -> dict[str, Path]:
     """Dotted name -> folder of every folder of ``root`` (the package ``exobench``) that holds
-    Python modules, outside :data:`NOT_PACKAGES` and the ``*.egg-info`` folders."""
+    Python modules, outside :data:`NOT_PACKAGES` and hidden or ``*.egg-info`` folders (this
+    file's own walk, independent of setuptools)."""
     out = {}
     for path in sorted(root.rglob("*.py")):
         rel = path.parent.relative_to(root)
@@ -31,48 +41,40 @@ def package_folders(root: Path) -> dict[str, Path]:
     return out
 
 
-def declared(root: Path) -> dict:
-    return tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]
-
-
 def check_packaging(root: Path) -> list[str]:
     """What a wheel of ``root`` would miss or hold in error (empty when nothing)."""
-    setup = declared(root)
     folders = package_folders(root)
-    listed = set(setup["packages"])
-    problems = [f"folder {folders[n].relative_to(root)} ({n}) is not in pyproject's packages" for n in sorted(set(folders) - listed)]
-    problems += [f"package {n} in pyproject has no folder with modules" for n in sorted(listed - set(folders))]
-    problems += [f"{d.relative_to(root)} has modules but no __init__.py" for d in folders.values() if not (d / "__init__.py").is_file()]
-    for package, patterns in setup.get("package-data", {}).items():
+    found = set(_setup_module().packages(root))
+    problems = [f"{folders[n].relative_to(root)} has modules but is not packaged (no __init__.py)" for n in sorted(set(folders) - found)]
+    problems += [f"package {n} has no modules" for n in sorted(found - set(folders))]
+    data = tomllib.loads((root / "pyproject.toml").read_text()).get("tool", {}).get("setuptools", {}).get("package-data", {})
+    for package, patterns in data.items():
         folder = root.joinpath(*package.split(".")[1:])
         problems += [f"package data {package}: {p!r} matches no file" for p in patterns if not any(folder.glob(p))]
     return problems
 
 
-def _tree(root: Path, packages: list[str], files: list[str], data: dict[str, list[str]] | None = None) -> Path:
+def _tree(root: Path, files: list[str], data: dict[str, list[str]] | None = None) -> Path:
     for f in files:
         (root / f).parent.mkdir(parents=True, exist_ok=True)
         (root / f).write_text("")
-    setup = f"[tool.setuptools]\npackages = {packages!r}\n".replace("'", '"')
-    if data:
-        setup += "[tool.setuptools.package-data]\n" + "".join(f'"{k}" = {v!r}\n'.replace("'", '"') for k, v in data.items())
-    (root / "pyproject.toml").write_text(setup)
+    text = "[tool.setuptools.package-data]\n" + "".join(f'"{k}" = {v!r}\n'.replace("'", '"') for k, v in (data or {}).items())
+    (root / "pyproject.toml").write_text(text)
     return root
 
 
-def test_the_check_names_what_a_wheel_would_miss(tmp_path):
-    files = ["__init__.py", "core/__init__.py", "core/a.py", "tests/test_a.py", "docs/conf.py", "README.md"]
-    good = _tree(tmp_path / "good", ["exobench", "exobench.core"], files, {"exobench": ["README.md"]})
+def test_a_new_folder_is_packaged_and_the_check_names_what_a_wheel_would_miss(tmp_path):
+    files = ["__init__.py", "core/__init__.py", "core/a.py", "new/__init__.py", "new/deep/__init__.py",
+             "tests/__init__.py", "tests/test_a.py", "docs/conf.py", "README.md"]  # fmt: skip
+    good = _tree(tmp_path / "good", files, {"exobench": ["README.md"]})
+    assert _setup_module().packages(good) == ["exobench", "exobench.core", "exobench.new", "exobench.new.deep"]
     assert check_packaging(good) == []
-    bad = _tree(tmp_path / "bad", ["exobench", "exobench.gone"], [*files, "new/b.py"], {"exobench.core": ["assets/*"]})
+    bad = _tree(tmp_path / "bad", [*files, "loose/b.py"], {"exobench.core": ["assets/*"]})
     assert check_packaging(bad) == [
-        "folder core (exobench.core) is not in pyproject's packages",
-        "folder new (exobench.new) is not in pyproject's packages",
-        "package exobench.gone in pyproject has no folder with modules",
-        "new has modules but no __init__.py",
+        "loose has modules but is not packaged (no __init__.py)",
         "package data exobench.core: 'assets/*' matches no file",
     ]
 
 
-def test_pyproject_lists_every_package_folder_and_existing_data():
+def test_every_folder_with_modules_is_packaged_and_the_data_exists():
     assert check_packaging(ROOT) == []
