@@ -93,6 +93,18 @@ class FrameCounts:
             self.absurd += 1
             self.absurd_values += int(n_values)
 
+    def judge(self, frame: Frame, bad: bool) -> bool:
+        """Count a whole frame: used when not ``bad``, else NaN when it holds a non-finite value
+        (:func:`nan_values`) and absurd otherwise. Returns whether the frame may be used."""
+        if not bad:
+            self.used += 1
+            return True
+        if nan_values(frame):
+            self.add_nan()
+        else:
+            self.add_absurd()
+        return False
+
     def as_dict(self) -> dict[str, int]:
         """The counters by name (:data:`COUNTERS`), ``sensors`` left out."""
         return {name: getattr(self, name) for name in COUNTERS}

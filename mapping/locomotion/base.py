@@ -218,13 +218,8 @@ class LocomotionPipeline(ABC):
     def _on_odometry(self, frame: OdometrySample, c: FrameCounts) -> None:
         T = _finite_array(frame.T_odom_body, (4, 4))
         v = _finite_array(frame.v_odom_m_s, (3,))
-        if T is None or v is None or odometry_absurd(frame):
-            if nan_values(frame):
-                c.add_nan()
-            else:  # a malformed pose counts with the absurd ones
-                c.add_absurd()
+        if not c.judge(frame, T is None or v is None or odometry_absurd(frame)):  # a malformed pose counts as absurd
             return
-        c.used += 1
         stamp = float(frame.stamp_s)
         self._odom.append((stamp, T.copy(), v.copy()))
         if self._odom[0][0] < stamp - ODOM_HISTORY_S:
@@ -245,13 +240,8 @@ class LocomotionPipeline(ABC):
 
     def _on_contact(self, frame: ContactSample, c: FrameCounts) -> None:
         side = self._heels[frame.sensor_id]
-        if nan_values(frame):
-            c.add_nan()
+        if not c.judge(frame, nan_values(frame) > 0 or contact_absurd(frame)):
             return
-        if contact_absurd(frame):
-            c.add_absurd()
-            return
-        c.used += 1
         odo = self._odometry_at(float(frame.stamp_s) - self._contact_latency_s.get(frame.sensor_id, 0.0))
         nan3 = np.full(3, np.nan)
         # the position at the strike instant: the nearest sample moved on at its velocity

@@ -183,14 +183,7 @@ class _FilterPipeline:
             bad = imu_absurd(frame)  # non-finite values included
         else:
             bad = contact_absurd(frame) or nan_values(frame) > 0
-        if bad:
-            if nan_values(frame):
-                c.add_nan()
-            else:
-                c.add_absurd()
-            return False
-        c.used += 1
-        return True
+        return c.judge(frame, bad)
 
     def _scan(self, scan: LidarScan, c: FrameCounts) -> None:
         t0 = time.perf_counter()

@@ -68,7 +68,7 @@ from typing import ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
-from exobench.core.counters import StreamCounters, nan_values
+from exobench.core.counters import StreamCounters
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import PlaceRecognitionEstimate
 from exobench.core.frames import Frame, ImuSample, LidarScan
@@ -167,14 +167,9 @@ class PlaceRecognitionPipeline(ABC):
             c = self._counters.admit(frame, not self._imu_id or frame.sensor_id == self._imu_id)
             if c is not None:
                 q = np.asarray(frame.quat_wxyz, dtype=float)
-                if q.shape == (4,) and not imu_absurd(frame):
-                    c.used += 1
+                if c.judge(frame, q.shape != (4,) or imu_absurd(frame)):
                     self._imu_t.append(float(frame.stamp_s))
                     self._imu_R.append(quat_wxyz_to_matrix(q / np.linalg.norm(q)))
-                elif nan_values(frame):
-                    c.add_nan()
-                else:
-                    c.add_absurd()
             return None
         lidar = isinstance(frame, LidarScan) and not (self._lidar_id and frame.sensor_id != self._lidar_id)
         c = self._counters.admit(frame, lidar)

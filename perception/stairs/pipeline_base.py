@@ -41,7 +41,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from exobench.core.calibration import Calibration
-from exobench.core.counters import FrameCounts, StreamCounters, nan_values
+from exobench.core.counters import FrameCounts, StreamCounters
 from exobench.core.errors import ConfigError, PipelineStateError, check_int, check_range
 from exobench.core.estimates import PlaneEstimate, PointAssignment, StaircaseEstimate
 from exobench.core.frames import Frame, ImuSample, JointState, ToFReading, TofStatus
@@ -106,11 +106,11 @@ class StairsPipeline(ABC):
             self._tof(frame)
         elif isinstance(frame, JointState):
             c = self._counters.admit(frame)
-            if c is not None and self._valid_state(c, frame, self._joint_limits.absurd(frame)):
+            if c is not None and c.judge(frame, self._joint_limits.absurd(frame)):
                 self._kin.update_joints(frame)
         elif isinstance(frame, ImuSample) and frame.sensor_id == self.config.imu_sensor_id:
             c = self._counters.admit(frame)
-            if c is not None and self._valid_state(c, frame, imu_absurd(frame)):
+            if c is not None and c.judge(frame, imu_absurd(frame)):
                 self._kin.update_imu(frame)
         else:
             self._counters.admit(frame, consumed=False)
@@ -122,18 +122,6 @@ class StairsPipeline(ABC):
         return self._finalize()
 
     # --- frames ---
-    @staticmethod
-    def _valid_state(c: FrameCounts, frame: Frame, bad: bool) -> bool:
-        """Whether an encoder or IMU state can be used (``bad``: not finite or absurd); count it."""
-        if bad:
-            if nan_values(frame):
-                c.add_nan()
-            else:
-                c.add_absurd()
-            return False
-        c.used += 1
-        return True
-
     def _usable_range(self, c: FrameCounts, frame: ToFReading, r: float) -> bool:
         """Whether a reading can become a point; otherwise count why not."""
         if frame.status != TofStatus.VALID:

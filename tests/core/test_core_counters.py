@@ -102,6 +102,15 @@ def test_frame_counts_add_values_and_frames():
     assert list(c.as_dict()) == list(COUNTERS)
 
 
+def test_judge_counts_a_whole_frame_used_nan_or_absurd():
+    c = FrameCounts()
+    good, nan = _tof(0.0), _tof(0.1, r=math.nan)
+    assert c.judge(good, False) is True
+    assert c.judge(nan, True) is False  # bad and holding a NaN: counted NaN
+    assert c.judge(good, True) is False  # bad with finite values: counted absurd
+    assert (c.used, c.nan, c.nan_values, c.absurd, c.absurd_values) == (1, 1, 1, 1, 1)
+
+
 def test_count_metrics_are_flat_and_cover_every_streamed_kind():
     counts = {"tof": FrameCounts(seen=5, used=3, repeated=2)}
     m = count_metrics(counts, ("tof", "imu"))
