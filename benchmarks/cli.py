@@ -10,7 +10,9 @@ exit status 1 and the first reasons on stderr, after its table and report are wr
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -20,6 +22,7 @@ import click
 EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a writer whose reader left
 
 
 class _Group(click.Group):
@@ -34,6 +37,10 @@ class _Group(click.Group):
             if isinstance(e, ExobenchError):
                 click.echo(f"exobench: error: {e}", err=True)
                 ctx.exit(EXIT_USAGE)
+            if isinstance(e, BrokenPipeError):  # the reader left (`exobench list | head`): quiet, as Unix tools are
+                with contextlib.suppress(OSError, ValueError):  # no second error at exit's flush
+                    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                ctx.exit(EXIT_BROKEN_PIPE)
             if isinstance(e, OSError):  # the file system said no (disk full, read-only, ...)
                 name = e.filename2 or e.filename
                 click.echo(f"exobench: error: {name}: {e.strerror}" if name and e.strerror else f"exobench: error: {e}", err=True)

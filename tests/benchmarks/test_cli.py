@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import click
 import pytest
 from click.testing import CliRunner
 from test_benchmarks_support import FakeStairs, FakeTrack, serve_tracks
@@ -76,6 +77,19 @@ def test_help_answers_and_lists_the_commands():
     assert result.exit_code == 0
     for command in ("run", "list", "bench", "replay", "record"):
         assert command in result.output
+
+
+def test_a_reader_that_leaves_ends_the_command_quietly(monkeypatch):
+    """`exobench list | head`: the write that meets the closed pipe ends the command with the
+    shell's status for SIGPIPE and no error line (it was "exobench: error: [Errno 32] Broken pipe")."""
+
+    def closed_pipe(*args, **kwargs):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(click, "echo", closed_pipe)
+    result = CliRunner().invoke(cli, ["list"])
+    assert result.exit_code == 141
+    assert result.stderr == ""
 
 
 def test_help_in_a_fresh_process_imports_nothing_heavy():
