@@ -29,7 +29,10 @@ class RgbdAdapter(BaseAdapter):
         self.fraction = np.zeros((len(self.t), len(self.watch)))
         self.k = 0
         self.frames: list[Any] = []
-        self.camera = RgbdCamera(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
+        c = sensor.config
+        # geom ids only for what reads them: the segmentation truth and the watched geoms' shares
+        wants_ids = c.segmentation or c.segmentation_truth or any(len(g) for g in self.watch)
+        self.camera = RgbdCamera(sensor.sensor_id, c, ctx.model, ctx.seed, segmentation=wants_ids)
         self.labeler = SegmentationLabeler(ctx.model, ctx.scene_truth) if sensor.config.segmentation_truth else None
         self.segmentation: list[Any] = []
 
