@@ -4,7 +4,8 @@ Truth (``SensorOutput.truth``): ``t_s`` measurement times (N,), ``T_world_sensor
 the optical frame at each (lost frames included), ``watch_fraction`` (N, G) share of the image
 covered by each group of the recording's watched geoms (pedestrians). With
 ``RgbdConfig.segmentation_truth``, one :class:`~exobench.core.SegmentationTruth` per emitted frame
-(``SensorOutput.frame_truth``; :mod:`.segmentation`).
+(``SensorOutput.frame_truth``; :mod:`.segmentation`). The geom ids are rendered only for these
+two consumers (watched geoms, segmentation truth) or when the config asks (``segmentation``).
 """
 
 from __future__ import annotations

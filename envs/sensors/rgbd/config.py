@@ -56,7 +56,7 @@ class RgbdConfig:
             ``geom_id``) even when nothing in the recording reads them. Off by default: a
             recording renders them only for a consumer (``segmentation_truth``, or the image
             share of watched geoms such as pedestrians); without them ``geom_id`` is -1
-            everywhere. Read in the depth pass, they cost about a sixth of a frame.
+            everywhere. Read with the depth, they cost about a tenth of a frame.
         segmentation_truth: keep a :class:`~exobench.core.SegmentationTruth` of every emitted
             frame (geom, surface and object of each pixel; ``EpisodeTruth.segmentation``); renders
             the geom ids. Off by default.

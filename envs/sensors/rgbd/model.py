@@ -83,7 +83,7 @@ class RgbdCamera:
             raise UnknownNameError("camera", sensor_id, names)
         self.K = intrinsics(config)
         self.noise_rng, self.drop_rng = sensor_rngs(seed, sensor_id)
-        # the geom-id pass costs a third of a frame: only when something reads the ids
+        # reading and decoding the geom ids costs about a tenth of a frame: only when something reads them
         self.segmentation = bool(config.segmentation or config.segmentation_truth) if segmentation is None else bool(segmentation)
         self.renderer = make_renderer(model, config)
 
