@@ -1,10 +1,13 @@
 """`exobench bench locomotion`: the locomotion track's speed at 640x480 (RGB-D rendering, TSDF
 integration and ray casting, per-prediction latency of each pipeline) beside the 31 ms per frame
-of seeds/002."""
+of seeds/002, and the RGB-D frames per CPU-second of a whole 30 Hz episode against the three-pass
+rendering of before (:mod:`.render_baseline`)."""
 
 from __future__ import annotations
 
+import hashlib
 import time
+from contextlib import nullcontext
 from typing import Any
 
 import numpy as np
@@ -18,6 +21,7 @@ LOCOMOTION_BENCH_SCENARIO: dict[str, Any] = {
 }  # fmt: skip
 PAPER_MS_PER_PREDICTION = 31.0  # Tab. IV: D-VIO time per frame; Sec. III-A: prediction within 34 ms
 RENDER_POSES = 8
+EPISODE_RATE_HZ = 30.0  # issue 26: the quick suite's first case at 30 Hz, head camera, 424x240
 
 
 def _render_fps(terrain: str, seed: int, repeats: int, segmentation: bool = False) -> dict[str, Any]:
@@ -63,6 +67,56 @@ def _render_fps(terrain: str, seed: int, repeats: int, segmentation: bool = Fals
         cam.close()
     med = float(np.median(walls))
     return {"frames": len(walls), "ms_per_frame": med * 1e3, "frames_per_s": 1.0 / med, "valid_depth_fraction": float(np.mean(valid))}
+
+
+def _rgbd_digest(episode: Episode) -> str:
+    """SHA-256 of every RGB-D frame's colour and depth, and of the segmentation truth."""
+    from exobench.core.frames import RgbdFrame
+
+    h = hashlib.sha256()
+    for f in episode.frames:
+        if isinstance(f, RgbdFrame):
+            h.update(f.rgb.tobytes())
+            h.update(f.depth_m.tobytes())
+    for s in episode.truth.segmentation:
+        h.update(s.geom_id.tobytes())
+        h.update(s.surface_id.tobytes())
+    return h.hexdigest()
+
+
+def _episode_rgbd_rate(seed: int, repeats: int) -> dict[str, Any]:
+    """RGB-D frames per CPU-second (``time.process_time`` around the whole simulation: motion,
+    IMU, odometry and the camera) of the locomotion quick suite's first case at 30 Hz, rendered
+    by the two-pass renderer and by the three-pass baseline, alternately, ``repeats`` times each
+    (the least CPU time of each counts); ``speedup`` is their ratio, ``identical_frames`` whether
+    the two gave the same images bit for bit."""
+    from ..tracks.locomotion import LocomotionTrack
+    from ..tracks.locomotion.track import quick_cases
+    from .render_baseline import three_pass_rendering
+
+    track = LocomotionTrack()
+    case = quick_cases()[0]
+    values = {**case.scenario, "rate_hz": EPISODE_RATE_HZ}
+    track.simulate(track.validate_scenario({**values, "duration_cap_s": 2.0, "rate_hz": 1.0}), seed)  # plan, compile: untimed
+    scenario = track.validate_scenario(values)
+    cpu: dict[str, list[float]] = {"two_pass": [], "three_pass": []}
+    digest: dict[str, str] = {}
+    frames = 0
+    for _ in range(max(1, repeats)):
+        for name in ("three_pass", "two_pass"):
+            with three_pass_rendering() if name == "three_pass" else nullcontext():
+                t0 = time.process_time()
+                episode = track.simulate(scenario, seed)
+                cpu[name].append(time.process_time() - t0)
+            digest[name] = _rgbd_digest(episode)
+            frames = sum(frame_kind(f) == "rgbd" for f in episode.frames)
+    best = {k: min(v) for k, v in cpu.items()}
+    return {
+        "case": case.name, "rate_hz": EPISODE_RATE_HZ, "image_px": f"{scenario['width_px']}x{scenario['height_px']}",
+        "rgbd_frames": frames, "cpu_s_two_pass": best["two_pass"], "cpu_s_three_pass": best["three_pass"],
+        "frames_per_cpu_s_two_pass": frames / best["two_pass"], "frames_per_cpu_s_three_pass": frames / best["three_pass"],
+        "speedup": best["three_pass"] / best["two_pass"], "identical_frames": digest["two_pass"] == digest["three_pass"],
+    }  # fmt: skip
 
 
 def _tsdf_fps(episode: Episode, repeats: int) -> dict[str, Any]:
@@ -133,7 +187,10 @@ def bench_locomotion(seed: int = 0, *, repeats: int = 2, pipelines: tuple[str, .
       (:data:`LOCOMOTION_BENCH_SCENARIO`: short stair course, head camera, 640x480, 15 Hz),
       plus the half-resolution ray cast;
     - ``latency``: median / p95 ``latency_s`` per prediction of each pipeline on that episode
-      (all predictions; ``_ok`` only those with status ok).
+      (all predictions; ``_ok`` only those with status ok);
+    - ``episode_rgbd``: RGB-D frames per CPU-second of a whole 30 Hz episode (the quick suite's
+      first case) with two render passes a frame against the three of before
+      (:func:`_episode_rgbd_rate`).
     """
     from ..tracks.locomotion import LocomotionTrack
 
@@ -150,6 +207,7 @@ def bench_locomotion(seed: int = 0, *, repeats: int = 2, pipelines: tuple[str, .
         "tsdf": _tsdf_fps(episode, repeats),
         "render": {t: _render_fps(t, seed, repeats) for t in ("stairs", "ramp", "parallel")},
         "render_with_segmentation": {t: _render_fps(t, seed, repeats, segmentation=True) for t in ("stairs", "ramp", "parallel")},
+        "episode_rgbd": _episode_rgbd_rate(seed, repeats),
         "paper_ms_per_prediction": PAPER_MS_PER_PREDICTION,
     }
     return result

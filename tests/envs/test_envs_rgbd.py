@@ -60,7 +60,7 @@ def _ray_depth(model, data, T_world_opt, K, u, v):
 def test_depth_equals_ray_cast_z_depth_on_stairs(stairs, size):
     model, data = stairs
     config = RgbdConfig(width_px=size[0], height_px=size[1], min_depth_m=0.0, max_depth_m=100.0, **NOISE_FREE)
-    with RgbdCamera("rgbd_chest", config, model, seed=0) as cam:
+    with RgbdCamera("rgbd_chest", config, model, seed=0, segmentation=True) as cam:
         frame, truth = cam.capture(model, data, 0.0)
     T, K = truth["T_world_sensor"], frame.K
     z, gid = truth["depth_m"], truth["geom_id"]
@@ -98,7 +98,7 @@ def test_intrinsics_project_points_where_the_renderer_draws_them(kw):
         z = 1.2 + 0.2 * i
         spheres.append((T[:3, :3] @ (z * np.linalg.solve(K, [u, v, 1.0])) + T[:3, 3], 0.012 * z))
     model, data = _camera_scene(T, spheres)
-    with RgbdCamera("cam", config, model, seed=0) as cam:
+    with RgbdCamera("cam", config, model, seed=0, segmentation=True) as cam:
         _, truth = cam.capture(model, data, 0.0)
     np.testing.assert_allclose(truth["T_world_sensor"], T, atol=1e-9)
     for gid, (u, v) in enumerate(targets):
@@ -171,7 +171,7 @@ def test_edges_invalidate_pixels_at_depth_jumps_only():
 
 def test_smooth_surfaces_keep_their_pixels(stairs):
     model, data = stairs
-    with RgbdCamera("rgbd_chest", RgbdConfig(subpixel=0.0), model, seed=0) as cam:
+    with RgbdCamera("rgbd_chest", RgbdConfig(subpixel=0.0, segmentation=True), model, seed=0) as cam:
         frame, truth = cam.capture(model, data, 0.0)
     gid, z = truth["geom_id"], truth["depth_m"]
     same = np.ones_like(gid, dtype=bool)

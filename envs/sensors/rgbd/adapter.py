@@ -4,7 +4,8 @@ Truth (``SensorOutput.truth``): ``t_s`` measurement times (N,), ``T_world_sensor
 the optical frame at each (lost frames included), ``watch_fraction`` (N, G) share of the image
 covered by each group of the recording's watched geoms (pedestrians). With
 ``RgbdConfig.segmentation_truth``, one :class:`~exobench.core.SegmentationTruth` per emitted frame
-(``SensorOutput.frame_truth``; :mod:`.segmentation`).
+(``SensorOutput.frame_truth``; :mod:`.segmentation`). The geom ids are rendered only for these
+two consumers (watched geoms, segmentation truth) or when the config asks (``segmentation``).
 """
 
 from __future__ import annotations
@@ -29,7 +30,10 @@ class RgbdAdapter(BaseAdapter):
         self.fraction = np.zeros((len(self.t), len(self.watch)))
         self.k = 0
         self.frames: list[Any] = []
-        self.camera = RgbdCamera(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
+        c = sensor.config
+        # geom ids only for what reads them: the segmentation truth and the watched geoms' shares
+        wants_ids = c.segmentation or c.segmentation_truth or any(len(g) for g in self.watch)
+        self.camera = RgbdCamera(sensor.sensor_id, c, ctx.model, ctx.seed, segmentation=wants_ids)
         self.labeler = SegmentationLabeler(ctx.model, ctx.scene_truth) if sensor.config.segmentation_truth else None
         self.segmentation: list[Any] = []
 

@@ -52,11 +52,14 @@ class RgbdConfig:
             surfaces) [A: 0].
         shadows: render shadows in the colour image (off by default: with software OpenGL
             they make a frame about five times slower; depth is not affected).
-        segmentation: also render the per-pixel geom ids (ground truth, a third render pass);
-            off, the truth's ``geom_id`` is -1 everywhere and a frame costs two passes.
+        segmentation: render the per-pixel geom ids of every frame (the capture truth's
+            ``geom_id``) even when nothing in the recording reads them. Off by default: a
+            recording renders them only for a consumer (``segmentation_truth``, or the image
+            share of watched geoms such as pedestrians); without them ``geom_id`` is -1
+            everywhere. Read with the depth, they cost about a tenth of a frame.
         segmentation_truth: keep a :class:`~exobench.core.SegmentationTruth` of every emitted
             frame (geom, surface and object of each pixel; ``EpisodeTruth.segmentation``); renders
-            the geom ids even when ``segmentation`` is off. Off by default.
+            the geom ids. Off by default.
     """
 
     width_px: int = 640
@@ -76,7 +79,7 @@ class RgbdConfig:
     dropout_prob: float = 0.0
     pixel_dropout_prob: float = 0.0
     shadows: bool = False
-    segmentation: bool = True
+    segmentation: bool = False
     segmentation_truth: bool = False
 
     def __post_init__(self) -> None:

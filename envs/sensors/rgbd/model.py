@@ -2,9 +2,10 @@
 
 A camera named like the sensor id (``rgbd_head``, ``rgbd_chest``, ``rgbd_thigh_l``,
 ``rgbd_thigh_r`` on the exoskeleton; any MuJoCo camera works) is rendered with the config's
-intrinsics (:func:`~exobench.envs.sensors.rgbd.render.set_intrinsics`) by one :class:`mujoco.Renderer`
-kept for the camera's life. Depth is MuJoCo's depth buffer converted to metres: the distance along
-the optical axis (z-depth, not the range along the pixel ray), as a RealSense reports it. The
+intrinsics (:func:`~exobench.envs.sensors.rgbd.render.set_intrinsics`) by one
+:class:`~exobench.envs.sensors.rgbd.render.RgbdRenderer` kept for the camera's life (two render
+passes a frame: depth, with the geom ids when asked, then colour). Depth is MuJoCo's depth buffer
+converted to metres: the distance along the optical axis (z-depth, not the range along the pixel ray), as a RealSense reports it. The
 camera sees what MuJoCo renders by default: geom groups 0-2, i.e. the world and the exoskeleton.
 
 Depth model, per pixel, from the noise-free depth z (``docs/sensor-reference.md``):
@@ -64,9 +65,14 @@ def edge_mask(depth_m: np.ndarray, threshold_rel: float) -> np.ndarray:
 
 class RgbdCamera:
     """One RGB-D camera: call :meth:`capture` at each frame time after MuJoCo's kinematics
-    (``mj_forward`` or ``mj_kinematics`` + ``mj_camlight``). Call :meth:`close` when done."""
+    (``mj_forward`` or ``mj_kinematics`` + ``mj_camlight``). Call :meth:`close` when done.
 
-    def __init__(self, sensor_id: str, config: RgbdConfig, model: mujoco.MjModel, seed: int) -> None:
+    ``segmentation``: render the geom ids of each frame (the truth's ``geom_id``); None = when
+    the config asks (``segmentation`` or ``segmentation_truth``). A recording derives it from
+    what reads the ids (:class:`~exobench.envs.sensors.rgbd.adapter.RgbdAdapter`)."""
+
+    def __init__(self, sensor_id: str, config: RgbdConfig, model: mujoco.MjModel, seed: int,
+                 segmentation: bool | None = None) -> None:  # fmt: skip
         select_gl_backend()  # before mujoco is imported, if this is the first import
         import mujoco
 
@@ -77,9 +83,9 @@ class RgbdCamera:
             raise UnknownNameError("camera", sensor_id, names)
         self.K = intrinsics(config)
         self.noise_rng, self.drop_rng = sensor_rngs(seed, sensor_id)
+        # reading and decoding the geom ids costs about a tenth of a frame: only when something reads them
+        self.segmentation = bool(config.segmentation or config.segmentation_truth) if segmentation is None else bool(segmentation)
         self.renderer = make_renderer(model, config)
-        self._geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
-        self._shadow_flag = int(mujoco.mjtRndFlag.mjRND_SHADOW)
 
     def pose(self, data: mujoco.MjData) -> np.ndarray:
         """``T_world_sensor`` of the optical frame (z forward, x right, y down), 4x4."""
@@ -88,23 +94,14 @@ class RgbdCamera:
 
     def render(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Noise-free (rgb (H, W, 3) uint8, z-depth (H, W) float32 m with 0 = no surface,
-        geom ids (H, W) int32 with -1 = no geom)."""
+        geom ids (H, W) int32 with -1 = no geom; all -1 without :attr:`segmentation`)."""
         r = self.renderer
-        r.update_scene(data, camera=self.cam)
+        r.update_scene(data, self.cam)
         set_intrinsics(r, self.config)
-        r.scene.flags[self._shadow_flag] = bool(self.config.shadows)
-        r.enable_depth_rendering()
-        depth = r.render().copy()
-        if self.config.segmentation or self.config.segmentation_truth:
-            r.enable_segmentation_rendering()
-            seg = r.render()
-            r.disable_segmentation_rendering()
-            geom_id = np.where(seg[..., 1] == self._geom_type, seg[..., 0], -1).astype(np.int32)
-        else:
-            r.disable_depth_rendering()
+        rgb, depth, geom_id = r.render(self.segmentation, self.config.shadows)
+        if geom_id is None:
             geom_id = np.full(depth.shape, -1, dtype=np.int32)
-        rgb = r.render().copy()
-        far = self.renderer.model.vis.map.zfar * self.renderer.model.stat.extent
+        far = r.model.vis.map.zfar * r.model.stat.extent
         depth[depth >= _FAR_FRACTION * far] = 0.0
         return rgb, depth, geom_id
 

@@ -86,10 +86,13 @@ odometry frame), ``scene`` (surfaces of the course; the parallel course's second
 ``route_waypoints_xy``, ``pattern`` (step length, swing, double support, cadence, planner
 retries) and ``walk_duration_s`` (the whole planned walk; the episode ends at ``duration_cap_s``).
 
-Speed: rendering dominates (three passes a frame: depth, segmentation, colour, with software
-OpenGL, about 25 ms a frame even for tiny images). Measured on the 2-core machine while other jobs
-ran (load ~11), whole episodes including IMU, contacts and odometry: 424x240 (default) 7.7 frames
-per wall-second (23 per CPU-second), 640x480 3.5 (11 per CPU-second). A default stairs episode is
+Speed: rendering dominates (two passes a frame with software OpenGL: depth, with the geom ids
+when pedestrians or ``segmentation_truth`` ask for them, then the multisampled colour pass, about
+15 of the 20 ms a frame takes at 424x240). Whole episodes including IMU, contacts and odometry, on
+the 2-core machine with other jobs running: the quick suite's first case at 30 Hz (424x240) 50
+frames per CPU-second (37 with the three passes of before; `exobench bench locomotion`,
+``episode_rgbd``); earlier, under load ~11, 424x240 gave 7.7 frames per wall-second and 640x480
+3.5 (11 per CPU-second, three passes). A default stairs episode is
 13-14 s of walking (about 400 frames at 30 Hz); planning takes 2-10 s once per course and user
 (cached). Same scenario and seed, same frames bit for bit.
 """
