@@ -134,7 +134,7 @@ class LidarSensor:
         optics = self._optics(model, truth)
         beams = follow_beams(
             model, data, self.group, origins_w, dirs_w, gid, dist, nrm.reshape(-1, 3), optics, u_opt,
-            glass=c.glass, mirrors=c.mirrors, echo=self._echo,
+            glass=c.glass, mirrors=c.mirrors, echo=self._echo, cast=self.caster.secondary(model, data),
         )  # fmt: skip
         ok = beams.geom >= 0
         g = np.where(ok, beams.geom, 0)

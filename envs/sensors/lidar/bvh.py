@@ -1,0 +1,308 @@
+"""Static geometry in a BVH (Embree, through Open3D's ``RaycastingScene``), hits as MuJoCo computes them.
+
+A procedural building is hundreds of static boxes and finite planes; ``mj_multiRay`` tests each ray
+against every geom its bounding-angle cull lets through, so a sweep's cost grows with the building.
+Embree's BVH finds each ray's first triangle in about log(triangles) steps, whatever the
+building's size. :class:`StaticBvh` puts every static ray-visible box and plane (infinite planes
+as a quad far beyond the scene) in one Embree scene, one mesh per geom, and then recomputes the
+hit on the geom Embree names with MuJoCo's own arithmetic in float64 (``ray_box``, ``ray_plane``
+of ``engine_ray.c``, operation for operation): the distance and the normal are MuJoCo's, bit for
+bit, whenever Embree names the geom MuJoCo would. Embree casts in single precision, so it can
+name another geom only where two surfaces lie within its rounding (~1e-6 of the range) of each
+other: a beam grazing a box's silhouette edge, coplanar faces meeting at a seam, or two faces
+closer than a few micrometres. When the exact recomputation rejects Embree's geom (a plane seen
+from behind, which MuJoCo does not hit, or an edge Embree's rounding caught), the ray's every
+Embree intersection is listed and the nearest one the exact test accepts is taken.
+
+Curved static geoms (spheres, cylinders, capsules, ellipsoids: a tessellation would change their
+distances by its sag) and every moving geom (the exoskeleton, pedestrians) are left to MuJoCo.
+:class:`Proxies` bounds each of them by an enlarged oriented box in a small per-sweep Embree scene,
+so a secondary ray (whose origin is its own) is sent to ``mj_ray`` only when it may reach one of
+them before the static hit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MJMINVAL = 1e-15  # MuJoCo's mjMINVAL (double precision)
+_PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
+
+_BOX_VERTS = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
+_BOX_TRIS = np.array(
+    [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+     [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], dtype=np.uint32,
+)  # fmt: skip
+_c = _BOX_VERTS[_BOX_TRIS].mean(axis=1)
+_BOX_FACE_NORMALS = np.eye(3)[np.argmax(np.abs(_c), axis=1)] * np.sign(_c[np.arange(12), np.argmax(np.abs(_c), axis=1)])[:, None]
+_QUAD_VERTS = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+_QUAD_TRIS = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
+
+
+def _scene(boxes: list[tuple[np.ndarray, np.ndarray]]) -> object:
+    """An Embree scene of one mesh per (world vertices, triangles); mesh ids are list positions."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    for verts, tris in boxes:
+        scene.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris))
+    return scene
+
+
+def _rays(o: np.ndarray, u: np.ndarray) -> object:
+    import open3d as o3d
+
+    return o3d.core.Tensor(np.hstack([o, u]).astype(np.float32))
+
+
+def _dot_mat_t(mat: np.ndarray, v: np.ndarray, i: int) -> np.ndarray:
+    """Row ``i`` of ``mat' v`` summed in MuJoCo's order (``ray_map``)."""
+    return mat[:, i] * v[:, 0] + mat[:, 3 + i] * v[:, 1] + mat[:, 6 + i] * v[:, 2]
+
+
+def exact_hits(
+    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, pnt: np.ndarray, vec: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """MuJoCo's ``ray_box`` / ``ray_plane`` per ray on its own geom (rows): distance (-1 none), world
+    normal, and the face hit (``2 axis + (side > 0)``, a plane's is 5; -1 none)."""
+    n = len(pnt)
+    dif = pnt - pos
+    lp = [_dot_mat_t(mat, dif, i) for i in range(3)]
+    lv = [_dot_mat_t(mat, vec, i) for i in range(3)]
+    x = np.full(n, -1.0)
+    axis = np.full(n, -1)
+    side_of = np.zeros(n)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # box: bounding sphere test, then the six faces in MuJoCo's order (axis, then side -1, +1)
+        ssz = size[:, 0] * size[:, 0] + size[:, 1] * size[:, 1] + size[:, 2] * size[:, 2]
+        a = vec[:, 0] * vec[:, 0] + vec[:, 1] * vec[:, 1] + vec[:, 2] * vec[:, 2]
+        b = vec[:, 0] * dif[:, 0] + vec[:, 1] * dif[:, 1] + vec[:, 2] * dif[:, 2]
+        c = dif[:, 0] * dif[:, 0] + dif[:, 1] * dif[:, 1] + dif[:, 2] * dif[:, 2] - ssz
+        det = b * b - a * c
+        sq = np.sqrt(np.maximum(det, 0.0))
+        sphere = (det >= MJMINVAL) & (((-b - sq) / a >= 0) | ((-b + sq) / a >= 0))
+        box = ~plane & sphere
+        faces = ((1, 2), (0, 2), (0, 1))
+        for i in range(3):
+            j, k = faces[i]
+            ok_axis = box & (np.abs(lv[i]) > MJMINVAL)
+            for side in (-1.0, 1.0):
+                sol = (side * size[:, i] - lp[i]) / lv[i]
+                p0 = lp[j] + sol * lv[j]
+                p1 = lp[k] + sol * lv[k]
+                ok = ok_axis & (sol >= 0) & (np.abs(p0) <= size[:, j]) & (np.abs(p1) <= size[:, k])
+                better = ok & ((x < 0) | (sol < x))
+                x = np.where(better, sol, x)
+                axis = np.where(better, i, axis)
+                side_of = np.where(better, side, side_of)
+        # plane: front face only, within the rendered rectangle (size <= 0: infinite)
+        front = plane & (lv[2] <= -MJMINVAL)
+        sol = -lp[2] / lv[2]
+        p0 = lp[0] + sol * lv[0]
+        p1 = lp[1] + sol * lv[1]
+        inside = ((size[:, 0] <= 0) | (np.abs(p0) <= size[:, 0])) & ((size[:, 1] <= 0) | (np.abs(p1) <= size[:, 1]))
+        ok = front & (sol >= 0) & inside
+        x = np.where(ok, sol, x)
+        axis = np.where(ok, 2, axis)
+        side_of = np.where(ok, 1.0, side_of)
+    nrm = np.zeros((n, 3))
+    hit = axis >= 0
+    rows = np.flatnonzero(hit)
+    ax = axis[hit]
+    nrm[rows] = side_of[hit, None] * np.stack([mat[rows, ax], mat[rows, 3 + ax], mat[rows, 6 + ax]], axis=1)
+    face = np.where(hit, 2 * axis + (side_of > 0), -1)
+    return x, nrm, face
+
+
+def _coplanar_partners(pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, far_m: float) -> np.ndarray:
+    """For each face (``6 geom + face``), the other geoms with a face on the same plane overlapping
+    it (padded with -1): where MuJoCo and Embree may report different geoms at one distance."""
+    g = len(pos)
+    n_w, off, lo, hi, valid = [], [], [], [], []
+    for face in range(6):
+        axis, side = face // 2, (1.0 if face % 2 else -1.0)
+        col = mat[:, [axis, 3 + axis, 6 + axis]]
+        nw = side * col
+        centre = pos + (np.where(plane, 0.0, side * size[:, axis]))[:, None] * col  # a plane's size[2] is its grid
+        ext = np.where(plane[:, None], np.where(size[:, :2] > 0, size[:, :2], far_m), 0.0)
+        half = np.zeros((g, 3))
+        for e in range(3):
+            if e == axis:
+                continue
+            le = np.where(plane, ext[:, min(e, 1)], size[:, e])
+            half += np.abs(mat[:, [e, 3 + e, 6 + e]]) * le[:, None]
+        n_w.append(nw)
+        off.append(np.einsum("ij,ij->i", nw, centre))
+        lo.append(centre - half)
+        hi.append(centre + half)
+        valid.append(~plane | (face == 5))
+    nw, c = np.stack(n_w, 1).reshape(-1, 3), np.stack(off, 1).reshape(-1)
+    lo, hi, ok = np.stack(lo, 1).reshape(-1, 3), np.stack(hi, 1).reshape(-1, 3), np.stack(valid, 1).reshape(-1)
+    geom_of = np.repeat(np.arange(g), 6)
+    out: list[list[int]] = [[] for _ in range(6 * g)]
+    tol = 1e-6
+    for f in np.flatnonzero(ok):
+        dot = nw @ nw[f]
+        same = (dot > 1 - 1e-9) & (np.abs(c - c[f]) < tol)
+        opposite = (dot < -1 + 1e-9) & (np.abs(c + c[f]) < tol)
+        touch = np.all((lo <= hi[f] + tol) & (hi >= lo[f] - tol), axis=1)
+        hit = np.flatnonzero(ok & (same | opposite) & touch & (geom_of != geom_of[f]))
+        out[f] = sorted(set(geom_of[hit].tolist()))
+    width = max((len(v) for v in out), default=0)
+    table = np.full((6 * g, width), -1, dtype=np.int64)
+    for f, v in enumerate(out):
+        table[f, : len(v)] = v
+    return table
+
+
+class StaticBvh:
+    """The static boxes and planes ``geoms`` (original ids) of a model, posed as in ``data``, in Embree."""
+
+    def __init__(self, model: object, data: object, geoms: np.ndarray, *, far_m: float) -> None:
+        import mujoco
+
+        m = model
+        self.geom = np.asarray(geoms, dtype=np.int64)
+        self.pos = np.array(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
+        self.mat = np.array(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
+        self.size = np.array(m.geom_size)[self.geom].copy()  # type: ignore[attr-defined]
+        self.rbound = np.array(m.geom_rbound)[self.geom]  # type: ignore[attr-defined]
+        self.plane = np.array(m.geom_type)[self.geom] == int(mujoco.mjtGeom.mjGEOM_PLANE)  # type: ignore[attr-defined]
+        meshes = []
+        for k in range(len(self.geom)):
+            R = self.mat[k].reshape(3, 3)
+            if self.plane[k]:
+                half = np.where(self.size[k, :2] > 0, self.size[k, :2], far_m)
+                local, tris = _QUAD_VERTS * np.append(half, 0.0), _QUAD_TRIS
+            else:
+                local, tris = _BOX_VERTS * self.size[k], _BOX_TRIS
+            meshes.append((local @ R.T + self.pos[k], tris))
+        self.scene = _scene(meshes)
+        self.partners = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
+
+    def cast(
+        self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(original geom or -1, distance or -1, normal) per ray, as ``mj_ray`` on these geoms alone.
+
+        ``cutoff``: geoms whose bounding sphere lies farther from the ray's origin are not hit (as
+        ``mj_multiRay`` culls them). ``rank`` (per original geom; None: the geom id) orders the
+        geoms as the MuJoCo reference visits them: of two faces on one plane hit at the same
+        distance (a seam), the first visited is reported, as MuJoCo keeps the first of equal hits.
+        """
+        n = len(o)
+        gid = np.full(n, -1, dtype=np.int64)
+        dist = np.full(n, -1.0)
+        nrm = np.zeros((n, 3))
+        if n == 0 or len(self.geom) == 0:
+            return gid.astype(np.int32), dist, nrm
+        rays = _rays(o, u)
+        ans = self.scene.cast_rays(rays, nthreads=nthreads)
+        k = ans["geometry_ids"].numpy().astype(np.int64)
+        rows = np.flatnonzero(k < len(self.geom))
+        kk = k[rows]
+        x, nv, face = exact_hits(self.pos[kk], self.mat[kk], self.size[kk], self.plane[kk], o[rows], u[rows])
+        if cutoff is not None:
+            x = np.where(self._culled(kk, o[rows], cutoff), -1.0, x)
+        good = x >= 0
+        self._seams(rows, kk, x, nv, face, good, o, u, cutoff, self.geom if rank is None else np.asarray(rank)[self.geom])
+        gid[rows[good]], dist[rows[good]], nrm[rows[good]] = kk[good], x[good], nv[good]
+        redo = rows[~good]
+        if len(redo):
+            self._listed(rays[redo], redo, o, u, cutoff, gid, dist, nrm)
+        out = np.where(gid >= 0, self.geom[np.maximum(gid, 0)], -1).astype(np.int32)
+        return out, dist, nrm
+
+    def _seams(self, rows: np.ndarray, kk: np.ndarray, x: np.ndarray, nv: np.ndarray, face: np.ndarray,
+               good: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None, rk: np.ndarray) -> None:  # fmt: skip
+        """Where the face hit shares its plane with faces of other geoms, the hit MuJoCo reports:
+        the nearest exact one, of equal ones the first in ``rk`` (per BVH geom). ``kk, x, nv, face, good`` are
+        per hit ray (``rows``); ``kk, x, nv`` are updated in place."""
+        if self.partners.shape[1] == 0:
+            return
+        sel = np.flatnonzero(good)
+        part = self.partners[6 * kk[sel] + face[sel]]
+        has = np.any(part >= 0, axis=1)
+        sel, part = sel[has], part[has]
+        for j in range(part.shape[1]):
+            on = np.flatnonzero(part[:, j] >= 0)
+            if len(on) == 0:
+                continue
+            h, q = sel[on], part[on, j]
+            ray = rows[h]
+            x2, n2, _ = exact_hits(self.pos[q], self.mat[q], self.size[q], self.plane[q], o[ray], u[ray])
+            if cutoff is not None:
+                x2 = np.where(self._culled(q, o[ray], cutoff), -1.0, x2)
+            better = (x2 >= 0) & ((x2 < x[h]) | ((x2 == x[h]) & (rk[q] < rk[kk[h]])))
+            b = h[better]
+            kk[b], x[b], nv[b] = q[better], x2[better], n2[better]
+
+    def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
+        d = self.pos[k] - o
+        return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k]
+
+    def _listed(self, rays: object, redo: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None,
+                gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray) -> None:  # fmt: skip
+        """The nearest exact hit among every Embree intersection of the rays ``redo``."""
+        import open3d as o3d
+
+        li = self.scene.list_intersections(o3d.core.Tensor(rays.numpy()))
+        splits = li["ray_splits"].numpy().astype(np.int64)
+        k = li["geometry_ids"].numpy().astype(np.int64)
+        which = redo[np.repeat(np.arange(len(redo)), np.diff(splits))]
+        x, nv, _ = exact_hits(self.pos[k], self.mat[k], self.size[k], self.plane[k], o[which], u[which])
+        if cutoff is not None:
+            x = np.where(self._culled(k, o[which], cutoff), -1.0, x)
+        ok = np.flatnonzero(x >= 0)
+        # nearest accepted per ray; of equal distances the lower geom, as MuJoCo's loop keeps the first
+        order = ok[np.lexsort((k[ok], x[ok], which[ok]))]
+        first = order[np.append(True, which[order][1:] != which[order][:-1])] if len(order) else order
+        r = which[first]
+        gid[r], dist[r], nrm[r] = k[first], x[first], nv[first]
+
+
+class Proxies:
+    """Enlarged oriented boxes around the geoms MuJoCo casts (``geoms``), posed as in ``data``."""
+
+    def __init__(self, model: object, data: object, geoms: np.ndarray) -> None:
+        m = model
+        self.geom = np.asarray(geoms, dtype=np.int64)
+        aabb = np.asarray(m.geom_aabb)[self.geom]  # type: ignore[attr-defined]
+        pos = np.asarray(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
+        mat = np.asarray(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
+        meshes = []
+        for k in range(len(self.geom)):
+            R = mat[k].reshape(3, 3)
+            half = aabb[k, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
+            local = aabb[k, :3] + _BOX_VERTS * half
+            meshes.append((local @ R.T + pos[k], _BOX_TRIS))
+        self.scene = _scene(meshes) if meshes else None
+        self._out_w = np.einsum("gij,tj->gti", mat.reshape(-1, 3, 3), _BOX_FACE_NORMALS)  # (G, 12, 3) outward
+        verts = np.concatenate([v for v, _ in meshes]) if meshes else np.zeros((1, 3))
+        self._lo, self._hi = verts.min(axis=0), verts.max(axis=0)
+        self._pos, self._R, self._centre = pos, mat.reshape(-1, 3, 3), aabb[:, :3]
+        self._half = aabb[:, 3:] * (1.0 + 1e-6) + 2 * _PROXY_MARGIN_M
+
+    def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int) -> np.ndarray:
+        """Rays that may reach one of the geoms nearer than ``dist`` (-1: no hit)."""
+        if self.scene is None or len(o) == 0:
+            return np.zeros(len(o), dtype=bool)
+        ans = self.scene.cast_rays(_rays(o, u), nthreads=nthreads)
+        t = ans["t_hit"].numpy().astype(float)
+        slack = 1e-4 * (1.0 + np.abs(dist))
+        out = np.isfinite(t) & ((dist < 0) | (t <= dist + slack))
+        # a first hit leaving its box: the ray starts inside a proxy and may meet its geom at once
+        rows = np.flatnonzero(np.isfinite(t) & ~out)
+        if len(rows):
+            k = ans["geometry_ids"].numpy().astype(np.int64)[rows]
+            tri = ans["primitive_ids"].numpy().astype(np.int64)[rows]
+            out[rows] = np.einsum("ij,ij->i", self._out_w[k, tri], u[rows]) >= 0.0
+        # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
+        near = np.flatnonzero(~out & np.all((o >= self._lo) & (o <= self._hi), axis=1))
+        if len(near):
+            local = np.einsum("gji,ngj->ngi", self._R, o[near, None, :] - self._pos[None]) - self._centre[None]
+            out[near] = np.any(np.all(np.abs(local) <= self._half[None], axis=2), axis=1)
+        return out
+
+
+__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "exact_hits"]
