@@ -44,10 +44,11 @@ class BvhParts:
     static: StaticBvh
     rest: RayScene | None
     others: np.ndarray
+    rank: np.ndarray  # per geom, the order in which the primary-ray reference visits the geoms
 
 
 def build_bvh_parts(
-    model: object, data: object, group: np.ndarray, body_exclude: int, max_range_m: float
+    model: object, data: object, group: np.ndarray, body_exclude: int, max_range_m: float, zoned: bool = True
 ) -> tuple[BvhParts | None, str]:
     """The BVH caster's parts, or (None, why) for a scene it cannot take (meshes, height fields,
     SDFs, flexes, skins: MuJoCo casts those scenes whole)."""
@@ -74,7 +75,13 @@ def build_bvh_parts(
     primary = np.setdiff1d(others, ray_visible_geoms(m, group, body_exclude), assume_unique=True)
     rest_geoms = np.setdiff1d(others, primary, assume_unique=True)
     rest = build_ray_scene(m, data, group, body_exclude, only=rest_geoms) if len(rest_geoms) else None
-    return BvhParts(bvh, rest, others), ""
+    # of equal hits at a seam the reference keeps the first geom it visits: the zoned copy's order
+    rank = np.arange(int(m.ngeom))  # type: ignore[attr-defined]
+    full = build_ray_scene(m, data, group, body_exclude) if zoned else None
+    if full is not None:
+        rank = np.full(int(m.ngeom), len(full.geom_of))  # type: ignore[attr-defined]
+        rank[full.geom_of] = np.arange(len(full.geom_of))
+    return BvhParts(bvh, rest, others, rank), ""
 
 
 class RayCaster:
@@ -109,7 +116,7 @@ class RayCaster:
             gid, dist, nrm = self._multi_ray(model, data, jobs, dirs_w, n, max_r)
         else:
             # static boxes and planes by Embree, the rest (moving, curved) by MuJoCo: the nearer hit
-            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, self._n_threads(model), cutoff=max_r)
+            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, self._n_threads(model), cutoff=max_r, rank=parts.rank)
             if parts.rest is not None:
                 g2, d2, n2 = self._multi_ray(model, data, jobs, dirs_w, n, max_r, scene=parts.rest)
                 take = (d2 >= 0.0) & (g2 >= 0) & ((dist < 0.0) | (d2 < dist))
@@ -213,7 +220,9 @@ class RayCaster:
         if self.config.caster != "bvh":
             return None
         if self._bvh_parts is None or self._bvh_parts[0] is not model:
-            parts, why = build_bvh_parts(model, data, self.group, self.body_exclude, self.config.pattern.max_range_m)
+            parts, why = build_bvh_parts(
+                model, data, self.group, self.body_exclude, self.config.pattern.max_range_m, self.config.zoned_cast
+            )
             if parts is None and self.fallback is None:
                 self.fallback = why
                 warnings.warn(f"lidar: the BVH caster cannot take this scene ({why}); casting with MuJoCo",
