@@ -202,7 +202,8 @@ def bench_lidar_scaling(seed: int = 0, repeats: int = 5, n_offices: tuple[int, .
     out: dict[str, Any] = {"repeats": repeats, "seed": seed}
     fns: dict[str, Any] = {}
     for n in n_offices:
-        model, data, truth, T0 = setup(OfficeParams(n_offices=n), None)
+        # the building grows with its offices: 4 m of corridor per office (24 m at 6), at most 80 m
+        model, data, truth, T0 = setup(OfficeParams(n_offices=n, corridor_length_m=min(4.0 * n, 80.0)), None)
         for caster in ("bvh", "mujoco"):
             s = LidarSensor("lidar_trunk", LidarConfig(caster=caster), model, seed)
             fns[f"{caster}_{n}"] = (lambda s=s, m=model, d=data, t=truth, p=T0: s.scan(m, d, p, 0.0, t))

@@ -114,9 +114,12 @@ def exact_hits(
     return x, nrm, face
 
 
-def _coplanar_partners(pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, far_m: float) -> np.ndarray:
+def _coplanar_partners(
+    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, far_m: float
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """For each face (``6 geom + face``), the other geoms with a face on the same plane overlapping
-    it (padded with -1): where MuJoCo and Embree may report different geoms at one distance."""
+    it, facing the same way and facing the other way, as (start, geoms) lists (CSR): where MuJoCo
+    and Embree may report different geoms at one distance."""
     g = len(pos)
     n_w, off, lo, hi, valid = [], [], [], [], []
     for face in range(6):
@@ -139,20 +142,21 @@ def _coplanar_partners(pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane
     nw, c = np.stack(n_w, 1).reshape(-1, 3), np.stack(off, 1).reshape(-1)
     lo, hi, ok = np.stack(lo, 1).reshape(-1, 3), np.stack(hi, 1).reshape(-1, 3), np.stack(valid, 1).reshape(-1)
     geom_of = np.repeat(np.arange(g), 6)
-    out: list[list[int]] = [[] for _ in range(6 * g)]
+    lists: tuple[list[list[int]], list[list[int]]] = ([[] for _ in range(6 * g)], [[] for _ in range(6 * g)])
     tol = 1e-6
     for f in np.flatnonzero(ok):
         dot = nw @ nw[f]
-        same = (dot > 1 - 1e-9) & (np.abs(c - c[f]) < tol)
-        opposite = (dot < -1 + 1e-9) & (np.abs(c + c[f]) < tol)
-        touch = np.all((lo <= hi[f] + tol) & (hi >= lo[f] - tol), axis=1)
-        hit = np.flatnonzero(ok & (same | opposite) & touch & (geom_of != geom_of[f]))
-        out[f] = sorted(set(geom_of[hit].tolist()))
-    width = max((len(v) for v in out), default=0)
-    table = np.full((6 * g, width), -1, dtype=np.int64)
-    for f, v in enumerate(out):
-        table[f, : len(v)] = v
-    return table
+        touch = ok & np.all((lo <= hi[f] + tol) & (hi >= lo[f] - tol), axis=1) & (geom_of != geom_of[f])
+        same = touch & (dot > 1 - 1e-9) & (np.abs(c - c[f]) < tol)
+        opposite = touch & (dot < -1 + 1e-9) & (np.abs(c + c[f]) < tol)
+        lists[0][f] = sorted(set(geom_of[same].tolist()))
+        lists[1][f] = sorted(set(geom_of[opposite].tolist()))
+
+    def csr(rows: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
+        start = np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(np.int64)
+        return start, np.array([q for r in rows for q in r], dtype=np.int64)
+
+    return csr(lists[0]), csr(lists[1])
 
 
 class StaticBvh:
@@ -178,10 +182,14 @@ class StaticBvh:
                 local, tris = _BOX_VERTS * self.size[k], _BOX_TRIS
             meshes.append((local @ R.T + self.pos[k], tris))
         self.scene = _scene(meshes)
-        self.partners = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
+        self.same_face, self.opposite_face = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
+        # each geom's world box, a little larger (the hit points of its faces, rounded)
+        self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - 1e-6
+        self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + 1e-6
 
     def cast(
-        self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None
+        self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
+        inside: bool = False,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(original geom or -1, distance or -1, normal) per ray, as ``mj_ray`` on these geoms alone.
 
@@ -189,6 +197,7 @@ class StaticBvh:
         ``mj_multiRay`` culls them). ``rank`` (per original geom; None: the geom id) orders the
         geoms as the MuJoCo reference visits them: of two faces on one plane hit at the same
         distance (a seam), the first visited is reported, as MuJoCo keeps the first of equal hits.
+        ``inside``: rays may start inside a geom (see :meth:`_seams`).
         """
         n = len(o)
         gid = np.full(n, -1, dtype=np.int64)
@@ -205,7 +214,8 @@ class StaticBvh:
         if cutoff is not None:
             x = np.where(self._culled(kk, o[rows], cutoff), -1.0, x)
         good = x >= 0
-        self._seams(rows, kk, x, nv, face, good, o, u, cutoff, self.geom if rank is None else np.asarray(rank)[self.geom])
+        self._seams(rows, kk, x, nv, face, good, o, u, cutoff, self.geom if rank is None else np.asarray(rank)[self.geom],
+                    inside)
         gid[rows[good]], dist[rows[good]], nrm[rows[good]] = kk[good], x[good], nv[good]
         redo = rows[~good]
         if len(redo):
@@ -214,28 +224,63 @@ class StaticBvh:
         return out, dist, nrm
 
     def _seams(self, rows: np.ndarray, kk: np.ndarray, x: np.ndarray, nv: np.ndarray, face: np.ndarray,
-               good: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None, rk: np.ndarray) -> None:  # fmt: skip
+               good: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None, rk: np.ndarray,
+               inside: bool) -> None:  # fmt: skip
         """Where the face hit shares its plane with faces of other geoms, the hit MuJoCo reports:
-        the nearest exact one, of equal ones the first in ``rk`` (per BVH geom). ``kk, x, nv, face, good`` are
-        per hit ray (``rows``); ``kk, x, nv`` are updated in place."""
-        if self.partners.shape[1] == 0:
-            return
+        the nearest exact one, of equal ones the first in ``rk`` (per BVH geom). ``kk, x, nv, face,
+        good`` are per hit ray (``rows``); ``kk, x, nv`` are updated in place.
+
+        Faces facing the same way meet at seams; a face facing the other way ties only where the
+        ray leaves a box it started in (a beam crossing a pane) through a face another box is
+        entered by: checked for the hits that leave a box and, with ``inside`` (rays that may start
+        inside a box: the secondary ones), for hits entering such a face, against the box the
+        reversed ray leaves first (the box the ray starts in). Any geom added as a candidate is
+        judged by its exact hit, so a candidate too many never changes a result.
+        """
         sel = np.flatnonzero(good)
-        part = self.partners[6 * kk[sel] + face[sel]]
-        has = np.any(part >= 0, axis=1)
-        sel, part = sel[has], part[has]
-        for j in range(part.shape[1]):
-            on = np.flatnonzero(part[:, j] >= 0)
-            if len(on) == 0:
-                continue
-            h, q = sel[on], part[on, j]
-            ray = rows[h]
-            x2, n2, _ = exact_hits(self.pos[q], self.mat[q], self.size[q], self.plane[q], o[ray], u[ray])
-            if cutoff is not None:
-                x2 = np.where(self._culled(q, o[ray], cutoff), -1.0, x2)
-            better = (x2 >= 0) & ((x2 < x[h]) | ((x2 == x[h]) & (rk[q] < rk[kk[h]])))
-            b = h[better]
-            kk[b], x[b], nv[b] = q[better], x2[better], n2[better]
+        ray = rows[sel]
+        leaving = np.einsum("ij,ij->i", nv[sel], u[ray]) > 0.0
+        hs, qs = [], []
+        for (start, geoms), on in ((self.same_face, np.ones(len(sel), dtype=bool)), (self.opposite_face, leaving)):
+            f = 6 * kk[sel[on]] + face[sel[on]]
+            cnt = start[f + 1] - start[f]
+            h = np.repeat(sel[on], cnt)
+            first = np.repeat(start[f] - (np.cumsum(cnt) - cnt), cnt)
+            hs.append(h)
+            qs.append(geoms[first + np.arange(len(h))])
+        if inside:
+            start, _ = self.opposite_face
+            f = 6 * kk[sel] + face[sel]
+            back = sel[~leaving & (start[f + 1] > start[f])]
+            if len(back):
+                r = rows[back]
+                kb = self.scene.cast_rays(_rays(o[r], -u[r]), nthreads=1)["geometry_ids"].numpy().astype(np.int64)
+                hs.append(back[kb < len(self.geom)])
+                qs.append(kb[kb < len(self.geom)])
+        h, q = np.concatenate(hs), np.concatenate(qs)
+        if len(h) == 0:
+            return
+        ray = rows[h]
+        p = o[ray] + x[h, None] * u[ray]
+        near = np.all((p >= self.lo[q]) & (p <= self.hi[q]), axis=1)  # the hit point on the partner's box
+        h, q, ray = h[near], q[near], ray[near]
+        x2, n2, _ = exact_hits(self.pos[q], self.mat[q], self.size[q], self.plane[q], o[ray], u[ray])
+        if cutoff is not None:
+            x2 = np.where(self._culled(q, o[ray], cutoff), -1.0, x2)
+        keep = x2 >= 0
+        h, q, x2, n2 = h[keep], q[keep], x2[keep], n2[keep]
+        if len(h) == 0:
+            return
+        # each ray's nearest hit, of equal ones the first visited: its own hit competes too
+        base = np.unique(h)
+        hh = np.concatenate([base, h])
+        qq = np.concatenate([kk[base], q])
+        xx = np.concatenate([x[base], x2])
+        order = np.lexsort((rk[qq], xx, hh))
+        win = order[np.append(True, hh[order][1:] != hh[order][:-1])]
+        moved = win[win >= len(base)] - len(base)
+        b = h[moved]
+        kk[b], x[b], nv[b] = q[moved], x2[moved], n2[moved]
 
     def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
         d = self.pos[k] - o
@@ -278,10 +323,13 @@ class Proxies:
             meshes.append((local @ R.T + pos[k], _BOX_TRIS))
         self.scene = _scene(meshes) if meshes else None
         self._out_w = np.einsum("gij,tj->gti", mat.reshape(-1, 3, 3), _BOX_FACE_NORMALS)  # (G, 12, 3) outward
-        verts = np.concatenate([v for v, _ in meshes]) if meshes else np.zeros((1, 3))
-        self._lo, self._hi = verts.min(axis=0), verts.max(axis=0)
-        self._pos, self._R, self._centre = pos, mat.reshape(-1, 3, 3), aabb[:, :3]
-        self._half = aabb[:, 3:] * (1.0 + 1e-6) + 2 * _PROXY_MARGIN_M
+        # world bounds of each proxy box (they contain it): an origin within may be inside it. Only
+        # a box that overlaps another can hide that (the ray's first hit enters the other box)
+        lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - _PROXY_MARGIN_M
+        hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + _PROXY_MARGIN_M
+        touch = np.all((lo[:, None] <= hi[None]) & (hi[:, None] >= lo[None]), axis=2)
+        overlapping = touch.sum(axis=1) > 1
+        self._lo, self._hi = lo[overlapping], hi[overlapping]
 
     def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int) -> np.ndarray:
         """Rays that may reach one of the geoms nearer than ``dist`` (-1: no hit)."""
@@ -298,10 +346,16 @@ class Proxies:
             tri = ans["primitive_ids"].numpy().astype(np.int64)[rows]
             out[rows] = np.einsum("ij,ij->i", self._out_w[k, tri], u[rows]) >= 0.0
         # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
-        near = np.flatnonzero(~out & np.all((o >= self._lo) & (o <= self._hi), axis=1))
+        if len(self._lo) == 0:
+            return out
+        near = np.flatnonzero(~out & np.all((o >= self._lo.min(axis=0)) & (o <= self._hi.max(axis=0)), axis=1))
         if len(near):
-            local = np.einsum("gji,ngj->ngi", self._R, o[near, None, :] - self._pos[None]) - self._centre[None]
-            out[near] = np.any(np.all(np.abs(local) <= self._half[None], axis=2), axis=1)
+            # rays cast from one point (a primary window) come in runs: test each run's origin once
+            on = o[near]
+            run = np.append(True, np.any(on[1:] != on[:-1], axis=1))
+            head = on[run][:, None, :]
+            inside = np.any(np.all((head >= self._lo[None]) & (head <= self._hi[None]), axis=2), axis=1)
+            out[near] = inside[np.cumsum(run) - 1]
         return out
 
 

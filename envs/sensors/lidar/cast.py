@@ -43,6 +43,7 @@ class BvhParts:
 
     static: StaticBvh
     rest: RayScene | None
+    rest_geoms: np.ndarray
     others: np.ndarray
     rank: np.ndarray  # per geom, the order in which the primary-ray reference visits the geoms
 
@@ -72,8 +73,7 @@ def build_bvh_parts(
     extent = float(np.max(np.abs(xpos))) if len(xpos) else 0.0
     # infinite planes become quads reaching beyond any range from anywhere in the scene
     bvh = StaticBvh(m, data, in_bvh, far_m=2.0 * (extent + max_range_m) + 10.0)
-    primary = np.setdiff1d(others, ray_visible_geoms(m, group, body_exclude), assume_unique=True)
-    rest_geoms = np.setdiff1d(others, primary, assume_unique=True)
+    rest_geoms = np.intersect1d(others, ray_visible_geoms(m, group, body_exclude))  # not the sensor's own body
     rest = build_ray_scene(m, data, group, body_exclude, only=rest_geoms) if len(rest_geoms) else None
     # of equal hits at a seam the reference keeps the first geom it visits: the zoned copy's order
     rank = np.arange(int(m.ngeom))  # type: ignore[attr-defined]
@@ -81,7 +81,7 @@ def build_bvh_parts(
     if full is not None:
         rank = np.full(int(m.ngeom), len(full.geom_of))  # type: ignore[attr-defined]
         rank[full.geom_of] = np.arange(len(full.geom_of))
-    return BvhParts(bvh, rest, others, rank), ""
+    return BvhParts(bvh, rest, rest_geoms, others, rank), ""
 
 
 class RayCaster:
@@ -116,11 +116,18 @@ class RayCaster:
             gid, dist, nrm = self._multi_ray(model, data, jobs, dirs_w, n, max_r)
         else:
             # static boxes and planes by Embree, the rest (moving, curved) by MuJoCo: the nearer hit
-            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, self._n_threads(model), cutoff=max_r, rank=parts.rank)
+            k = self._n_threads(model)
+            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, k, cutoff=max_r, rank=parts.rank)
             if parts.rest is not None:
-                g2, d2, n2 = self._multi_ray(model, data, jobs, dirs_w, n, max_r, scene=parts.rest)
-                take = (d2 >= 0.0) & (g2 >= 0) & ((dist < 0.0) | (d2 < dist))
-                gid, dist, nrm = np.where(take, g2, gid), np.where(take, d2, dist), np.where(take[:, None], n2, nrm)
+                # only the rays that may meet a moving or curved geom before the static hit
+                need = np.flatnonzero(Proxies(model, data, parts.rest_geoms).may_hit_before(o_ray, dirs_w, dist, k))
+                first = np.searchsorted(need, starts)
+                last = np.append(first[1:], len(need))
+                sub = [(o, int(a), int(b)) for o, a, b in zip(o_cast, first, last) if b > a]
+                g2, d2, n2 = self._multi_ray(model, data, sub, np.ascontiguousarray(dirs_w[need]), len(need), max_r,
+                                             scene=parts.rest)  # fmt: skip
+                take = (d2 >= 0.0) & (g2 >= 0) & ((dist[need] < 0.0) | (d2 < dist[need]))
+                gid[need[take]], dist[need[take]], nrm[need[take]] = g2[take], d2[take], n2[take]
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
         delta = o_ray - origins_w
         fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & np.any(delta != 0.0, axis=1))
@@ -205,7 +212,7 @@ class RayCaster:
                 proxies.append(Proxies(model, data, parts.others))
             o = np.ascontiguousarray(o, dtype=float)
             d = np.ascontiguousarray(d, dtype=float)
-            gid, r, nrm = parts.static.cast(o, d, k)
+            gid, r, nrm = parts.static.cast(o, d, k, inside=True)
             gid = gid.astype(np.int64)
             # the few rays that may meet a moving or curved geom first: exactly as the reference
             near = np.flatnonzero(proxies[0].may_hit_before(o, d, r, k))
