@@ -55,62 +55,61 @@ def _rays(o: np.ndarray, u: np.ndarray) -> object:
     return o3d.core.Tensor(np.hstack([o, u]).astype(np.float32))
 
 
-def _dot_mat_t(mat: np.ndarray, v: np.ndarray, i: int) -> np.ndarray:
-    """Row ``i`` of ``mat' v`` summed in MuJoCo's order (``ray_map``)."""
-    return mat[:, i] * v[:, 0] + mat[:, 3 + i] * v[:, 1] + mat[:, 6 + i] * v[:, 2]
-
-
 def exact_hits(
     pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, pnt: np.ndarray, vec: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """MuJoCo's ``ray_box`` / ``ray_plane`` per ray on its own geom (rows): distance (-1 none), world
-    normal, and the face hit (``2 axis + (side > 0)``, a plane's is 5; -1 none)."""
+    normal, and the face hit (``2 axis + (side > 0)``, a plane's is 5; -1 none).
+
+    Operation for operation as ``engine_ray.c`` (``ray_map``'s sums in its order; numpy neither
+    fuses nor reorders elementwise products and sums), on contiguous columns for speed.
+    """
     n = len(pnt)
-    dif = pnt - pos
-    lp = [_dot_mat_t(mat, dif, i) for i in range(3)]
-    lv = [_dot_mat_t(mat, vec, i) for i in range(3)]
+    M = np.ascontiguousarray(mat.T)  # (9, n)
+    S = np.ascontiguousarray(size.T)  # (3, n)
+    dif = np.ascontiguousarray((pnt - pos).T)
+    v = np.ascontiguousarray(vec.T)
+    lp = [M[i] * dif[0] + M[3 + i] * dif[1] + M[6 + i] * dif[2] for i in range(3)]
+    lv = [M[i] * v[0] + M[3 + i] * v[1] + M[6 + i] * v[2] for i in range(3)]
     x = np.full(n, -1.0)
-    axis = np.full(n, -1)
-    side_of = np.zeros(n)
+    face = np.full(n, -1)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # box: bounding sphere test, then the six faces in MuJoCo's order (axis, then side -1, +1)
-        ssz = size[:, 0] * size[:, 0] + size[:, 1] * size[:, 1] + size[:, 2] * size[:, 2]
-        a = vec[:, 0] * vec[:, 0] + vec[:, 1] * vec[:, 1] + vec[:, 2] * vec[:, 2]
-        b = vec[:, 0] * dif[:, 0] + vec[:, 1] * dif[:, 1] + vec[:, 2] * dif[:, 2]
-        c = dif[:, 0] * dif[:, 0] + dif[:, 1] * dif[:, 1] + dif[:, 2] * dif[:, 2] - ssz
+        ssz = S[0] * S[0] + S[1] * S[1] + S[2] * S[2]
+        a = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+        b = v[0] * dif[0] + v[1] * dif[1] + v[2] * dif[2]
+        c = dif[0] * dif[0] + dif[1] * dif[1] + dif[2] * dif[2] - ssz
         det = b * b - a * c
         sq = np.sqrt(np.maximum(det, 0.0))
-        sphere = (det >= MJMINVAL) & (((-b - sq) / a >= 0) | ((-b + sq) / a >= 0))
-        box = ~plane & sphere
+        box = ~plane & (det >= MJMINVAL) & (((-b - sq) / a >= 0) | ((-b + sq) / a >= 0))
         faces = ((1, 2), (0, 2), (0, 1))
         for i in range(3):
             j, k = faces[i]
             ok_axis = box & (np.abs(lv[i]) > MJMINVAL)
             for side in (-1.0, 1.0):
-                sol = (side * size[:, i] - lp[i]) / lv[i]
-                p0 = lp[j] + sol * lv[j]
-                p1 = lp[k] + sol * lv[k]
-                ok = ok_axis & (sol >= 0) & (np.abs(p0) <= size[:, j]) & (np.abs(p1) <= size[:, k])
-                better = ok & ((x < 0) | (sol < x))
-                x = np.where(better, sol, x)
-                axis = np.where(better, i, axis)
-                side_of = np.where(better, side, side_of)
+                sol = (side * S[i] - lp[i]) / lv[i]
+                ok = ok_axis & (sol >= 0)
+                ok &= np.abs(lp[j] + sol * lv[j]) <= S[j]
+                ok &= np.abs(lp[k] + sol * lv[k]) <= S[k]
+                ok &= (x < 0) | (sol < x)
+                x[ok] = sol[ok]
+                face[ok] = 2 * i + (side > 0)
         # plane: front face only, within the rendered rectangle (size <= 0: infinite)
-        front = plane & (lv[2] <= -MJMINVAL)
-        sol = -lp[2] / lv[2]
-        p0 = lp[0] + sol * lv[0]
-        p1 = lp[1] + sol * lv[1]
-        inside = ((size[:, 0] <= 0) | (np.abs(p0) <= size[:, 0])) & ((size[:, 1] <= 0) | (np.abs(p1) <= size[:, 1]))
-        ok = front & (sol >= 0) & inside
-        x = np.where(ok, sol, x)
-        axis = np.where(ok, 2, axis)
-        side_of = np.where(ok, 1.0, side_of)
+        pl = np.flatnonzero(plane)
+        if len(pl):
+            lp0, lp1, lp2, lv0, lv1, lv2 = lp[0][pl], lp[1][pl], lp[2][pl], lv[0][pl], lv[1][pl], lv[2][pl]
+            s0, s1 = S[0][pl], S[1][pl]
+            sol = -lp2 / lv2
+            p0 = lp0 + sol * lv0
+            p1 = lp1 + sol * lv1
+            inside = ((s0 <= 0) | (np.abs(p0) <= s0)) & ((s1 <= 0) | (np.abs(p1) <= s1))
+            ok = (lv2 <= -MJMINVAL) & (sol >= 0) & inside
+            x[pl[ok]] = sol[ok]
+            face[pl[ok]] = 5
     nrm = np.zeros((n, 3))
-    hit = axis >= 0
-    rows = np.flatnonzero(hit)
-    ax = axis[hit]
-    nrm[rows] = side_of[hit, None] * np.stack([mat[rows, ax], mat[rows, 3 + ax], mat[rows, 6 + ax]], axis=1)
-    face = np.where(hit, 2 * axis + (side_of > 0), -1)
+    rows = np.flatnonzero(face >= 0)
+    ax, sg = face[rows] // 2, np.where(face[rows] % 2 == 1, 1.0, -1.0)
+    nrm[rows] = sg[:, None] * np.stack([mat[rows, ax], mat[rows, 3 + ax], mat[rows, 6 + ax]], axis=1)
     return x, nrm, face
 
 
