@@ -35,6 +35,7 @@ _BOX_TRIS = np.array(
 )  # fmt: skip
 _c = _BOX_VERTS[_BOX_TRIS].mean(axis=1)
 _BOX_FACE_NORMALS = np.eye(3)[np.argmax(np.abs(_c), axis=1)] * np.sign(_c[np.arange(12), np.argmax(np.abs(_c), axis=1)])[:, None]
+_TRI_FACE = 2 * np.argmax(np.abs(_BOX_FACE_NORMALS), axis=1) + (_BOX_FACE_NORMALS.sum(axis=1) > 0)
 _QUAD_VERTS = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
 _QUAD_TRIS = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
 
@@ -52,7 +53,40 @@ def _scene(boxes: list[tuple[np.ndarray, np.ndarray]]) -> object:
 def _rays(o: np.ndarray, u: np.ndarray) -> object:
     import open3d as o3d
 
-    return o3d.core.Tensor(np.hstack([o, u]).astype(np.float32))
+    r = np.empty((len(o), 6), dtype=np.float32)
+    r[:, :3], r[:, 3:] = o, u
+    return o3d.core.Tensor(r)
+
+
+_EDGE_M = 1e-4  # hits this near a face's edge are checked against every face (Embree rounds in float32)
+_OTHER = np.array([[1, 2], [0, 2], [0, 1]])
+
+
+def face_hits(
+    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, pnt: np.ndarray, vec: np.ndarray, face: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's ``ray_box`` distance on the box face Embree hit, where that face is surely the one
+    MuJoCo picks: the hit lies on the face and farther than ``_EDGE_M`` from its edges, so no other
+    face of the box can be reached first (the ray meets the box's surface there). Returns (distance,
+    sure) per ray; rays not sure need :func:`exact_hits`."""
+    n = len(pnt)
+    M = np.ascontiguousarray(mat.T)
+    dif = np.ascontiguousarray((pnt - pos).T)
+    v = np.ascontiguousarray(vec.T)
+    lp = np.stack([M[i] * dif[0] + M[3 + i] * dif[1] + M[6 + i] * dif[2] for i in range(3)])
+    lv = np.stack([M[i] * v[0] + M[3 + i] * v[1] + M[6 + i] * v[2] for i in range(3)])
+    cols = np.arange(n)
+    i = face // 2
+    side = np.where(face % 2 == 1, 1.0, -1.0)
+    S = size.T
+    j, k = _OTHER[i, 0], _OTHER[i, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lvi = lv[i, cols]
+        sol = (side * S[i, cols] - lp[i, cols]) / lvi
+        pj = np.abs(lp[j, cols] + sol * lv[j, cols])
+        pk = np.abs(lp[k, cols] + sol * lv[k, cols])
+        sure = (np.abs(lvi) > MJMINVAL) & (sol >= 0) & (pj <= S[j, cols] - _EDGE_M) & (pk <= S[k, cols] - _EDGE_M)
+    return sol, sure
 
 
 def exact_hits(
@@ -209,7 +243,25 @@ class StaticBvh:
         k = ans["geometry_ids"].numpy().astype(np.int64)
         rows = np.flatnonzero(k < len(self.geom))
         kk = k[rows]
-        x, nv, face = exact_hits(self.pos[kk], self.mat[kk], self.size[kk], self.plane[kk], o[rows], u[rows])
+        # a box hit away from the face's edges: that face's distance; the rest: every face
+        face = _TRI_FACE[np.minimum(ans["primitive_ids"].numpy()[rows].astype(np.int64), 11)]
+        box = np.flatnonzero(~self.plane[kk])
+        x = np.full(len(rows), -1.0)
+        sure = np.zeros(len(rows), dtype=bool)
+        if len(box):
+            kb = kk[box]
+            x[box], sure[box] = face_hits(self.pos[kb], self.mat[kb], self.size[kb], o[rows[box]], u[rows[box]], face[box])
+        nv = np.zeros((len(rows), 3))
+        if np.any(sure):
+            sb, ks, fs = np.flatnonzero(sure), kk[sure], face[sure]
+            ax = fs // 2
+            nv[sb] = np.where(fs % 2 == 1, 1.0, -1.0)[:, None] * np.stack(
+                [self.mat[ks, ax], self.mat[ks, 3 + ax], self.mat[ks, 6 + ax]], axis=1)  # fmt: skip
+        rest = np.flatnonzero(~sure)
+        if len(rest):
+            kr = kk[rest]
+            x[rest], nv[rest], face[rest] = exact_hits(self.pos[kr], self.mat[kr], self.size[kr], self.plane[kr],
+                                                       o[rows[rest]], u[rows[rest]])  # fmt: skip
         if cutoff is not None:
             x = np.where(self._culled(kk, o[rows], cutoff), -1.0, x)
         good = x >= 0
@@ -320,7 +372,10 @@ class Proxies:
             half = aabb[k, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
             local = aabb[k, :3] + _BOX_VERTS * half
             meshes.append((local @ R.T + pos[k], _BOX_TRIS))
-        self.scene = _scene(meshes) if meshes else None
+        # one mesh (one Embree geometry) of all the boxes: building it costs one call, not one per geom
+        verts = np.concatenate([v for v, _ in meshes]) if meshes else np.zeros((0, 3))
+        tris = (_BOX_TRIS[None] + 8 * np.arange(len(meshes), dtype=np.uint32)[:, None, None]).reshape(-1, 3)
+        self.scene = _scene([(verts, tris)]) if meshes else None
         self._out_w = np.einsum("gij,tj->gti", mat.reshape(-1, 3, 3), _BOX_FACE_NORMALS)  # (G, 12, 3) outward
         # world bounds of each proxy box (they contain it): an origin within may be inside it. Only
         # a box that overlaps another can hide that (the ray's first hit enters the other box)
@@ -341,8 +396,8 @@ class Proxies:
         # a first hit leaving its box: the ray starts inside a proxy and may meet its geom at once
         rows = np.flatnonzero(np.isfinite(t) & ~out)
         if len(rows):
-            k = ans["geometry_ids"].numpy().astype(np.int64)[rows]
-            tri = ans["primitive_ids"].numpy().astype(np.int64)[rows]
+            prim = ans["primitive_ids"].numpy().astype(np.int64)[rows]
+            k, tri = prim // 12, prim % 12
             out[rows] = np.einsum("ij,ij->i", self._out_w[k, tri], u[rows]) >= 0.0
         # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
         if len(self._lo) == 0:
