@@ -58,6 +58,7 @@ def _rays(o: np.ndarray, u: np.ndarray) -> object:
     return o3d.core.Tensor(r)
 
 
+_PROBE = np.array([0.2672612419124244, 0.5345224838248488, 0.8017837257372732])  # (1, 2, 3) / |(1, 2, 3)|
 _EDGE_M = 1e-4  # hits this near a face's edge are checked against every face (Embree rounds in float32)
 _OTHER = np.array([[1, 2], [0, 2], [0, 1]])
 
@@ -284,8 +285,8 @@ class StaticBvh:
         Faces facing the same way meet at seams; a face facing the other way ties only where the
         ray leaves a box it started in (a beam crossing a pane) through a face another box is
         entered by: checked for the hits that leave a box and, with ``inside`` (rays that may start
-        inside a box: the secondary ones), for hits entering such a face, against the box the
-        reversed ray leaves first (the box the ray starts in). Any geom added as a candidate is
+        inside a box: the secondary ones), for hits entering such a face, against every box the
+        ray starts in (:meth:`_containing`). Any geom added as a candidate is
         judged by its exact hit, so a candidate too many never changes a result.
         """
         sel = np.flatnonzero(good)
@@ -304,10 +305,9 @@ class StaticBvh:
             f = 6 * kk[sel] + face[sel]
             back = sel[~leaving & (start[f + 1] > start[f])]
             if len(back):
-                r = rows[back]
-                kb = self.scene.cast_rays(_rays(o[r], -u[r]), nthreads=1)["geometry_ids"].numpy().astype(np.int64)
-                hs.append(back[kb < len(self.geom)])
-                qs.append(kb[kb < len(self.geom)])
+                h_in, q_in = self._containing(o[rows[back]])
+                hs.append(back[h_in])
+                qs.append(q_in)
         h, q = np.concatenate(hs), np.concatenate(qs)
         if len(h) == 0:
             return
@@ -332,6 +332,20 @@ class StaticBvh:
         moved = win[win >= len(base)] - len(base)
         b = h[moved]
         kk[b], x[b], nv[b] = q[moved], x2[moved], n2[moved]
+
+    def _containing(self, o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ray, geom) pairs of the boxes each point lies in: a probe ray from inside a closed box
+        crosses its surface an odd number of times (along a direction no wall is aligned with)."""
+        import open3d as o3d
+
+        probe = np.broadcast_to(_PROBE, o.shape)
+        li = self.scene.list_intersections(o3d.core.Tensor(np.hstack([o, probe]).astype(np.float32)))
+        splits = li["ray_splits"].numpy().astype(np.int64)
+        k = li["geometry_ids"].numpy().astype(np.int64)
+        which = np.repeat(np.arange(len(o)), np.diff(splits))
+        pair, count = np.unique(which * len(self.geom) + k, return_counts=True)
+        odd = pair[(count % 2 == 1) & ~self.plane[pair % len(self.geom)]]
+        return odd // len(self.geom), odd % len(self.geom)
 
     def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
         d = self.pos[k] - o
