@@ -94,6 +94,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5, *, office: Any = None, config: 
         T[:, :3, 3] += (WALK_SPEED_M_S * np.asarray(times_s, dtype=float))[:, None] * heading_w
         return T
 
+    default_bench = office is None and config is None
     config = config if config is not None else LidarConfig()
     pat = config.pattern
     dirs_s = pat.rays(0.0).dirs_s
@@ -121,7 +122,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5, *, office: Any = None, config: 
         "seed": seed,
         "walk_speed_m_s": WALK_SPEED_M_S,
     }
-    if office is None and config is None:  # the default bench: both casters as the building grows
+    if default_bench:  # the default bench: both casters as the building grows
         result["scaling"] = bench_lidar_scaling(seed, repeats)
     lidar = None
     try:
