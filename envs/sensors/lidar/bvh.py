@@ -223,7 +223,7 @@ class StaticBvh:
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
-        inside: bool = False,
+        inside: bool = False, skip: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(original geom or -1, distance or -1, normal) per ray, as ``mj_ray`` on these geoms alone.
 
@@ -231,7 +231,8 @@ class StaticBvh:
         ``mj_multiRay`` culls them). ``rank`` (per original geom; None: the geom id) orders the
         geoms as the MuJoCo reference visits them: of two faces on one plane hit at the same
         distance (a seam), the first visited is reported, as MuJoCo keeps the first of equal hits.
-        ``inside``: rays may start inside a geom (see :meth:`_seams`).
+        ``inside``: rays may start inside a geom (see :meth:`_seams`). ``skip`` (per BVH geom):
+        geoms not to hit (the sensor's own body, when it is welded to the world).
         """
         n = len(o)
         gid = np.full(n, -1, dtype=np.int64)
@@ -265,19 +266,21 @@ class StaticBvh:
                                                        o[rows[rest]], u[rows[rest]])  # fmt: skip
         if cutoff is not None:
             x = np.where(self._culled(kk, o[rows], cutoff), -1.0, x)
+        if skip is not None:
+            x = np.where(skip[kk], -1.0, x)
         good = x >= 0
         self._seams(rows, kk, x, nv, face, good, o, u, cutoff, self.geom if rank is None else np.asarray(rank)[self.geom],
-                    inside)
+                    inside, skip)
         gid[rows[good]], dist[rows[good]], nrm[rows[good]] = kk[good], x[good], nv[good]
         redo = rows[~good]
         if len(redo):
-            self._listed(rays[redo], redo, o, u, cutoff, gid, dist, nrm)
+            self._listed(rays[redo], redo, o, u, cutoff, gid, dist, nrm, skip)
         out = np.where(gid >= 0, self.geom[np.maximum(gid, 0)], -1).astype(np.int32)
         return out, dist, nrm
 
     def _seams(self, rows: np.ndarray, kk: np.ndarray, x: np.ndarray, nv: np.ndarray, face: np.ndarray,
                good: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None, rk: np.ndarray,
-               inside: bool) -> None:  # fmt: skip
+               inside: bool, skip: np.ndarray | None) -> None:  # fmt: skip
         """Where the face hit shares its plane with faces of other geoms, the hit MuJoCo reports:
         the nearest exact one, of equal ones the first in ``rk`` (per BVH geom). ``kk, x, nv, face,
         good`` are per hit ray (``rows``); ``kk, x, nv`` are updated in place.
@@ -314,6 +317,8 @@ class StaticBvh:
         ray = rows[h]
         p = o[ray] + x[h, None] * u[ray]
         near = np.all((p >= self.lo[q]) & (p <= self.hi[q]), axis=1)  # the hit point on the partner's box
+        if skip is not None:
+            near &= ~skip[q]
         h, q, ray = h[near], q[near], ray[near]
         x2, n2, _ = exact_hits(self.pos[q], self.mat[q], self.size[q], self.plane[q], o[ray], u[ray])
         if cutoff is not None:
@@ -352,7 +357,7 @@ class StaticBvh:
         return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k]
 
     def _listed(self, rays: object, redo: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None,
-                gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray) -> None:  # fmt: skip
+                gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray, skip: np.ndarray | None) -> None:  # fmt: skip
         """The nearest exact hit among every Embree intersection of the rays ``redo``."""
         import open3d as o3d
 
@@ -363,6 +368,8 @@ class StaticBvh:
         x, nv, _ = exact_hits(self.pos[k], self.mat[k], self.size[k], self.plane[k], o[which], u[which])
         if cutoff is not None:
             x = np.where(self._culled(k, o[which], cutoff), -1.0, x)
+        if skip is not None:
+            x = np.where(skip[k], -1.0, x)
         ok = np.flatnonzero(x >= 0)
         # nearest accepted per ray; of equal distances the lower geom, as MuJoCo's loop keeps the first
         order = ok[np.lexsort((k[ok], x[ok], which[ok]))]

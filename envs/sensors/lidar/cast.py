@@ -46,6 +46,7 @@ class BvhParts:
     rest_geoms: np.ndarray
     others: np.ndarray
     rank: np.ndarray  # per geom, the order in which the primary-ray reference visits the geoms
+    own: np.ndarray  # per BVH geom: on the sensor's own body (welded to the world), not hit by its beams
 
 
 def build_bvh_parts(
@@ -81,7 +82,8 @@ def build_bvh_parts(
     if full is not None:
         rank = np.full(int(m.ngeom), len(full.geom_of))  # type: ignore[attr-defined]
         rank[full.geom_of] = np.arange(len(full.geom_of))
-    return BvhParts(bvh, rest, rest_geoms, others, rank), ""
+    own = np.asarray(m.geom_bodyid)[in_bvh] == body_exclude  # type: ignore[attr-defined]
+    return BvhParts(bvh, rest, rest_geoms, others, rank, own), ""
 
 
 class RayCaster:
@@ -117,7 +119,8 @@ class RayCaster:
         else:
             # static boxes and planes by Embree, the rest (moving, curved) by MuJoCo: the nearer hit
             k = self._n_threads(model)
-            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, k, cutoff=max_r, rank=parts.rank)
+            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, k, cutoff=max_r, rank=parts.rank,
+                                               skip=parts.own if np.any(parts.own) else None)
             if parts.rest is not None:
                 # only the rays that may meet a moving or curved geom before the static hit
                 need = np.flatnonzero(Proxies(model, data, parts.rest_geoms).may_hit_before(o_ray, dirs_w, dist, k))
