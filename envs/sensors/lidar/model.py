@@ -1,7 +1,8 @@
 """Scanning LiDAR (Velodyne VLP-16 by default) by MuJoCo ray casting, with ground truth per point.
 
 One call of :meth:`LidarSensor.scan` simulates one sweep: every ray of the
-:class:`~exobench.envs.sensors.lidar.pattern.LidarPattern` is cast with ``mj_multiRay`` from the sensor
+:class:`~exobench.envs.sensors.lidar.pattern.LidarPattern` is cast (Embree and MuJoCo, see
+:mod:`~exobench.envs.sensors.lidar.cast`) from the sensor
 pose at its firing time (``pose_at``, so a sensor that moves during the sweep sees the world
 distorted as a walking person's LiDAR does; the points carry their firing time for deskewing).
 Glass and mirrors follow :mod:`exobench.envs.sensors.lidar.optics`. Points are in the sensor frame at
