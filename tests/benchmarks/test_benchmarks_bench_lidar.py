@@ -77,7 +77,11 @@ def test_the_figures_of_each_sweep_are_all_there(compared):
     result, _ = compared
     n_rays = len(COARSE.pattern.rays(0.0).dirs_s)
     assert result["rays_per_sweep"] == n_rays and result["pattern"] == COARSE.pattern.name
-    assert set(result["exobench"]) == {"static", "walking", "static_one_thread"}
+    assert set(result["exobench"]) == {"static", "walking", "static_one_thread", "static_mujoco_caster",
+                                       "walking_mujoco_caster"}
+    # the BVH caster and MuJoCo's (the reference) see the same returns
+    for pose in ("static", "walking"):
+        assert result["exobench"][pose]["returns"] == result["exobench"][f"{pose}_mujoco_caster"]["returns"]
     for name, fig in result["exobench"].items():
         assert set(fig) == EXO_KEYS, name
         # indoors nearly every beam returns; some fall below the minimum range

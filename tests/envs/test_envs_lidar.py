@@ -569,8 +569,8 @@ def test_zoned_two_pass_cast_equals_one_cast_on_the_simulation_model():
     moving geoms, which a sensor facing the user's legs sees.
     """
     model, data, truth, T0 = _office_scene()
-    plain = LidarConfig(zoned_cast=False, cast_near_m=0.0)
-    fast = LidarConfig()
+    plain = LidarConfig(zoned_cast=False, cast_near_m=0.0, caster="mujoco")
+    fast = LidarConfig(caster="mujoco")
     facing = T0.copy()  # 1.5 m in front of the user at knee height, level: its rings cross the legs
     facing[:3, 3] += T0[:3, :3] @ np.array([1.5, 0.0, 0.0])
     facing[2, 3] = 0.6

@@ -1,4 +1,7 @@
-"""Casting a LiDAR sweep's primary rays with ``mj_multiRay``: batched, zoned, near-first, threaded.
+"""Casting a LiDAR sweep's rays: by the BVH caster (``LidarConfig.caster = "bvh"``, the default:
+static boxes and planes by Embree with MuJoCo's exact hits, :mod:`exobench.envs.sensors.lidar.bvh`,
+the other geoms by ``mj_multiRay`` below, the nearer hit) or all by ``mj_multiRay`` (``"mujoco"``,
+the reference). ``mj_multiRay``: batched, zoned, near-first, threaded.
 
 ``mj_multiRay`` casts many rays from one point and costs about 0.1 ms per call in a furnished
 scene, so the firings of each ``cast_period_s`` window are cast from one origin (the window's
@@ -21,13 +24,69 @@ from __future__ import annotations
 
 import os
 import threading
+import warnings
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 
+from .bvh import Proxies, StaticBvh
 from .config import LidarConfig
+from .optics import RayCastFn, cast_rays
 from .pattern import RayTable
-from .ray_scene import RayScene, build_ray_scene
+from .ray_scene import PRIMITIVE_TYPES, RayScene, build_ray_scene, ray_visible_geoms
+
+
+@dataclass(eq=False)
+class BvhParts:
+    """The BVH caster of one model and sensor: static boxes and planes in Embree (``static``), the
+    other ray-visible geoms (moving, curved) in a zoned private model for the primary rays
+    (``rest``, None if there are none) and their ids (``others``, every body's, for the secondary
+    rays, which exclude no body)."""
+
+    static: StaticBvh
+    rest: RayScene | None
+    rest_geoms: np.ndarray
+    others: np.ndarray
+    rank: np.ndarray  # per geom, the order in which the primary-ray reference visits the geoms
+    own: np.ndarray  # per BVH geom: on the sensor's own body (welded to the world), not hit by its beams
+
+
+def build_bvh_parts(
+    model: object, data: object, group: np.ndarray, body_exclude: int, max_range_m: float, zoned: bool = True
+) -> tuple[BvhParts | None, str]:
+    """The BVH caster's parts, or (None, why) for a scene it cannot take (meshes, height fields,
+    SDFs, flexes, skins: MuJoCo casts those scenes whole)."""
+    import mujoco
+
+    m = model
+    if int(getattr(m, "nflex", 0)) > 0 or int(getattr(m, "nskin", 0)) > 0:
+        return None, "flexes or skins"
+    visible = ray_visible_geoms(m, group, -1)
+    types = np.asarray(m.geom_type)[visible]  # type: ignore[attr-defined]
+    allowed = {int(getattr(mujoco.mjtGeom, f"mjGEOM_{t}")) for t in PRIMITIVE_TYPES}
+    other = sorted({mujoco.mjtGeom(int(t)).name.removeprefix("mjGEOM_").lower() for t in types if int(t) not in allowed})
+    if other:
+        return None, f"geoms of type {', '.join(other)}"
+    body = np.asarray(m.geom_bodyid)[visible]  # type: ignore[attr-defined]
+    static = (np.asarray(m.body_weldid)[body] == 0) & (np.asarray(m.body_mocapid)[body] < 0)  # type: ignore[attr-defined]
+    flat = np.isin(types, [int(mujoco.mjtGeom.mjGEOM_BOX), int(mujoco.mjtGeom.mjGEOM_PLANE)])
+    in_bvh = visible[static & flat]
+    others = visible[~(static & flat)]
+    xpos = np.asarray(data.geom_xpos)[visible]  # type: ignore[attr-defined]
+    extent = float(np.max(np.abs(xpos))) if len(xpos) else 0.0
+    # infinite planes become quads reaching beyond any range from anywhere in the scene
+    bvh = StaticBvh(m, data, in_bvh, far_m=2.0 * (extent + max_range_m) + 10.0)
+    rest_geoms = np.intersect1d(others, ray_visible_geoms(m, group, body_exclude))  # not the sensor's own body
+    rest = build_ray_scene(m, data, group, body_exclude, only=rest_geoms) if len(rest_geoms) else None
+    # of equal hits at a seam the reference keeps the first geom it visits: the zoned copy's order
+    rank = np.arange(int(m.ngeom))  # type: ignore[attr-defined]
+    full = build_ray_scene(m, data, group, body_exclude) if zoned else None
+    if full is not None:
+        rank = np.full(int(m.ngeom), len(full.geom_of))  # type: ignore[attr-defined]
+        rank[full.geom_of] = np.arange(len(full.geom_of))
+    own = np.asarray(m.geom_bodyid)[in_bvh] == body_exclude  # type: ignore[attr-defined]
+    return BvhParts(bvh, rest, rest_geoms, others, rank, own), ""
 
 
 class RayCaster:
@@ -37,19 +96,13 @@ class RayCaster:
         self.config, self.group, self.body_exclude = config, group, body_exclude
         self._scratch: tuple[object, list[object]] | None = None
         self._ray_scene: tuple[object, RayScene | None] | None = None
+        self._bvh_parts: tuple[object, BvhParts | None] | None = None
+        self.fallback: str | None = None  # why the BVH caster fell back to MuJoCo's, once it did
 
     def cast(
         self, model: object, data: object, rays: RayTable, origins_w: np.ndarray, dirs_w: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Primary hits of every ray from its own origin: (geom, distance, normal), -1 if none."""
-        import mujoco
-
-        scene = self._zoned(model, data)
-        if scene is not None:
-            scene.sync(data)
-            model, data, mask, exclude = scene.model, scene.data, scene.group, -1
-        else:
-            mask, exclude = self.group, self.body_exclude
         n = len(rays)
         period = self.config.cast_period_s
         key = np.floor(rays.firing_time_s[rays.firing] / period + 1e-9) if period > 0 else rays.firing
@@ -60,12 +113,57 @@ class RayCaster:
         keep = np.append(True, np.any(o_cast[1:] != o_cast[:-1], axis=1))
         starts, o_cast = starts[keep], o_cast[keep]
         ends = np.append(starts[1:], n)
+        max_r = self.config.pattern.max_range_m + 1.0
+        jobs = [(o, int(s), int(e)) for o, s, e in zip(o_cast, starts, ends)]
+        o_ray = np.repeat(o_cast, ends - starts, axis=0)
+        parts = self._bvh(model, data)
+        if parts is None:
+            gid, dist, nrm = self._multi_ray(model, data, jobs, dirs_w, n, max_r)
+        else:
+            # static boxes and planes by Embree, the rest (moving, curved) by MuJoCo: the nearer hit
+            k = self._n_threads(model)
+            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, k, cutoff=max_r, rank=parts.rank,
+                                               skip=parts.own if np.any(parts.own) else None)
+            if parts.rest is not None:
+                # only the rays that may meet a moving or curved geom before the static hit
+                need = np.flatnonzero(Proxies(model, data, parts.rest_geoms).may_hit_before(o_ray, dirs_w, dist, k))
+                first = np.searchsorted(need, starts)
+                last = np.append(first[1:], len(need))
+                sub = [(o, int(a), int(b)) for o, a, b in zip(o_cast, first, last) if b > a]
+                g2, d2, n2 = self._multi_ray(model, data, sub, np.ascontiguousarray(dirs_w[need]), len(need), max_r,
+                                             scene=parts.rest)  # fmt: skip
+                take = (d2 >= 0.0) & (g2 >= 0) & ((dist[need] < 0.0) | (d2 < dist[need]))
+                gid[need[take]], dist[need[take]], nrm[need[take]] = g2[take], d2[take], n2[take]
+        # move each range from the cast origin to the ray's own origin, on the plane of the face hit
+        delta = o_ray - origins_w
+        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & np.any(delta != 0.0, axis=1))
+        if len(fix):
+            u, nv, dl = dirs_w[fix], nrm[fix], delta[fix]
+            un = np.einsum("ij,ij->i", u, nv)
+            grazing = np.abs(un) < 1e-6
+            r = dist[fix] + np.einsum("ij,ij->i", dl, nv) / np.where(grazing, 1.0, un)
+            r = np.where(grazing, dist[fix] + np.einsum("ij,ij->i", dl, u), r)
+            gid[fix] = np.where(r >= 0.0, gid[fix], -1)
+            dist[fix] = np.where(r >= 0.0, r, -1.0)
+        return gid, dist, nrm
+
+    def _multi_ray(
+        self, model: object, data: object, jobs: list[tuple[np.ndarray, int, int]], dirs_w: np.ndarray, n: int,
+        max_r: float, scene: RayScene | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``mj_multiRay`` of each job (origin, first ray, end) on the zoned copy (or ``scene``, or the model)."""
+        import mujoco
+
+        scene = scene if scene is not None else self._zoned(model, data)
+        if scene is not None:
+            scene.sync(data)
+            model, data, mask, exclude = scene.model, scene.data, scene.group, -1
+        else:
+            mask, exclude = self.group, self.body_exclude
         gid = np.full(n, -1, dtype=np.int32)
         dist = np.full(n, -1.0)
         nrm = np.zeros(3 * n)
         flat = dirs_w.reshape(-1)
-        max_r = self.config.pattern.max_range_m + 1.0
-        jobs = [(o, int(s), int(e)) for o, s, e in zip(o_cast, starts, ends)]
         k = self._n_threads(model)
         if 1 < k and len(jobs) < k:  # few calls (a static sensor): cut them into slices of their rays
             jobs = [(o, a, b) for o, s, e in jobs for a, b in _slices(s, e, k) if b > a]
@@ -102,22 +200,48 @@ class RayCaster:
                 f.result()
         else:
             run(data, jobs)
-        nrm = nrm.reshape(-1, 3)
         if scene is not None:
             gid = scene.original_geoms(gid)
-        # move each range from the cast origin to the ray's own origin, on the plane of the face hit
-        o_ray = np.repeat(o_cast, ends - starts, axis=0)
-        delta = o_ray - origins_w
-        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & np.any(delta != 0.0, axis=1))
-        if len(fix):
-            u, nv, dl = dirs_w[fix], nrm[fix], delta[fix]
-            un = np.einsum("ij,ij->i", u, nv)
-            grazing = np.abs(un) < 1e-6
-            r = dist[fix] + np.einsum("ij,ij->i", dl, nv) / np.where(grazing, 1.0, un)
-            r = np.where(grazing, dist[fix] + np.einsum("ij,ij->i", dl, u), r)
-            gid[fix] = np.where(r >= 0.0, gid[fix], -1)
-            dist[fix] = np.where(r >= 0.0, r, -1.0)
-        return gid, dist, nrm
+        return gid, dist, nrm.reshape(-1, 3)
+
+    def secondary(self, model: object, data: object) -> RayCastFn:
+        """The caster of a sweep's secondary rays (``data`` is frozen for the sweep): ``mj_ray``
+        semantics (no cut-off, no body excluded), all rays of a call in one batch with the BVH."""
+        parts = self._bvh(model, data)
+        if parts is None:
+            return lambda o, d: cast_rays(model, data, self.group, o, d)
+        proxies: list[Proxies] = []  # built at the sweep's first secondary ray (most sweeps have none)
+        k = self._n_threads(model)
+
+        def cast(o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            if not proxies:
+                proxies.append(Proxies(model, data, parts.others))
+            o = np.ascontiguousarray(o, dtype=float)
+            d = np.ascontiguousarray(d, dtype=float)
+            gid, r, nrm = parts.static.cast(o, d, k, inside=True)
+            gid = gid.astype(np.int64)
+            # the few rays that may meet a moving or curved geom first: exactly as the reference
+            near = np.flatnonzero(proxies[0].may_hit_before(o, d, r, k))
+            if len(near):
+                r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
+            return r, gid, nrm
+
+        return cast
+
+    def _bvh(self, model: object, data: object) -> BvhParts | None:
+        """The BVH caster's parts for ``model`` (built on first use); None when casting with MuJoCo."""
+        if self.config.caster != "bvh":
+            return None
+        if self._bvh_parts is None or self._bvh_parts[0] is not model:
+            parts, why = build_bvh_parts(
+                model, data, self.group, self.body_exclude, self.config.pattern.max_range_m, self.config.zoned_cast
+            )
+            if parts is None and self.fallback is None:
+                self.fallback = why
+                warnings.warn(f"lidar: the BVH caster cannot take this scene ({why}); casting with MuJoCo",
+                              RuntimeWarning, stacklevel=3)  # fmt: skip
+            self._bvh_parts = (model, parts)
+        return self._bvh_parts[1]
 
     def _zoned(self, model: object, data: object) -> RayScene | None:
         """The private zoned casting model of ``model`` (built on first use), None if not used."""

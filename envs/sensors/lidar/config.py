@@ -12,6 +12,7 @@ from .pattern import LidarPattern
 
 INTENSITY_MODES = ("signal", "reflectivity")
 RETURN_MODES = ("sampled", "strongest", "last")
+CASTERS = ("bvh", "mujoco")
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,12 @@ class LidarConfig:
             drops the farther ones before tracing), and those without a hit that near again
             against all: the same hits, faster where most returns are near (offices) [A: 8 m];
             0 = one pass.
+        caster: ``"bvh"``: static boxes and planes by Embree (a BVH: the cost does not grow with
+            the building), hits recomputed with MuJoCo's arithmetic, moving and curved geoms by
+            MuJoCo, the nearer hit; secondary rays in batches (:mod:`~exobench.envs.sensors.lidar.bvh`);
+            ``"mujoco"``: every ray by ``mj_multiRay`` / ``mj_ray`` (the reference). A scene the
+            BVH cannot take (meshes, height fields, SDFs, flexes, skins) is cast by MuJoCo, with a
+            ``RuntimeWarning`` once.
         zoned_cast: cast on a private copy of the ray-visible geoms grouped in spatial zones
             (:mod:`exobench.envs.sensors.lidar.ray_scene`; a quarter less casting time in the office, same hits);
             False = cast on the simulation's model.
@@ -109,6 +116,7 @@ class LidarConfig:
     cast_threads: int = 0
     cast_near_m: float = 8.0
     zoned_cast: bool = True
+    caster: str = "bvh"
     materials: tuple[LidarMaterial, ...] = ()
     return_mode: str = "sampled"
     glass_bow_mm_per_m: float = 0.0
@@ -147,6 +155,8 @@ class LidarConfig:
             check_range(f"lidar.materials.{m.name}.transmission", m.transmission, 0.0, 1.0)
             check_range(f"lidar.materials.{m.name}.specular", m.specular, 0.0, 1.0 - m.transmission)
         object.__setattr__(self, "materials", mats)
+        if self.caster not in CASTERS:
+            raise ConfigError("lidar.caster", self.caster, " or ".join(CASTERS))
         if self.return_mode not in RETURN_MODES:
             raise ConfigError("lidar.return_mode", self.return_mode, " or ".join(RETURN_MODES))
         check_range("lidar.glass_bow_mm_per_m", self.glass_bow_mm_per_m, 0.0, 20.0)

@@ -1,7 +1,8 @@
 """Scanning LiDAR (Velodyne VLP-16 by default) by MuJoCo ray casting, with ground truth per point.
 
 One call of :meth:`LidarSensor.scan` simulates one sweep: every ray of the
-:class:`~exobench.envs.sensors.lidar.pattern.LidarPattern` is cast with ``mj_multiRay`` from the sensor
+:class:`~exobench.envs.sensors.lidar.pattern.LidarPattern` is cast (Embree and MuJoCo, see
+:mod:`~exobench.envs.sensors.lidar.cast`) from the sensor
 pose at its firing time (``pose_at``, so a sensor that moves during the sweep sees the world
 distorted as a walking person's LiDAR does; the points carry their firing time for deskewing).
 Glass and mirrors follow :mod:`exobench.envs.sensors.lidar.optics`. Points are in the sensor frame at
@@ -134,7 +135,7 @@ class LidarSensor:
         optics = self._optics(model, truth)
         beams = follow_beams(
             model, data, self.group, origins_w, dirs_w, gid, dist, nrm.reshape(-1, 3), optics, u_opt,
-            glass=c.glass, mirrors=c.mirrors, echo=self._echo,
+            glass=c.glass, mirrors=c.mirrors, echo=self._echo, cast=self.caster.secondary(model, data),
         )  # fmt: skip
         ok = beams.geom >= 0
         g = np.where(ok, beams.geom, 0)

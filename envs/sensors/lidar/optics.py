@@ -13,8 +13,10 @@ gives a reflectivity, a kind, a transmission and a specular fraction. A beam tha
 A mirrored beam follows the reflected direction; what it hits is reported along the *original*
 ray at the total path length (a ghost: the mirror image of the real surface). Up to
 ``max_interactions`` glass/mirror events are followed per beam; then the surface reached returns.
-Secondary rays start at different points, so they are cast one by one with ``mj_ray`` (only the
-few beams that meet glass or mirrors; the primary rays are batched).
+Secondary rays start at different points; those of one bounce level are cast together by the
+sensor's caster (:meth:`exobench.envs.sensors.lidar.cast.RayCaster.secondary`: Embree for the static
+geometry, ``mj_ray`` only for rays that may reach a moving or curved geom), or one by one with
+``mj_ray`` (:func:`cast_rays`, the reference).
 
 Return strength (Lambertian, HELIOS++ / RobotecGPULidar): ``signal = 100 * G * (rho / rho_ref) *
 |cos(incidence)| * (r_ref / path)^2``, with rho the reflectivity of the surface that returns the
@@ -62,7 +64,7 @@ unit about its front or back pane's.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,6 +77,8 @@ from .pane_shape import PaneShapes
 KIND_CODE = {k: i for i, k in enumerate(KINDS)}  # diffuse 0, glass 1, mirror 2, retro 3
 _GLASS, _MIRROR, _RETRO = KIND_CODE["glass"], KIND_CODE["mirror"], KIND_CODE["retro"]
 EPS_M = 1e-6  # secondary rays start this far along their direction, beyond the surface left
+RayCastFn = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+"""``cast(origins_w, dirs_w) -> (distance or -1, geom or -1, normal)`` per ray, as ``mj_ray``."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,12 +168,20 @@ def follow_beams(
     glass: bool,
     mirrors: bool,
     echo: EchoChoice | None = None,
+    cast: RayCastFn | None = None,
 ) -> BeamResult:
     """Resolve glass and mirror events of the primary hits ``(geom, dist, normals_w)``.
 
     ``u`` (N, max_interactions) are the uniform draws deciding each event; ``echo`` (None:
-    ``"sampled"``) splits the beams whose first event is glass and picks their echo.
+    ``"sampled"``) splits the beams whose first event is glass and picks their echo. ``cast`` casts the
+    secondary rays (all of one bounce level in one call); None: :func:`cast_rays`, one ``mj_ray``
+    per ray.
     """
+    if cast is None:
+        def cast(o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            return cast_rays(model, data, geomgroup, o, d)
+
+
     n = len(geom)
     geom = geom.astype(np.int64)  # a copy
     hit = (geom >= 0) & (dist >= 0.0)
@@ -189,12 +201,12 @@ def follow_beams(
         sub = sub[first[sub] != _GLASS]
         if len(sp):
             res = _split_first(model, data, geomgroup, geom[sp], path[sp], hit_w[sp], dirs_w[sp], normals_w[sp],
-                               cos_inc[sp], optics, u[sp, 1:], echo, mirrors=mirrors)  # fmt: skip
+                               cos_inc[sp], optics, u[sp, 1:], echo, mirrors=mirrors, cast=cast)  # fmt: skip
             geom[sp], path[sp], hit_w[sp], kind[sp], via[sp], gain[sp], cos_inc[sp] = res
     if len(sub):
         g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s = _follow(
             model, data, geomgroup, geom[sub], path[sub], hit_w[sub], dirs_w[sub], normals_w[sub], optics, u[sub],
-            glass=glass, mirrors=mirrors,
+            glass=glass, mirrors=mirrors, cast=cast,
         )  # fmt: skip
         geom[sub], path[sub], hit_w[sub], kind[sub], via[sub], gain[sub], cos_inc[sub] = (
             g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s,
@@ -225,7 +237,7 @@ class EchoChoice:
 def _split_first(
     model: object, data: object, geomgroup: np.ndarray, geom: np.ndarray, path: np.ndarray, hit_w: np.ndarray,
     dirs_w: np.ndarray, normals_w: np.ndarray, cos0: np.ndarray, optics: GeomOptics, u: np.ndarray, echo: EchoChoice,
-    *, mirrors: bool,
+    *, mirrors: bool, cast: RayCastFn,
 ) -> tuple[np.ndarray, ...]:
     """Beams whose first hit is a pane: its own return, the crossing and the mirrored branch (later
     events drawn from ``u``), and the echo ``echo.mode`` picks among the three."""
@@ -238,14 +250,14 @@ def _split_first(
         if mirrored:
             d -= 2.0 * np.einsum("ij,ij->i", d, normals_w)[:, None] * normals_w
             d /= np.linalg.norm(d, axis=1)[:, None]
-        o, r, gi, nn = _leave(model, data, geomgroup, hit_w, d, geom, np.full(n, mirrored))
+        o, r, gi, nn = _leave(cast, hit_w, d, geom, np.full(n, mirrored))
         lost = (r < 0.0) | (gi < 0)
         q = o + np.where(lost, 0.0, r)[:, None] * d
         nn = _local_normals(optics, data, gi, q, nn, u[:, 0] if u.shape[1] else None)
         p2 = np.where(lost, np.nan, path + np.linalg.norm(q - hit_w, axis=1))
         g2 = np.where(lost, -1, gi)
         g_f, path_f, hit_f, kind_f, via_f, gain_f, cos_f = _follow(
-            model, data, geomgroup, g2, p2, q, d, nn, optics, u, glass=True, mirrors=mirrors,
+            model, data, geomgroup, g2, p2, q, d, nn, optics, u, glass=True, mirrors=mirrors, cast=cast,
         )  # fmt: skip
         share = (S if mirrored else T) ** 2
         kind_b = np.where(mirrored | (kind_f == ReturnKind.GHOST), int(ReturnKind.GHOST), int(ReturnKind.THROUGH_GLASS))
@@ -283,6 +295,7 @@ def _follow(
     *,
     glass: bool,
     mirrors: bool,
+    cast: RayCastFn,
 ) -> tuple[np.ndarray, ...]:
     """The glass / mirror events of beams whose primary hit is glass or a mirror (``follow_beams``)."""
     n = len(geom)
@@ -312,7 +325,7 @@ def _follow(
         m = mirror[act]
         d[m] -= 2.0 * np.einsum("ij,ij->i", d[m], nv[m])[:, None] * nv[m]
         d[m] /= np.linalg.norm(d[m], axis=1)[:, None]
-        o, r, gi, nn = _leave(model, data, geomgroup, p, d, geom[act], m)
+        o, r, gi, nn = _leave(cast, p, d, geom[act], m)
         via[act] = geom[act]
         gain[act] *= np.where(m, S[act], T[act]) ** 2  # out and back by the same bounce / crossing
         lost = (r < 0.0) | (gi < 0)
@@ -342,21 +355,19 @@ def _local_normals(optics: GeomOptics, data: object, geom: np.ndarray, hit_w: np
     return optics.shape.normals(data, geom, hit_w, normals_w, pick)
 
 
-def _leave(
-    model: object, data: object, geomgroup: np.ndarray, p: np.ndarray, d: np.ndarray, own: np.ndarray, mirrored: np.ndarray
-) -> tuple[np.ndarray, ...]:
+def _leave(cast: RayCastFn, p: np.ndarray, d: np.ndarray, own: np.ndarray, mirrored: np.ndarray) -> tuple[np.ndarray, ...]:
     """Secondary rays leaving the surfaces ``own`` at ``p`` along ``d``: (origin, distance, geom, normal).
 
     A crossing beam passes every face of its pane; a mirrored one skips a grazing self-hit.
     """
     o = p + EPS_M * d
-    r, gi, nn = cast_rays(model, data, geomgroup, o, d)
+    r, gi, nn = cast(o, d)
     for _ in range(8):
         redo = np.flatnonzero((r >= 0.0) & (gi == own) & (~mirrored | (r < 1e-6)))
         if len(redo) == 0:
             break
         o[redo] += (r[redo] + EPS_M)[:, None] * d[redo]
-        r[redo], gi[redo], nn[redo] = cast_rays(model, data, geomgroup, o[redo], d[redo])
+        r[redo], gi[redo], nn[redo] = cast(o[redo], d[redo])
     return o, r, gi, nn
 
 

@@ -102,11 +102,13 @@ def _zones(centres: np.ndarray, leaf_size: int) -> list[np.ndarray]:
 
 
 def build_ray_scene(
-    model: object, data: object, geomgroup: np.ndarray, body_exclude: int, *, leaf_size: int = 12, large_m: float = 6.0
+    model: object, data: object, geomgroup: np.ndarray, body_exclude: int, *, leaf_size: int = 12, large_m: float = 6.0,
+    only: np.ndarray | None = None,
 ) -> RayScene | None:
     """The private casting model of ``model`` for one sensor; None if the scene cannot be copied.
 
-    ``data`` gives the world poses of the static geoms (its kinematics must be current).
+    ``data`` gives the world poses of the static geoms (its kinematics must be current); ``only``
+    (geom ids) keeps those of the ray-visible geoms alone (the BVH caster's moving and curved ones).
     """
     import mujoco
 
@@ -114,6 +116,8 @@ def build_ray_scene(
     if int(getattr(m, "nflex", 0)) > 0 or int(getattr(m, "nskin", 0)) > 0:
         return None
     geoms = ray_visible_geoms(m, geomgroup, body_exclude)
+    if only is not None:
+        geoms = geoms[np.isin(geoms, only)]
     types = np.asarray(m.geom_type)[geoms]  # type: ignore[attr-defined]
     allowed = {int(getattr(mujoco.mjtGeom, f"mjGEOM_{t}")) for t in PRIMITIVE_TYPES}
     if not all(int(t) in allowed for t in types):

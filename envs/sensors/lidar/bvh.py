@@ -1,0 +1,437 @@
+"""Static geometry in a BVH (Embree, through Open3D's ``RaycastingScene``), hits as MuJoCo computes them.
+
+A procedural building is hundreds of static boxes and finite planes; ``mj_multiRay`` tests each ray
+against every geom its bounding-angle cull lets through, so a sweep's cost grows with the building.
+Embree's BVH finds each ray's first triangle in about log(triangles) steps, whatever the
+building's size. :class:`StaticBvh` puts every static ray-visible box and plane (infinite planes
+as a quad far beyond the scene) in one Embree scene, one mesh per geom, and then recomputes the
+hit on the geom Embree names with MuJoCo's own arithmetic in float64 (``ray_box``, ``ray_plane``
+of ``engine_ray.c``, operation for operation): the distance and the normal are MuJoCo's, bit for
+bit, whenever Embree names the geom MuJoCo would. Embree casts in single precision, so it can
+name another geom only where two surfaces lie within its rounding (~1e-6 of the range) of each
+other: a beam grazing a box's silhouette edge, coplanar faces meeting at a seam, or two faces
+closer than a few micrometres. When the exact recomputation rejects Embree's geom (a plane seen
+from behind, which MuJoCo does not hit, or an edge Embree's rounding caught), the ray's every
+Embree intersection is listed and the nearest one the exact test accepts is taken.
+
+Curved static geoms (spheres, cylinders, capsules, ellipsoids: a tessellation would change their
+distances by its sag) and every moving geom (the exoskeleton, pedestrians) are left to MuJoCo.
+:class:`Proxies` bounds each of them by an enlarged oriented box in a small per-sweep Embree scene,
+so a secondary ray (whose origin is its own) is sent to ``mj_ray`` only when it may reach one of
+them before the static hit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+MJMINVAL = 1e-15  # MuJoCo's mjMINVAL (double precision)
+_PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
+
+_BOX_VERTS = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
+_BOX_TRIS = np.array(
+    [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+     [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], dtype=np.uint32,
+)  # fmt: skip
+_c = _BOX_VERTS[_BOX_TRIS].mean(axis=1)
+_BOX_FACE_NORMALS = np.eye(3)[np.argmax(np.abs(_c), axis=1)] * np.sign(_c[np.arange(12), np.argmax(np.abs(_c), axis=1)])[:, None]
+_TRI_FACE = 2 * np.argmax(np.abs(_BOX_FACE_NORMALS), axis=1) + (_BOX_FACE_NORMALS.sum(axis=1) > 0)
+_QUAD_VERTS = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], dtype=float)
+_QUAD_TRIS = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
+
+
+def _scene(boxes: list[tuple[np.ndarray, np.ndarray]]) -> object:
+    """An Embree scene of one mesh per (world vertices, triangles); mesh ids are list positions."""
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    for verts, tris in boxes:
+        scene.add_triangles(o3d.core.Tensor(verts.astype(np.float32)), o3d.core.Tensor(tris))
+    return scene
+
+
+def _rays(o: np.ndarray, u: np.ndarray) -> object:
+    import open3d as o3d
+
+    r = np.empty((len(o), 6), dtype=np.float32)
+    r[:, :3], r[:, 3:] = o, u
+    return o3d.core.Tensor(r)
+
+
+_PROBE = np.array([0.2672612419124244, 0.5345224838248488, 0.8017837257372732])  # (1, 2, 3) / |(1, 2, 3)|
+_EDGE_M = 1e-4  # hits this near a face's edge are checked against every face (Embree rounds in float32)
+_OTHER = np.array([[1, 2], [0, 2], [0, 1]])
+
+
+def face_hits(
+    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, pnt: np.ndarray, vec: np.ndarray, face: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's ``ray_box`` distance on the box face Embree hit, where that face is surely the one
+    MuJoCo picks: the hit lies on the face and farther than ``_EDGE_M`` from its edges, so no other
+    face of the box can be reached first (the ray meets the box's surface there). Returns (distance,
+    sure) per ray; rays not sure need :func:`exact_hits`."""
+    n = len(pnt)
+    M = np.ascontiguousarray(mat.T)
+    dif = np.ascontiguousarray((pnt - pos).T)
+    v = np.ascontiguousarray(vec.T)
+    lp = np.stack([M[i] * dif[0] + M[3 + i] * dif[1] + M[6 + i] * dif[2] for i in range(3)])
+    lv = np.stack([M[i] * v[0] + M[3 + i] * v[1] + M[6 + i] * v[2] for i in range(3)])
+    cols = np.arange(n)
+    i = face // 2
+    side = np.where(face % 2 == 1, 1.0, -1.0)
+    S = size.T
+    j, k = _OTHER[i, 0], _OTHER[i, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lvi = lv[i, cols]
+        sol = (side * S[i, cols] - lp[i, cols]) / lvi
+        pj = np.abs(lp[j, cols] + sol * lv[j, cols])
+        pk = np.abs(lp[k, cols] + sol * lv[k, cols])
+        sure = (np.abs(lvi) > MJMINVAL) & (sol >= 0) & (pj <= S[j, cols] - _EDGE_M) & (pk <= S[k, cols] - _EDGE_M)
+    return sol, sure
+
+
+def exact_hits(
+    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, pnt: np.ndarray, vec: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """MuJoCo's ``ray_box`` / ``ray_plane`` per ray on its own geom (rows): distance (-1 none), world
+    normal, and the face hit (``2 axis + (side > 0)``, a plane's is 5; -1 none).
+
+    Operation for operation as ``engine_ray.c`` (``ray_map``'s sums in its order; numpy neither
+    fuses nor reorders elementwise products and sums), on contiguous columns for speed.
+    """
+    n = len(pnt)
+    M = np.ascontiguousarray(mat.T)  # (9, n)
+    S = np.ascontiguousarray(size.T)  # (3, n)
+    dif = np.ascontiguousarray((pnt - pos).T)
+    v = np.ascontiguousarray(vec.T)
+    lp = [M[i] * dif[0] + M[3 + i] * dif[1] + M[6 + i] * dif[2] for i in range(3)]
+    lv = [M[i] * v[0] + M[3 + i] * v[1] + M[6 + i] * v[2] for i in range(3)]
+    x = np.full(n, -1.0)
+    face = np.full(n, -1)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        # box: bounding sphere test, then the six faces in MuJoCo's order (axis, then side -1, +1)
+        ssz = S[0] * S[0] + S[1] * S[1] + S[2] * S[2]
+        a = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
+        b = v[0] * dif[0] + v[1] * dif[1] + v[2] * dif[2]
+        c = dif[0] * dif[0] + dif[1] * dif[1] + dif[2] * dif[2] - ssz
+        det = b * b - a * c
+        sq = np.sqrt(np.maximum(det, 0.0))
+        box = ~plane & (det >= MJMINVAL) & (((-b - sq) / a >= 0) | ((-b + sq) / a >= 0))
+        faces = ((1, 2), (0, 2), (0, 1))
+        for i in range(3):
+            j, k = faces[i]
+            ok_axis = box & (np.abs(lv[i]) > MJMINVAL)
+            for side in (-1.0, 1.0):
+                sol = (side * S[i] - lp[i]) / lv[i]
+                ok = ok_axis & (sol >= 0)
+                ok &= np.abs(lp[j] + sol * lv[j]) <= S[j]
+                ok &= np.abs(lp[k] + sol * lv[k]) <= S[k]
+                ok &= (x < 0) | (sol < x)
+                x[ok] = sol[ok]
+                face[ok] = 2 * i + (side > 0)
+        # plane: front face only, within the rendered rectangle (size <= 0: infinite)
+        pl = np.flatnonzero(plane)
+        if len(pl):
+            lp0, lp1, lp2, lv0, lv1, lv2 = lp[0][pl], lp[1][pl], lp[2][pl], lv[0][pl], lv[1][pl], lv[2][pl]
+            s0, s1 = S[0][pl], S[1][pl]
+            sol = -lp2 / lv2
+            p0 = lp0 + sol * lv0
+            p1 = lp1 + sol * lv1
+            inside = ((s0 <= 0) | (np.abs(p0) <= s0)) & ((s1 <= 0) | (np.abs(p1) <= s1))
+            ok = (lv2 <= -MJMINVAL) & (sol >= 0) & inside
+            x[pl[ok]] = sol[ok]
+            face[pl[ok]] = 5
+    nrm = np.zeros((n, 3))
+    rows = np.flatnonzero(face >= 0)
+    ax, sg = face[rows] // 2, np.where(face[rows] % 2 == 1, 1.0, -1.0)
+    nrm[rows] = sg[:, None] * np.stack([mat[rows, ax], mat[rows, 3 + ax], mat[rows, 6 + ax]], axis=1)
+    return x, nrm, face
+
+
+def _coplanar_partners(
+    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, far_m: float
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """For each face (``6 geom + face``), the other geoms with a face on the same plane overlapping
+    it, facing the same way and facing the other way, as (start, geoms) lists (CSR): where MuJoCo
+    and Embree may report different geoms at one distance."""
+    g = len(pos)
+    n_w, off, lo, hi, valid = [], [], [], [], []
+    for face in range(6):
+        axis, side = face // 2, (1.0 if face % 2 else -1.0)
+        col = mat[:, [axis, 3 + axis, 6 + axis]]
+        nw = side * col
+        centre = pos + (np.where(plane, 0.0, side * size[:, axis]))[:, None] * col  # a plane's size[2] is its grid
+        ext = np.where(plane[:, None], np.where(size[:, :2] > 0, size[:, :2], far_m), 0.0)
+        half = np.zeros((g, 3))
+        for e in range(3):
+            if e == axis:
+                continue
+            le = np.where(plane, ext[:, min(e, 1)], size[:, e])
+            half += np.abs(mat[:, [e, 3 + e, 6 + e]]) * le[:, None]
+        n_w.append(nw)
+        off.append(np.einsum("ij,ij->i", nw, centre))
+        lo.append(centre - half)
+        hi.append(centre + half)
+        valid.append(~plane | (face == 5))
+    nw, c = np.stack(n_w, 1).reshape(-1, 3), np.stack(off, 1).reshape(-1)
+    lo, hi, ok = np.stack(lo, 1).reshape(-1, 3), np.stack(hi, 1).reshape(-1, 3), np.stack(valid, 1).reshape(-1)
+    geom_of = np.repeat(np.arange(g), 6)
+    lists: tuple[list[list[int]], list[list[int]]] = ([[] for _ in range(6 * g)], [[] for _ in range(6 * g)])
+    tol = 1e-6
+    for f in np.flatnonzero(ok):
+        dot = nw @ nw[f]
+        touch = ok & np.all((lo <= hi[f] + tol) & (hi >= lo[f] - tol), axis=1) & (geom_of != geom_of[f])
+        same = touch & (dot > 1 - 1e-9) & (np.abs(c - c[f]) < tol)
+        opposite = touch & (dot < -1 + 1e-9) & (np.abs(c + c[f]) < tol)
+        lists[0][f] = sorted(set(geom_of[same].tolist()))
+        lists[1][f] = sorted(set(geom_of[opposite].tolist()))
+
+    def csr(rows: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
+        start = np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(np.int64)
+        return start, np.array([q for r in rows for q in r], dtype=np.int64)
+
+    return csr(lists[0]), csr(lists[1])
+
+
+class StaticBvh:
+    """The static boxes and planes ``geoms`` (original ids) of a model, posed as in ``data``, in Embree."""
+
+    def __init__(self, model: object, data: object, geoms: np.ndarray, *, far_m: float) -> None:
+        import mujoco
+
+        m = model
+        self.geom = np.asarray(geoms, dtype=np.int64)
+        self.pos = np.array(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
+        self.mat = np.array(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
+        self.size = np.array(m.geom_size)[self.geom].copy()  # type: ignore[attr-defined]
+        self.rbound = np.array(m.geom_rbound)[self.geom]  # type: ignore[attr-defined]
+        self.plane = np.array(m.geom_type)[self.geom] == int(mujoco.mjtGeom.mjGEOM_PLANE)  # type: ignore[attr-defined]
+        meshes = []
+        for k in range(len(self.geom)):
+            R = self.mat[k].reshape(3, 3)
+            if self.plane[k]:
+                half = np.where(self.size[k, :2] > 0, self.size[k, :2], far_m)
+                local, tris = _QUAD_VERTS * np.append(half, 0.0), _QUAD_TRIS
+            else:
+                local, tris = _BOX_VERTS * self.size[k], _BOX_TRIS
+            meshes.append((local @ R.T + self.pos[k], tris))
+        self.scene = _scene(meshes)
+        self.same_face, self.opposite_face = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
+        # each geom's world box, a little larger (the hit points of its faces, rounded)
+        self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - 1e-6
+        self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + 1e-6
+
+    def cast(
+        self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
+        inside: bool = False, skip: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(original geom or -1, distance or -1, normal) per ray, as ``mj_ray`` on these geoms alone.
+
+        ``cutoff``: geoms whose bounding sphere lies farther from the ray's origin are not hit (as
+        ``mj_multiRay`` culls them). ``rank`` (per original geom; None: the geom id) orders the
+        geoms as the MuJoCo reference visits them: of two faces on one plane hit at the same
+        distance (a seam), the first visited is reported, as MuJoCo keeps the first of equal hits.
+        ``inside``: rays may start inside a geom (see :meth:`_seams`). ``skip`` (per BVH geom):
+        geoms not to hit (the sensor's own body, when it is welded to the world).
+        """
+        n = len(o)
+        gid = np.full(n, -1, dtype=np.int64)
+        dist = np.full(n, -1.0)
+        nrm = np.zeros((n, 3))
+        if n == 0 or len(self.geom) == 0:
+            return gid.astype(np.int32), dist, nrm
+        rays = _rays(o, u)
+        ans = self.scene.cast_rays(rays, nthreads=nthreads)
+        k = ans["geometry_ids"].numpy().astype(np.int64)
+        rows = np.flatnonzero(k < len(self.geom))
+        kk = k[rows]
+        # a box hit away from the face's edges: that face's distance; the rest: every face
+        face = _TRI_FACE[np.minimum(ans["primitive_ids"].numpy()[rows].astype(np.int64), 11)]
+        box = np.flatnonzero(~self.plane[kk])
+        x = np.full(len(rows), -1.0)
+        sure = np.zeros(len(rows), dtype=bool)
+        if len(box):
+            kb = kk[box]
+            x[box], sure[box] = face_hits(self.pos[kb], self.mat[kb], self.size[kb], o[rows[box]], u[rows[box]], face[box])
+        nv = np.zeros((len(rows), 3))
+        if np.any(sure):
+            sb, ks, fs = np.flatnonzero(sure), kk[sure], face[sure]
+            ax = fs // 2
+            nv[sb] = np.where(fs % 2 == 1, 1.0, -1.0)[:, None] * np.stack(
+                [self.mat[ks, ax], self.mat[ks, 3 + ax], self.mat[ks, 6 + ax]], axis=1)  # fmt: skip
+        rest = np.flatnonzero(~sure)
+        if len(rest):
+            kr = kk[rest]
+            x[rest], nv[rest], face[rest] = exact_hits(self.pos[kr], self.mat[kr], self.size[kr], self.plane[kr],
+                                                       o[rows[rest]], u[rows[rest]])  # fmt: skip
+        if cutoff is not None:
+            x = np.where(self._culled(kk, o[rows], cutoff), -1.0, x)
+        if skip is not None:
+            x = np.where(skip[kk], -1.0, x)
+        good = x >= 0
+        self._seams(rows, kk, x, nv, face, good, o, u, cutoff, self.geom if rank is None else np.asarray(rank)[self.geom],
+                    inside, skip)
+        gid[rows[good]], dist[rows[good]], nrm[rows[good]] = kk[good], x[good], nv[good]
+        redo = rows[~good]
+        if len(redo):
+            self._listed(rays[redo], redo, o, u, cutoff, gid, dist, nrm, skip)
+        out = np.where(gid >= 0, self.geom[np.maximum(gid, 0)], -1).astype(np.int32)
+        return out, dist, nrm
+
+    def _seams(self, rows: np.ndarray, kk: np.ndarray, x: np.ndarray, nv: np.ndarray, face: np.ndarray,
+               good: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None, rk: np.ndarray,
+               inside: bool, skip: np.ndarray | None) -> None:  # fmt: skip
+        """Where the face hit shares its plane with faces of other geoms, the hit MuJoCo reports:
+        the nearest exact one, of equal ones the first in ``rk`` (per BVH geom). ``kk, x, nv, face,
+        good`` are per hit ray (``rows``); ``kk, x, nv`` are updated in place.
+
+        Faces facing the same way meet at seams; a face facing the other way ties only where the
+        ray leaves a box it started in (a beam crossing a pane) through a face another box is
+        entered by: checked for the hits that leave a box and, with ``inside`` (rays that may start
+        inside a box: the secondary ones), for hits entering such a face, against every box the
+        ray starts in (:meth:`_containing`). Any geom added as a candidate is
+        judged by its exact hit, so a candidate too many never changes a result.
+        """
+        sel = np.flatnonzero(good)
+        ray = rows[sel]
+        leaving = np.einsum("ij,ij->i", nv[sel], u[ray]) > 0.0
+        hs, qs = [], []
+        for (start, geoms), on in ((self.same_face, np.ones(len(sel), dtype=bool)), (self.opposite_face, leaving)):
+            f = 6 * kk[sel[on]] + face[sel[on]]
+            cnt = start[f + 1] - start[f]
+            h = np.repeat(sel[on], cnt)
+            first = np.repeat(start[f] - (np.cumsum(cnt) - cnt), cnt)
+            hs.append(h)
+            qs.append(geoms[first + np.arange(len(h))])
+        if inside:
+            start, _ = self.opposite_face
+            f = 6 * kk[sel] + face[sel]
+            back = sel[~leaving & (start[f + 1] > start[f])]
+            if len(back):
+                h_in, q_in = self._containing(o[rows[back]])
+                hs.append(back[h_in])
+                qs.append(q_in)
+        h, q = np.concatenate(hs), np.concatenate(qs)
+        if len(h) == 0:
+            return
+        ray = rows[h]
+        p = o[ray] + x[h, None] * u[ray]
+        near = np.all((p >= self.lo[q]) & (p <= self.hi[q]), axis=1)  # the hit point on the partner's box
+        if skip is not None:
+            near &= ~skip[q]
+        h, q, ray = h[near], q[near], ray[near]
+        x2, n2, _ = exact_hits(self.pos[q], self.mat[q], self.size[q], self.plane[q], o[ray], u[ray])
+        if cutoff is not None:
+            x2 = np.where(self._culled(q, o[ray], cutoff), -1.0, x2)
+        keep = x2 >= 0
+        h, q, x2, n2 = h[keep], q[keep], x2[keep], n2[keep]
+        if len(h) == 0:
+            return
+        # each ray's nearest hit, of equal ones the first visited: its own hit competes too
+        base = np.unique(h)
+        hh = np.concatenate([base, h])
+        qq = np.concatenate([kk[base], q])
+        xx = np.concatenate([x[base], x2])
+        order = np.lexsort((rk[qq], xx, hh))
+        win = order[np.append(True, hh[order][1:] != hh[order][:-1])]
+        moved = win[win >= len(base)] - len(base)
+        b = h[moved]
+        kk[b], x[b], nv[b] = q[moved], x2[moved], n2[moved]
+
+    def _containing(self, o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(ray, geom) pairs of the boxes each point lies in: a probe ray from inside a closed box
+        crosses its surface an odd number of times (along a direction no wall is aligned with)."""
+        import open3d as o3d
+
+        probe = np.broadcast_to(_PROBE, o.shape)
+        li = self.scene.list_intersections(o3d.core.Tensor(np.hstack([o, probe]).astype(np.float32)))
+        splits = li["ray_splits"].numpy().astype(np.int64)
+        k = li["geometry_ids"].numpy().astype(np.int64)
+        which = np.repeat(np.arange(len(o)), np.diff(splits))
+        pair, count = np.unique(which * len(self.geom) + k, return_counts=True)
+        odd = pair[(count % 2 == 1) & ~self.plane[pair % len(self.geom)]]
+        return odd // len(self.geom), odd % len(self.geom)
+
+    def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
+        d = self.pos[k] - o
+        return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k]
+
+    def _listed(self, rays: object, redo: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None,
+                gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray, skip: np.ndarray | None) -> None:  # fmt: skip
+        """The nearest exact hit among every Embree intersection of the rays ``redo``."""
+        import open3d as o3d
+
+        li = self.scene.list_intersections(o3d.core.Tensor(rays.numpy()))
+        splits = li["ray_splits"].numpy().astype(np.int64)
+        k = li["geometry_ids"].numpy().astype(np.int64)
+        which = redo[np.repeat(np.arange(len(redo)), np.diff(splits))]
+        x, nv, _ = exact_hits(self.pos[k], self.mat[k], self.size[k], self.plane[k], o[which], u[which])
+        if cutoff is not None:
+            x = np.where(self._culled(k, o[which], cutoff), -1.0, x)
+        if skip is not None:
+            x = np.where(skip[k], -1.0, x)
+        ok = np.flatnonzero(x >= 0)
+        # nearest accepted per ray; of equal distances the lower geom, as MuJoCo's loop keeps the first
+        order = ok[np.lexsort((k[ok], x[ok], which[ok]))]
+        first = order[np.append(True, which[order][1:] != which[order][:-1])] if len(order) else order
+        r = which[first]
+        gid[r], dist[r], nrm[r] = k[first], x[first], nv[first]
+
+
+class Proxies:
+    """Enlarged oriented boxes around the geoms MuJoCo casts (``geoms``), posed as in ``data``."""
+
+    def __init__(self, model: object, data: object, geoms: np.ndarray) -> None:
+        m = model
+        self.geom = np.asarray(geoms, dtype=np.int64)
+        aabb = np.asarray(m.geom_aabb)[self.geom]  # type: ignore[attr-defined]
+        pos = np.asarray(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
+        mat = np.asarray(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
+        meshes = []
+        for k in range(len(self.geom)):
+            R = mat[k].reshape(3, 3)
+            half = aabb[k, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
+            local = aabb[k, :3] + _BOX_VERTS * half
+            meshes.append((local @ R.T + pos[k], _BOX_TRIS))
+        # one mesh (one Embree geometry) of all the boxes: building it costs one call, not one per geom
+        verts = np.concatenate([v for v, _ in meshes]) if meshes else np.zeros((0, 3))
+        tris = (_BOX_TRIS[None] + 8 * np.arange(len(meshes), dtype=np.uint32)[:, None, None]).reshape(-1, 3)
+        self.scene = _scene([(verts, tris)]) if meshes else None
+        self._out_w = np.einsum("gij,tj->gti", mat.reshape(-1, 3, 3), _BOX_FACE_NORMALS)  # (G, 12, 3) outward
+        # world bounds of each proxy box (they contain it): an origin within may be inside it. Only
+        # a box that overlaps another can hide that (the ray's first hit enters the other box)
+        lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - _PROXY_MARGIN_M
+        hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + _PROXY_MARGIN_M
+        touch = np.all((lo[:, None] <= hi[None]) & (hi[:, None] >= lo[None]), axis=2)
+        overlapping = touch.sum(axis=1) > 1
+        self._lo, self._hi = lo[overlapping], hi[overlapping]
+
+    def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int) -> np.ndarray:
+        """Rays that may reach one of the geoms nearer than ``dist`` (-1: no hit)."""
+        if self.scene is None or len(o) == 0:
+            return np.zeros(len(o), dtype=bool)
+        ans = self.scene.cast_rays(_rays(o, u), nthreads=nthreads)
+        t = ans["t_hit"].numpy().astype(float)
+        slack = 1e-4 * (1.0 + np.abs(dist))
+        out = np.isfinite(t) & ((dist < 0) | (t <= dist + slack))
+        # a first hit leaving its box: the ray starts inside a proxy and may meet its geom at once
+        rows = np.flatnonzero(np.isfinite(t) & ~out)
+        if len(rows):
+            prim = ans["primitive_ids"].numpy().astype(np.int64)[rows]
+            k, tri = prim // 12, prim % 12
+            out[rows] = np.einsum("ij,ij->i", self._out_w[k, tri], u[rows]) >= 0.0
+        # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
+        if len(self._lo) == 0:
+            return out
+        near = np.flatnonzero(~out & np.all((o >= self._lo.min(axis=0)) & (o <= self._hi.max(axis=0)), axis=1))
+        if len(near):
+            # rays cast from one point (a primary window) come in runs: test each run's origin once
+            on = o[near]
+            run = np.append(True, np.any(on[1:] != on[:-1], axis=1))
+            head = on[run][:, None, :]
+            inside = np.any(np.all((head >= self._lo[None]) & (head <= self._hi[None]), axis=2), axis=1)
+            out[near] = inside[np.cumsum(run) - 1]
+        return out
+
+
+__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "exact_hits"]
