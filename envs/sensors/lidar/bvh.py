@@ -63,30 +63,47 @@ _EDGE_M = 1e-4  # hits this near a face's edge are checked against every face (E
 _OTHER = np.array([[1, 2], [0, 2], [0, 1]])
 
 
-def face_hits(
-    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, pnt: np.ndarray, vec: np.ndarray, face: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """MuJoCo's ``ray_box`` distance on the box face Embree hit, where that face is surely the one
-    MuJoCo picks: the hit lies on the face and farther than ``_EDGE_M`` from its edges, so no other
-    face of the box can be reached first (the ray meets the box's surface there). Returns (distance,
-    sure) per ray; rays not sure need :func:`exact_hits`."""
-    n = len(pnt)
-    M = np.ascontiguousarray(mat.T)
-    dif = np.ascontiguousarray((pnt - pos).T)
-    v = np.ascontiguousarray(vec.T)
-    lp = np.stack([M[i] * dif[0] + M[3 + i] * dif[1] + M[6 + i] * dif[2] for i in range(3)])
-    lv = np.stack([M[i] * v[0] + M[3 + i] * v[1] + M[6 + i] * v[2] for i in range(3)])
-    cols = np.arange(n)
-    i = face // 2
-    side = np.where(face % 2 == 1, 1.0, -1.0)
-    S = size.T
-    j, k = _OTHER[i, 0], _OTHER[i, 1]
+def _face_table(pos: np.ndarray, mat: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Per box face (row ``6 geom + face``, face ``2 axis + (side > 0)``) the numbers :func:`face_hits`
+    reads, as columns (18, 6G): the rows of ``mat`` for the face's axis i and the two others j, k
+    (``mat[a], mat[3 + a], mat[6 + a]``), the geom's position, ``side size[i]``, ``size[j] - _EDGE_M``,
+    ``size[k] - _EDGE_M`` and the outward normal ``side (mat[i], mat[3 + i], mat[6 + i])``: one gather
+    per column instead of gathering whole geom rows and then the face's entries."""
+    g = len(pos)
+    t = np.empty((18, g, 6))
+    for face in range(6):
+        i, side = face // 2, (1.0 if face % 2 else -1.0)
+        j, k = _OTHER[i]
+        for c, a in enumerate((i, j, k)):
+            t[3 * c : 3 * c + 3, :, face] = mat[:, [a, 3 + a, 6 + a]].T
+        t[9:12, :, face] = pos.T
+        t[12, :, face] = side * size[:, i]
+        t[13, :, face] = size[:, j] - _EDGE_M
+        t[14, :, face] = size[:, k] - _EDGE_M
+        t[15:18, :, face] = side * mat[:, [i, 3 + i, 6 + i]].T
+    return t.reshape(18, 6 * g)
+
+
+def face_hits(table: np.ndarray, row: np.ndarray, pnt: np.ndarray, vec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's ``ray_box`` distance on the box face Embree hit (``row`` of :func:`_face_table`: ``6
+    geom + face``), where that face is surely the one MuJoCo picks: the hit lies on the face and
+    farther than ``_EDGE_M`` from its edges, so no other face of the box can be reached first (the
+    ray meets the box's surface there). Returns (distance, sure) per ray; rays not sure need
+    :func:`exact_hits`.
+
+    ``ray_map``'s products and sums in MuJoCo's order, for the face's three axes only.
+    """
+    c = [table[q][row] for q in range(15)]
+    d0, d1, d2 = pnt[:, 0] - c[9], pnt[:, 1] - c[10], pnt[:, 2] - c[11]
+    v0, v1, v2 = vec[:, 0], vec[:, 1], vec[:, 2]
+    lp = [c[3 * a] * d0 + c[3 * a + 1] * d1 + c[3 * a + 2] * d2 for a in range(3)]
+    lv = [c[3 * a] * v0 + c[3 * a + 1] * v1 + c[3 * a + 2] * v2 for a in range(3)]
     with np.errstate(divide="ignore", invalid="ignore"):
-        lvi = lv[i, cols]
-        sol = (side * S[i, cols] - lp[i, cols]) / lvi
-        pj = np.abs(lp[j, cols] + sol * lv[j, cols])
-        pk = np.abs(lp[k, cols] + sol * lv[k, cols])
-        sure = (np.abs(lvi) > MJMINVAL) & (sol >= 0) & (pj <= S[j, cols] - _EDGE_M) & (pk <= S[k, cols] - _EDGE_M)
+        sol = (c[12] - lp[0]) / lv[0]
+        sure = np.abs(lv[0]) > MJMINVAL
+        sure &= sol >= 0
+        sure &= np.abs(lp[1] + sol * lv[1]) <= c[13]
+        sure &= np.abs(lp[2] + sol * lv[2]) <= c[14]
     return sol, sure
 
 
@@ -216,6 +233,7 @@ class StaticBvh:
                 local, tris = _BOX_VERTS * self.size[k], _BOX_TRIS
             meshes.append((local @ R.T + self.pos[k], tris))
         self.scene = _scene(meshes)
+        self.faces = _face_table(self.pos, self.mat, self.size)
         self.same_face, self.opposite_face = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
         # each geom's world box, a little larger (the hit points of its faces, rounded)
         self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - 1e-6
@@ -250,15 +268,14 @@ class StaticBvh:
         box = np.flatnonzero(~self.plane[kk])
         x = np.full(len(rows), -1.0)
         sure = np.zeros(len(rows), dtype=bool)
-        if len(box):
-            kb = kk[box]
-            x[box], sure[box] = face_hits(self.pos[kb], self.mat[kb], self.size[kb], o[rows[box]], u[rows[box]], face[box])
         nv = np.zeros((len(rows), 3))
-        if np.any(sure):
-            sb, ks, fs = np.flatnonzero(sure), kk[sure], face[sure]
-            ax = fs // 2
-            nv[sb] = np.where(fs % 2 == 1, 1.0, -1.0)[:, None] * np.stack(
-                [self.mat[ks, ax], self.mat[ks, 3 + ax], self.mat[ks, 6 + ax]], axis=1)  # fmt: skip
+        if len(box):
+            fr = 6 * kk[box] + face[box]
+            x[box], sure[box] = face_hits(self.faces, fr, o[rows[box]], u[rows[box]])
+            sb = box[sure[box]]
+            fs = fr[sure[box]]
+            for a in range(3):
+                nv[sb, a] = self.faces[15 + a][fs]
         rest = np.flatnonzero(~sure)
         if len(rest):
             kr = kk[rest]
@@ -353,8 +370,18 @@ class StaticBvh:
         return odd // len(self.geom), odd % len(self.geom)
 
     def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
-        d = self.pos[k] - o
-        return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k]
+        out = np.zeros(len(k), dtype=bool)
+        if len(k) == 0:
+            return out
+        # geoms whose bounding sphere lies within the cut-off from every point of the origins' box
+        # (1 um to spare, far above the rounding of the distance) are culled for none of the rays
+        span = np.maximum(np.abs(self.pos - o.min(axis=0)), np.abs(self.pos - o.max(axis=0)))
+        safe = np.sqrt(np.einsum("ij,ij->i", span, span)) + 1e-6 < cutoff + self.rbound
+        test = np.flatnonzero(~safe[k])
+        if len(test):
+            d = self.pos[k[test]] - o[test]
+            out[test] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k[test]]
+        return out
 
     def _listed(self, rays: object, redo: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None,
                 gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray, skip: np.ndarray | None) -> None:  # fmt: skip
@@ -387,21 +414,21 @@ class Proxies:
         aabb = np.asarray(m.geom_aabb)[self.geom]  # type: ignore[attr-defined]
         pos = np.asarray(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
         mat = np.asarray(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
-        meshes = []
-        for k in range(len(self.geom)):
-            R = mat[k].reshape(3, 3)
-            half = aabb[k, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
-            local = aabb[k, :3] + _BOX_VERTS * half
-            meshes.append((local @ R.T + pos[k], _BOX_TRIS))
+        g = len(self.geom)
+        R = mat.reshape(-1, 3, 3)
+        half = aabb[:, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
+        local = aabb[:, None, :3] + _BOX_VERTS[None] * half[:, None]  # (G, 8, 3)
+        # every geom's corners at once (the boxes only choose the rays MuJoCo casts, 1 mm to spare)
+        world = local[:, :, 0:1] * R[:, None, :, 0] + local[:, :, 1:2] * R[:, None, :, 1]
+        world = world + local[:, :, 2:3] * R[:, None, :, 2] + pos[:, None]
         # one mesh (one Embree geometry) of all the boxes: building it costs one call, not one per geom
-        verts = np.concatenate([v for v, _ in meshes]) if meshes else np.zeros((0, 3))
-        tris = (_BOX_TRIS[None] + 8 * np.arange(len(meshes), dtype=np.uint32)[:, None, None]).reshape(-1, 3)
-        self.scene = _scene([(verts, tris)]) if meshes else None
-        self._out_w = np.einsum("gij,tj->gti", mat.reshape(-1, 3, 3), _BOX_FACE_NORMALS)  # (G, 12, 3) outward
+        tris = (_BOX_TRIS[None] + 8 * np.arange(g, dtype=np.uint32)[:, None, None]).reshape(-1, 3)
+        self.scene = _scene([(world.reshape(-1, 3), tris)]) if g else None
+        self._out_w = np.einsum("gij,tj->gti", R, _BOX_FACE_NORMALS)  # (G, 12, 3) outward
         # world bounds of each proxy box (they contain it): an origin within may be inside it. Only
         # a box that overlaps another can hide that (the ray's first hit enters the other box)
-        lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - _PROXY_MARGIN_M
-        hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + _PROXY_MARGIN_M
+        lo = world.min(axis=1).reshape(-1, 3) - _PROXY_MARGIN_M
+        hi = world.max(axis=1).reshape(-1, 3) + _PROXY_MARGIN_M
         touch = np.all((lo[:, None] <= hi[None]) & (hi[:, None] >= lo[None]), axis=2)
         overlapping = touch.sum(axis=1) > 1
         self._lo, self._hi = lo[overlapping], hi[overlapping]
