@@ -238,6 +238,7 @@ class StaticBvh:
         # each geom's world box, a little larger (the hit points of its faces, rounded)
         self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - 1e-6
         self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + 1e-6
+        self._loT, self._hiT = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
@@ -332,8 +333,11 @@ class StaticBvh:
         if len(h) == 0:
             return
         ray = rows[h]
-        p = o[ray] + x[h, None] * u[ray]
-        near = np.all((p >= self.lo[q]) & (p <= self.hi[q]), axis=1)  # the hit point on the partner's box
+        xh = x[h]
+        near = np.ones(len(h), dtype=bool)
+        for c in range(3):  # the hit point on the partner's box, axis by axis
+            pc = o[ray, c] + xh * u[ray, c]
+            near &= (pc >= self._loT[c][q]) & (pc <= self._hiT[c][q])
         if skip is not None:
             near &= ~skip[q]
         h, q, ray = h[near], q[near], ray[near]
@@ -455,10 +459,26 @@ class Proxies:
             # rays cast from one point (a primary window) come in runs: test each run's origin once
             on = o[near]
             run = np.append(True, np.any(on[1:] != on[:-1], axis=1))
-            head = on[run][:, None, :]
-            inside = np.any(np.all((head >= self._lo[None]) & (head <= self._hi[None]), axis=2), axis=1)
+            inside = _in_any_box(on[run], self._lo, self._hi)
             out[near] = inside[np.cumsum(run) - 1]
         return out
+
+
+def _in_any_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Whether each point lies in one of the boxes ``[lo, hi]`` (closed): the points sorted by x,
+    each box's x range found by bisection, and only those (point, box) pairs tested in y and z."""
+    order = np.argsort(p[:, 0], kind="stable")
+    xs = p[order, 0]
+    a = np.searchsorted(xs, lo[:, 0], side="left")
+    b = np.searchsorted(xs, hi[:, 0], side="right")
+    cnt = np.maximum(b - a, 0)
+    box = np.repeat(np.arange(len(lo)), cnt)
+    pt = order[np.repeat(a - (np.cumsum(cnt) - cnt), cnt) + np.arange(int(cnt.sum()))]
+    q = p[pt]
+    ok = (q[:, 1] >= lo[box, 1]) & (q[:, 1] <= hi[box, 1]) & (q[:, 2] >= lo[box, 2]) & (q[:, 2] <= hi[box, 2])
+    out = np.zeros(len(p), dtype=bool)
+    out[pt[ok]] = True
+    return out
 
 
 __all__ = ["MJMINVAL", "Proxies", "StaticBvh", "exact_hits"]
