@@ -312,10 +312,13 @@ class StaticBvh:
         """
         sel = np.flatnonzero(good)
         ray = rows[sel]
-        leaving = np.einsum("ij,ij->i", nv[sel], u[ray]) > 0.0
+        # leaving or entering the face, each a little generous (a candidate too many changes nothing)
+        nu = nv[sel, 0] * u[ray, 0] + nv[sel, 1] * u[ray, 1] + nv[sel, 2] * u[ray, 2]
+        leaving = nu > -1e-12
+        fsel = 6 * kk[sel] + face[sel]
         hs, qs = [], []
         for (start, geoms), on in ((self.same_face, np.ones(len(sel), dtype=bool)), (self.opposite_face, leaving)):
-            f = 6 * kk[sel[on]] + face[sel[on]]
+            f = fsel[on]
             cnt = start[f + 1] - start[f]
             h = np.repeat(sel[on], cnt)
             first = np.repeat(start[f] - (np.cumsum(cnt) - cnt), cnt)
@@ -323,8 +326,7 @@ class StaticBvh:
             qs.append(geoms[first + np.arange(len(h))])
         if inside:
             start, _ = self.opposite_face
-            f = 6 * kk[sel] + face[sel]
-            back = sel[~leaving & (start[f + 1] > start[f])]
+            back = sel[(nu < 1e-12) & (start[fsel + 1] > start[fsel])]
             if len(back):
                 h_in, q_in = self._containing(o[rows[back]])
                 hs.append(back[h_in])
@@ -379,7 +381,8 @@ class StaticBvh:
             return out
         # geoms whose bounding sphere lies within the cut-off from every point of the origins' box
         # (1 um to spare, far above the rounding of the distance) are culled for none of the rays
-        span = np.maximum(np.abs(self.pos - o.min(axis=0)), np.abs(self.pos - o.max(axis=0)))
+        lo, hi = _col_min_max(o)
+        span = np.maximum(np.abs(self.pos - lo), np.abs(self.pos - hi))
         safe = np.sqrt(np.einsum("ij,ij->i", span, span)) + 1e-6 < cutoff + self.rbound
         test = np.flatnonzero(~safe[k])
         if len(test):
@@ -454,14 +457,32 @@ class Proxies:
         # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
         if len(self._lo) == 0:
             return out
-        near = np.flatnonzero(~out & np.all((o >= self._lo.min(axis=0)) & (o <= self._hi.max(axis=0)), axis=1))
+        within = ~out
+        lo, hi = self._lo.min(axis=0), self._hi.max(axis=0)
+        for c in range(3):
+            within &= (o[:, c] >= lo[c]) & (o[:, c] <= hi[c])
+        near = np.flatnonzero(within)
         if len(near):
             # rays cast from one point (a primary window) come in runs: test each run's origin once
             on = o[near]
-            run = np.append(True, np.any(on[1:] != on[:-1], axis=1))
+            run = np.append(True, _rows_differ(on))
             inside = _in_any_box(on[run], self._lo, self._hi)
             out[near] = inside[np.cumsum(run) - 1]
         return out
+
+
+def _col_min_max(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-column minimum and maximum of an (N, 3) array (a reduction over axis 0 of a narrow array
+    is slow in numpy: it runs one short inner loop per row)."""
+    return (np.array([a[:, c].min() for c in range(3)]), np.array([a[:, c].max() for c in range(3)]))
+
+
+def _rows_differ(a: np.ndarray) -> np.ndarray:
+    """``a[i + 1] != a[i]`` in any column, for the (N, 3) array ``a`` (N - 1 entries)."""
+    out = a[1:, 0] != a[:-1, 0]
+    for c in (1, 2):
+        out |= a[1:, c] != a[:-1, c]
+    return out
 
 
 def _in_any_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:

@@ -136,7 +136,7 @@ class RayCaster:
                 gid[need[take]], dist[need[take]], nrm[need[take]] = g2[take], d2[take], n2[take]
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
         delta = o_ray - origins_w
-        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & np.any(delta != 0.0, axis=1))
+        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & ((delta[:, 0] != 0.0) | (delta[:, 1] != 0.0) | (delta[:, 2] != 0.0)))
         if len(fix):
             u, nv, dl = dirs_w[fix], nrm[fix], delta[fix]
             un = np.einsum("ij,ij->i", u, nv)
