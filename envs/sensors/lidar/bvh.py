@@ -436,7 +436,9 @@ class Proxies:
         # a box that overlaps another can hide that (the ray's first hit enters the other box)
         lo = world.min(axis=1).reshape(-1, 3) - _PROXY_MARGIN_M
         hi = world.max(axis=1).reshape(-1, 3) + _PROXY_MARGIN_M
-        touch = np.all((lo[:, None] <= hi[None]) & (hi[:, None] >= lo[None]), axis=2)
+        touch = np.ones((len(lo), len(lo)), dtype=bool)
+        for c in range(3):  # axis by axis (numpy reduces a 3-long last axis slowly)
+            touch &= (lo[:, c, None] <= hi[None, :, c]) & (hi[:, c, None] >= lo[None, :, c])
         overlapping = touch.sum(axis=1) > 1
         self._lo, self._hi = lo[overlapping], hi[overlapping]
 
