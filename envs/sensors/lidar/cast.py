@@ -275,10 +275,12 @@ class RayCaster:
         return pool[:k]
 
 
-_MJ_RAY_GEOM_RAYS = 16_000
+_MJ_RAY_GEOM_RAYS = 60_000
 """A secondary batch of at most this many rays times geoms is cast by ``mj_ray`` one ray at a time:
-``mj_ray`` costs about 3-6 ns per ray and geom (measured on the office at 316 and 834 geoms), a
-batch through the BVH about 0.1-0.3 ms of fixed costs (Embree call, exact hits, seams, proxies)."""
+``mj_ray`` costs about 3-8 us per ray in the office scenes (316-900 geoms), a batch through the BVH
+about 0.4-0.7 ms of fixed costs (Embree calls, exact hits, seams, proxies; a secondary ray starting
+just past a pane is often listed through, see ``StaticBvh._listed``), so the two break even at
+about 150 rays there (measured on the bench's scenes)."""
 
 _POSE_FIELDS = ("xpos", "xmat", "xquat", "xipos", "ximat", "geom_xpos", "geom_xmat")
 """The ``MjData`` state ``mj_multiRay`` reads (poses of bodies and geoms), copied to scratch data."""
