@@ -17,7 +17,7 @@ import pytest
 from exobench.core import ConfigError
 from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
 from exobench.envs.sensors.lidar import cast as cast_module
-from exobench.envs.sensors.lidar.bvh import exact_hits
+from exobench.envs.sensors.lidar.bvh import _face_table, _in_any_box, exact_hits, face_hits
 from exobench.envs.sensors.lidar.optics import cast_rays
 
 
@@ -201,3 +201,86 @@ def test_a_ray_starting_inside_overlapping_boxes_reports_mujocos_geom_at_a_tie()
     assert np.count_nonzero(g0 == 0) > 200  # the mullion wins most ties (the rest differ in the last bit)
     np.testing.assert_array_equal(g1, g0)
     np.testing.assert_array_equal(r1, r0)
+
+
+def test_face_hits_sure_rays_are_mujocos_bit_for_bit():
+    """The per-face shortcut (the face Embree names, away from its edges) gives MuJoCo's distance."""
+    rng = np.random.default_rng(7)
+    spec = mujoco.MjSpec()
+    for _ in range(6):
+        q = rng.normal(size=4)
+        spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=list(rng.uniform(0.05, 2.0, 3)),
+                                pos=list(rng.uniform(-5, 5, 3)), quat=list(q / np.linalg.norm(q)))  # fmt: skip
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    table = _face_table(data.geom_xpos.copy(), data.geom_xmat.copy(), model.geom_size.copy())
+    n, sure_hits = 2000, 0
+    for g in range(model.ngeom):
+        o = rng.uniform(-8, 8, (n, 3))
+        d = data.geom_xpos[g] + rng.uniform(-1.5, 1.5, (n, 3)) - o
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        ref, ref_n = np.empty(n), np.zeros((n, 3))
+        for i in range(n):
+            ref[i] = mujoco.mju_rayGeom(data.geom_xpos[g], data.geom_xmat[g], model.geom_size[g], o[i], d[i],
+                                        int(model.geom_type[g]), ref_n[i])  # fmt: skip
+        hit = np.flatnonzero(ref >= 0)
+        # the face MuJoCo's hit lies on (the one Embree names, but for rounding): its outward normal
+        face = np.argmax(ref_n[hit] @ table[15:18, 6 * g : 6 * g + 6], axis=1)
+        x, sure = face_hits(table, 6 * g + face, o[hit], d[hit])
+        np.testing.assert_array_equal(x[sure], ref[hit][sure])
+        np.testing.assert_array_equal(table[15:18, 6 * g + face].T, ref_n[hit])
+        sure_hits += int(sure.sum())
+    assert sure_hits > 0.3 * n * model.ngeom
+
+
+def test_in_any_box_matches_a_brute_force_test():
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        n, b = int(rng.integers(0, 200)), int(rng.integers(1, 30))
+        lo = np.round(rng.uniform(-1, 1, (b, 3)), 1)
+        hi = lo + np.round(rng.uniform(0, 0.5, (b, 3)), 1)
+        p = rng.uniform(-1.2, 1.5, (n, 3))
+        p[: n // 3] = np.round(p[: n // 3], 1)  # points on the boxes' faces too
+        ref = np.any(np.all((p[:, None] >= lo[None]) & (p[:, None] <= hi[None]), axis=2), axis=1)
+        np.testing.assert_array_equal(_in_any_box(p, lo, hi), ref)
+
+
+def test_face_hits_is_not_sure_of_a_neighbouring_face_near_an_edge():
+    """Embree (float32) may name the neighbouring face of a hit within its rounding (a few um) of a box
+    edge: the shortcut must then not be sure, or give MuJoCo's distance."""
+    rng = np.random.default_rng(11)
+    spec = mujoco.MjSpec()
+    q = rng.normal(size=4)
+    size = np.array([0.4, 0.7, 1.1])
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_BOX, size=list(size), pos=[1.0, -2.0, 0.5],
+                            quat=list(q / np.linalg.norm(q)))  # fmt: skip
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    pos, R = data.geom_xpos[0].copy(), data.geom_xmat[0].reshape(3, 3).copy()
+    table = _face_table(pos[None], data.geom_xmat[0][None].copy(), size[None])
+    tested = 0
+    for face in range(6):
+        i, s = face // 2, (1.0 if face % 2 else -1.0)
+        for a in [ax for ax in range(3) if ax != i]:
+            for t in (-1.0, 1.0):
+                n = 300
+                local = rng.uniform(-0.9, 0.9, (n, 3)) * size
+                local[:, i] = s * size[i]
+                local[:, a] = t * (size[a] - rng.uniform(-3e-6, 3e-6, n))  # at the edge, within float32 rounding
+                o_local = local + rng.uniform(0.5, 3.0, n)[:, None] * (s * np.eye(3)[i] + rng.uniform(-0.5, 0.5, (n, 3)))
+                o = o_local @ R.T + pos
+                d = (local - o_local) @ R.T
+                d /= np.linalg.norm(d, axis=1)[:, None]
+                ref, ref_n = np.empty(n), np.zeros((n, 3))
+                for r in range(n):
+                    ref[r] = mujoco.mju_rayGeom(pos, data.geom_xmat[0], size, o[r], d[r], int(mujoco.mjtGeom.mjGEOM_BOX),
+                                                ref_n[r])  # fmt: skip
+                on_face = (ref >= 0) & np.all(ref_n == table[15:18, face], axis=1)
+                x, sure = face_hits(table, np.full(n, 2 * a + (t > 0)), o, d)  # the neighbour named instead
+                # Embree can only name it where the two faces' hits lie within its rounding
+                close = on_face & (np.abs(x - ref) <= 1e-5)
+                np.testing.assert_array_equal(x[sure & close], ref[sure & close])
+                tested += int(close.sum())
+    assert tested > 0.3 * 6 * 4 * 300

@@ -63,30 +63,47 @@ _EDGE_M = 1e-4  # hits this near a face's edge are checked against every face (E
 _OTHER = np.array([[1, 2], [0, 2], [0, 1]])
 
 
-def face_hits(
-    pos: np.ndarray, mat: np.ndarray, size: np.ndarray, pnt: np.ndarray, vec: np.ndarray, face: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """MuJoCo's ``ray_box`` distance on the box face Embree hit, where that face is surely the one
-    MuJoCo picks: the hit lies on the face and farther than ``_EDGE_M`` from its edges, so no other
-    face of the box can be reached first (the ray meets the box's surface there). Returns (distance,
-    sure) per ray; rays not sure need :func:`exact_hits`."""
-    n = len(pnt)
-    M = np.ascontiguousarray(mat.T)
-    dif = np.ascontiguousarray((pnt - pos).T)
-    v = np.ascontiguousarray(vec.T)
-    lp = np.stack([M[i] * dif[0] + M[3 + i] * dif[1] + M[6 + i] * dif[2] for i in range(3)])
-    lv = np.stack([M[i] * v[0] + M[3 + i] * v[1] + M[6 + i] * v[2] for i in range(3)])
-    cols = np.arange(n)
-    i = face // 2
-    side = np.where(face % 2 == 1, 1.0, -1.0)
-    S = size.T
-    j, k = _OTHER[i, 0], _OTHER[i, 1]
+def _face_table(pos: np.ndarray, mat: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """Per box face (row ``6 geom + face``, face ``2 axis + (side > 0)``) the numbers :func:`face_hits`
+    reads, as columns (18, 6G): the rows of ``mat`` for the face's axis i and the two others j, k
+    (``mat[a], mat[3 + a], mat[6 + a]``), the geom's position, ``side size[i]``, ``size[j] - _EDGE_M``,
+    ``size[k] - _EDGE_M`` and the outward normal ``side (mat[i], mat[3 + i], mat[6 + i])``: one gather
+    per column instead of gathering whole geom rows and then the face's entries."""
+    g = len(pos)
+    t = np.empty((18, g, 6))
+    for face in range(6):
+        i, side = face // 2, (1.0 if face % 2 else -1.0)
+        j, k = _OTHER[i]
+        for c, a in enumerate((i, j, k)):
+            t[3 * c : 3 * c + 3, :, face] = mat[:, [a, 3 + a, 6 + a]].T
+        t[9:12, :, face] = pos.T
+        t[12, :, face] = side * size[:, i]
+        t[13, :, face] = size[:, j] - _EDGE_M
+        t[14, :, face] = size[:, k] - _EDGE_M
+        t[15:18, :, face] = side * mat[:, [i, 3 + i, 6 + i]].T
+    return t.reshape(18, 6 * g)
+
+
+def face_hits(table: np.ndarray, row: np.ndarray, pnt: np.ndarray, vec: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's ``ray_box`` distance on the box face Embree hit (``row`` of :func:`_face_table`: ``6
+    geom + face``), where that face is surely the one MuJoCo picks: the hit lies on the face and
+    farther than ``_EDGE_M`` from its edges, so no other face of the box can be reached first (the
+    ray meets the box's surface there). Returns (distance, sure) per ray; rays not sure need
+    :func:`exact_hits`.
+
+    ``ray_map``'s products and sums in MuJoCo's order, for the face's three axes only.
+    """
+    c = [table[q][row] for q in range(15)]
+    d0, d1, d2 = pnt[:, 0] - c[9], pnt[:, 1] - c[10], pnt[:, 2] - c[11]
+    v0, v1, v2 = vec[:, 0], vec[:, 1], vec[:, 2]
+    lp = [c[3 * a] * d0 + c[3 * a + 1] * d1 + c[3 * a + 2] * d2 for a in range(3)]
+    lv = [c[3 * a] * v0 + c[3 * a + 1] * v1 + c[3 * a + 2] * v2 for a in range(3)]
     with np.errstate(divide="ignore", invalid="ignore"):
-        lvi = lv[i, cols]
-        sol = (side * S[i, cols] - lp[i, cols]) / lvi
-        pj = np.abs(lp[j, cols] + sol * lv[j, cols])
-        pk = np.abs(lp[k, cols] + sol * lv[k, cols])
-        sure = (np.abs(lvi) > MJMINVAL) & (sol >= 0) & (pj <= S[j, cols] - _EDGE_M) & (pk <= S[k, cols] - _EDGE_M)
+        sol = (c[12] - lp[0]) / lv[0]
+        sure = np.abs(lv[0]) > MJMINVAL
+        sure &= sol >= 0
+        sure &= np.abs(lp[1] + sol * lv[1]) <= c[13]
+        sure &= np.abs(lp[2] + sol * lv[2]) <= c[14]
     return sol, sure
 
 
@@ -216,10 +233,12 @@ class StaticBvh:
                 local, tris = _BOX_VERTS * self.size[k], _BOX_TRIS
             meshes.append((local @ R.T + self.pos[k], tris))
         self.scene = _scene(meshes)
+        self.faces = _face_table(self.pos, self.mat, self.size)
         self.same_face, self.opposite_face = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
         # each geom's world box, a little larger (the hit points of its faces, rounded)
         self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - 1e-6
         self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + 1e-6
+        self._loT, self._hiT = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
@@ -250,15 +269,14 @@ class StaticBvh:
         box = np.flatnonzero(~self.plane[kk])
         x = np.full(len(rows), -1.0)
         sure = np.zeros(len(rows), dtype=bool)
-        if len(box):
-            kb = kk[box]
-            x[box], sure[box] = face_hits(self.pos[kb], self.mat[kb], self.size[kb], o[rows[box]], u[rows[box]], face[box])
         nv = np.zeros((len(rows), 3))
-        if np.any(sure):
-            sb, ks, fs = np.flatnonzero(sure), kk[sure], face[sure]
-            ax = fs // 2
-            nv[sb] = np.where(fs % 2 == 1, 1.0, -1.0)[:, None] * np.stack(
-                [self.mat[ks, ax], self.mat[ks, 3 + ax], self.mat[ks, 6 + ax]], axis=1)  # fmt: skip
+        if len(box):
+            fr = 6 * kk[box] + face[box]
+            x[box], sure[box] = face_hits(self.faces, fr, o[rows[box]], u[rows[box]])
+            sb = box[sure[box]]
+            fs = fr[sure[box]]
+            for a in range(3):
+                nv[sb, a] = self.faces[15 + a][fs]
         rest = np.flatnonzero(~sure)
         if len(rest):
             kr = kk[rest]
@@ -294,10 +312,13 @@ class StaticBvh:
         """
         sel = np.flatnonzero(good)
         ray = rows[sel]
-        leaving = np.einsum("ij,ij->i", nv[sel], u[ray]) > 0.0
+        # leaving or entering the face, each a little generous (a candidate too many changes nothing)
+        nu = nv[sel, 0] * u[ray, 0] + nv[sel, 1] * u[ray, 1] + nv[sel, 2] * u[ray, 2]
+        leaving = nu > -1e-12
+        fsel = 6 * kk[sel] + face[sel]
         hs, qs = [], []
         for (start, geoms), on in ((self.same_face, np.ones(len(sel), dtype=bool)), (self.opposite_face, leaving)):
-            f = 6 * kk[sel[on]] + face[sel[on]]
+            f = fsel[on]
             cnt = start[f + 1] - start[f]
             h = np.repeat(sel[on], cnt)
             first = np.repeat(start[f] - (np.cumsum(cnt) - cnt), cnt)
@@ -305,8 +326,7 @@ class StaticBvh:
             qs.append(geoms[first + np.arange(len(h))])
         if inside:
             start, _ = self.opposite_face
-            f = 6 * kk[sel] + face[sel]
-            back = sel[~leaving & (start[f + 1] > start[f])]
+            back = sel[(nu < 1e-12) & (start[fsel + 1] > start[fsel])]
             if len(back):
                 h_in, q_in = self._containing(o[rows[back]])
                 hs.append(back[h_in])
@@ -315,8 +335,11 @@ class StaticBvh:
         if len(h) == 0:
             return
         ray = rows[h]
-        p = o[ray] + x[h, None] * u[ray]
-        near = np.all((p >= self.lo[q]) & (p <= self.hi[q]), axis=1)  # the hit point on the partner's box
+        xh = x[h]
+        near = np.ones(len(h), dtype=bool)
+        for c in range(3):  # the hit point on the partner's box, axis by axis
+            pc = o[ray, c] + xh * u[ray, c]
+            near &= (pc >= self._loT[c][q]) & (pc <= self._hiT[c][q])
         if skip is not None:
             near &= ~skip[q]
         h, q, ray = h[near], q[near], ray[near]
@@ -353,8 +376,19 @@ class StaticBvh:
         return odd // len(self.geom), odd % len(self.geom)
 
     def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
-        d = self.pos[k] - o
-        return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k]
+        out = np.zeros(len(k), dtype=bool)
+        if len(k) == 0:
+            return out
+        # geoms whose bounding sphere lies within the cut-off from every point of the origins' box
+        # (1 um to spare, far above the rounding of the distance) are culled for none of the rays
+        lo, hi = _col_min_max(o)
+        span = np.maximum(np.abs(self.pos - lo), np.abs(self.pos - hi))
+        safe = np.sqrt(np.einsum("ij,ij->i", span, span)) + 1e-6 < cutoff + self.rbound
+        test = np.flatnonzero(~safe[k])
+        if len(test):
+            d = self.pos[k[test]] - o[test]
+            out[test] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k[test]]
+        return out
 
     def _listed(self, rays: object, redo: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None,
                 gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray, skip: np.ndarray | None) -> None:  # fmt: skip
@@ -387,22 +421,24 @@ class Proxies:
         aabb = np.asarray(m.geom_aabb)[self.geom]  # type: ignore[attr-defined]
         pos = np.asarray(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
         mat = np.asarray(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
-        meshes = []
-        for k in range(len(self.geom)):
-            R = mat[k].reshape(3, 3)
-            half = aabb[k, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
-            local = aabb[k, :3] + _BOX_VERTS * half
-            meshes.append((local @ R.T + pos[k], _BOX_TRIS))
+        g = len(self.geom)
+        R = mat.reshape(-1, 3, 3)
+        half = aabb[:, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
+        local = aabb[:, None, :3] + _BOX_VERTS[None] * half[:, None]  # (G, 8, 3)
+        # every geom's corners at once (the boxes only choose the rays MuJoCo casts, 1 mm to spare)
+        world = local[:, :, 0:1] * R[:, None, :, 0] + local[:, :, 1:2] * R[:, None, :, 1]
+        world = world + local[:, :, 2:3] * R[:, None, :, 2] + pos[:, None]
         # one mesh (one Embree geometry) of all the boxes: building it costs one call, not one per geom
-        verts = np.concatenate([v for v, _ in meshes]) if meshes else np.zeros((0, 3))
-        tris = (_BOX_TRIS[None] + 8 * np.arange(len(meshes), dtype=np.uint32)[:, None, None]).reshape(-1, 3)
-        self.scene = _scene([(verts, tris)]) if meshes else None
-        self._out_w = np.einsum("gij,tj->gti", mat.reshape(-1, 3, 3), _BOX_FACE_NORMALS)  # (G, 12, 3) outward
+        tris = (_BOX_TRIS[None] + 8 * np.arange(g, dtype=np.uint32)[:, None, None]).reshape(-1, 3)
+        self.scene = _scene([(world.reshape(-1, 3), tris)]) if g else None
+        self._out_w = np.einsum("gij,tj->gti", R, _BOX_FACE_NORMALS)  # (G, 12, 3) outward
         # world bounds of each proxy box (they contain it): an origin within may be inside it. Only
         # a box that overlaps another can hide that (the ray's first hit enters the other box)
-        lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - _PROXY_MARGIN_M
-        hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + _PROXY_MARGIN_M
-        touch = np.all((lo[:, None] <= hi[None]) & (hi[:, None] >= lo[None]), axis=2)
+        lo = world.min(axis=1).reshape(-1, 3) - _PROXY_MARGIN_M
+        hi = world.max(axis=1).reshape(-1, 3) + _PROXY_MARGIN_M
+        touch = np.ones((len(lo), len(lo)), dtype=bool)
+        for c in range(3):  # axis by axis (numpy reduces a 3-long last axis slowly)
+            touch &= (lo[:, c, None] <= hi[None, :, c]) & (hi[:, c, None] >= lo[None, :, c])
         overlapping = touch.sum(axis=1) > 1
         self._lo, self._hi = lo[overlapping], hi[overlapping]
 
@@ -423,15 +459,49 @@ class Proxies:
         # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
         if len(self._lo) == 0:
             return out
-        near = np.flatnonzero(~out & np.all((o >= self._lo.min(axis=0)) & (o <= self._hi.max(axis=0)), axis=1))
+        within = ~out
+        lo, hi = self._lo.min(axis=0), self._hi.max(axis=0)
+        for c in range(3):
+            within &= (o[:, c] >= lo[c]) & (o[:, c] <= hi[c])
+        near = np.flatnonzero(within)
         if len(near):
             # rays cast from one point (a primary window) come in runs: test each run's origin once
             on = o[near]
-            run = np.append(True, np.any(on[1:] != on[:-1], axis=1))
-            head = on[run][:, None, :]
-            inside = np.any(np.all((head >= self._lo[None]) & (head <= self._hi[None]), axis=2), axis=1)
+            run = np.append(True, _rows_differ(on))
+            inside = _in_any_box(on[run], self._lo, self._hi)
             out[near] = inside[np.cumsum(run) - 1]
         return out
+
+
+def _col_min_max(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-column minimum and maximum of an (N, 3) array (a reduction over axis 0 of a narrow array
+    is slow in numpy: it runs one short inner loop per row)."""
+    return (np.array([a[:, c].min() for c in range(3)]), np.array([a[:, c].max() for c in range(3)]))
+
+
+def _rows_differ(a: np.ndarray) -> np.ndarray:
+    """``a[i + 1] != a[i]`` in any column, for the (N, 3) array ``a`` (N - 1 entries)."""
+    out = a[1:, 0] != a[:-1, 0]
+    for c in (1, 2):
+        out |= a[1:, c] != a[:-1, c]
+    return out
+
+
+def _in_any_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Whether each point lies in one of the boxes ``[lo, hi]`` (closed): the points sorted by x,
+    each box's x range found by bisection, and only those (point, box) pairs tested in y and z."""
+    order = np.argsort(p[:, 0], kind="stable")
+    xs = p[order, 0]
+    a = np.searchsorted(xs, lo[:, 0], side="left")
+    b = np.searchsorted(xs, hi[:, 0], side="right")
+    cnt = np.maximum(b - a, 0)
+    box = np.repeat(np.arange(len(lo)), cnt)
+    pt = order[np.repeat(a - (np.cumsum(cnt) - cnt), cnt) + np.arange(int(cnt.sum()))]
+    q = p[pt]
+    ok = (q[:, 1] >= lo[box, 1]) & (q[:, 1] <= hi[box, 1]) & (q[:, 2] >= lo[box, 2]) & (q[:, 2] <= hi[box, 2])
+    out = np.zeros(len(p), dtype=bool)
+    out[pt[ok]] = True
+    return out
 
 
 __all__ = ["MJMINVAL", "Proxies", "StaticBvh", "exact_hits"]

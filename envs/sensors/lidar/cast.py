@@ -136,7 +136,7 @@ class RayCaster:
                 gid[need[take]], dist[need[take]], nrm[need[take]] = g2[take], d2[take], n2[take]
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
         delta = o_ray - origins_w
-        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & np.any(delta != 0.0, axis=1))
+        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & ((delta[:, 0] != 0.0) | (delta[:, 1] != 0.0) | (delta[:, 2] != 0.0)))
         if len(fix):
             u, nv, dl = dirs_w[fix], nrm[fix], delta[fix]
             un = np.einsum("ij,ij->i", u, nv)
@@ -213,7 +213,11 @@ class RayCaster:
         proxies: list[Proxies] = []  # built at the sweep's first secondary ray (most sweeps have none)
         k = self._n_threads(model)
 
+        small = _MJ_RAY_GEOM_RAYS // max(1, int(model.ngeom))  # type: ignore[attr-defined]
+
         def cast(o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            if len(o) <= small:  # a few rays: mj_ray (the reference) costs less than a batch's set-up
+                return cast_rays(model, data, self.group, o, d)
             if not proxies:
                 proxies.append(Proxies(model, data, parts.others))
             o = np.ascontiguousarray(o, dtype=float)
@@ -270,6 +274,13 @@ class RayCaster:
                 getattr(d, name)[:] = getattr(data, name)
         return pool[:k]
 
+
+_MJ_RAY_GEOM_RAYS = 60_000
+"""A secondary batch of at most this many rays times geoms is cast by ``mj_ray`` one ray at a time:
+``mj_ray`` costs about 3-8 us per ray in the office scenes (316-900 geoms), a batch through the BVH
+about 0.4-0.7 ms of fixed costs (Embree calls, exact hits, seams, proxies; a secondary ray starting
+just past a pane is often listed through, see ``StaticBvh._listed``), so the two break even at
+about 150 rays there (measured on the bench's scenes)."""
 
 _POSE_FIELDS = ("xpos", "xmat", "xquat", "xipos", "ximat", "geom_xpos", "geom_xmat")
 """The ``MjData`` state ``mj_multiRay`` reads (poses of bodies and geoms), copied to scratch data."""

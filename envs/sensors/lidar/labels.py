@@ -57,11 +57,6 @@ class SurfaceTable:
         )  # fmt: skip
 
 
-def _dot3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Dot products over the last axis (length 3), ``(a0 b0 + a1 b1) + a2 b2`` elementwise."""
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
-
-
 def label_surfaces(tab: SurfaceTable, geom: np.ndarray, hit_w: np.ndarray, tol_m: float = 1e-4) -> np.ndarray:
     """Surface id of each hit (-1 if none), as ``SceneTruth.surface_of_hit`` decides it, all hits at once.
 
@@ -77,16 +72,30 @@ def label_surfaces(tab: SurfaceTable, geom: np.ndarray, hit_w: np.ndarray, tol_m
         return out
     slot = np.arange(len(pt)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
     row = tab.cand[geom[pt], slot]
-    p = np.take(hit_w, pt, axis=0)
-    pn = np.take(tab.point_normal, row, axis=0)
-    d = np.abs(_dot3(p - pn[:, 0], pn[:, 1]))
+    # column by column on 1-D arrays (gathers of (P, 3) rows and reductions over short axes cost
+    # more than the arithmetic); each dot product is summed (x0 y0 + x1 y1) + x2 y2, the order
+    # surface_of_hit's test is checked against, so the labels are the same
+    hc = np.ascontiguousarray(hit_w.T)
+    pnc = np.ascontiguousarray(tab.point_normal.transpose(1, 2, 0))  # (2, 3, S)
+    q = [hc[c][pt] - pnc[0, c][row] for c in range(3)]
+    d = np.abs(q[0] * pnc[1, 0][row] + q[1] * pnc[1, 1][row] + q[2] * pnc[1, 2][row])
     near = np.flatnonzero(d <= tol_m)
-    pt, slot, row, p, d = pt[near], slot[near], row[near], p[near], d[near]
+    pt, slot, row, d = pt[near], slot[near], row[near], d[near]
+    p = [hc[c][pt] for c in range(3)]
     # the edge test of PlanarSurface.contains: the edges not within tol_m of the point must
     # all see it on the same side (zero-length padding edges are always within)
-    c = _dot3(p[:, None, :] - np.take(tab.edge_a, row, axis=0), np.take(tab.edge_m, row, axis=0))
-    within = tol_m * np.take(tab.edge_len, row, axis=0)
-    ok = ~(np.any(c > within, axis=1) & np.any(c < -within, axis=1))
+    ea = np.ascontiguousarray(tab.edge_a.transpose(1, 2, 0))  # (V, 3, S)
+    em = np.ascontiguousarray(tab.edge_m.transpose(1, 2, 0))
+    el = np.ascontiguousarray(tab.edge_len.T)  # (V, S)
+    above = np.zeros(len(pt), dtype=bool)
+    below = np.zeros(len(pt), dtype=bool)
+    for e in range(ea.shape[0]):
+        c = (p[0] - ea[e, 0][row]) * em[e, 0][row] + (p[1] - ea[e, 1][row]) * em[e, 1][row]
+        c += (p[2] - ea[e, 2][row]) * em[e, 2][row]
+        within = tol_m * el[e][row]
+        above |= c > within
+        below |= c < -within
+    ok = ~(above & below)
     pt, slot, row, d = pt[ok], slot[ok], row[ok], d[ok]
     single = np.bincount(pt, minlength=n)[pt] == 1
     out[pt[single]] = tab.sid[row[single]]
