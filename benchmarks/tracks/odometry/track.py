@@ -31,13 +31,18 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from exobench.core.episode import Episode
+from exobench.core.episode import Episode, EpisodeStream
 from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import TrajectoryEstimate
 
 from ..lidar_trajectory import failure_metrics, score_trajectory, trajectory_figure_data, trajectory_sections
 from ..office_recording import write_lidar_recording
-from ..office_walks import office_params, simulate_office_episode, validate_office_scenario
+from ..office_walks import (
+    office_params,
+    simulate_office_episode,
+    stream_office_episode,
+    validate_office_scenario,
+)
 from ..spec import Case, ParamInfo, Reference, SummaryRow
 
 QUICK_M = 4.0
@@ -135,6 +140,11 @@ class OdometryTrack:
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         return simulate_office_episode(scenario, seed)
+
+    def stream(self, scenario: dict[str, Any], seed: int) -> EpisodeStream:
+        """The walk's frames as they are simulated; the trajectory scores need no per-point
+        LiDAR truth, so none is kept (a walk's memory then stays flat in its length)."""
+        return stream_office_episode(scenario, seed, lidar_truth=False)
 
     def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         return score_trajectory(episode, estimate)
