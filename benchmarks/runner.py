@@ -6,8 +6,9 @@ Two steps, so that nothing touches the disk until everything is valid:
   overrides (every case's scenario is validated with them) and the seeds, and returns a
   :class:`RunPlan`. It has no side effects.
 - :func:`execute` creates the output folder, writes ``run_config.json`` and runs the episodes,
-  in this process or a pool of ``jobs`` processes. Each episode is simulated once and the same
-  frames go to every pipeline; its records are appended atomically to ``results.jsonl`` as
+  in this process or a pool of ``jobs`` processes. Each episode is simulated once and each
+  frame goes to every pipeline in turn (as it is simulated, when the track streams: a long
+  walk is never held whole); its records are appended atomically to ``results.jsonl`` as
   soon as it is finished. A pipeline that raises is recorded as failed and the run goes on.
   A failure of the harness itself (the simulation or the scorer raised) is recorded as failed
   too, and its record carries the reason in ``harness_error`` (see :func:`harness_errors`).
