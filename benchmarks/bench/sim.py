@@ -47,34 +47,47 @@ def _builtin(filename: str) -> bool:
 
 
 def stage_of(filename: str, name: str) -> str | None:
-    """The stage of a profiled function by its file, or a built-in's by its name (None: a
-    built-in no rule names, whose time belongs to its callers' stages)."""
+    """The stage of a profiled function: an exobench function's by its file ("other" when no
+    rule names it), a built-in's by its name; None for the rest (a built-in no rule names, a
+    library's function), whose time belongs to the stages of their callers."""
     f = filename.replace("\\", "/")
-    builtin = _builtin(f)
-    for stage, files, names in _RULES:
-        if builtin and any(n in name for n in names):
-            return stage
-        if not builtin and any(p in f for p in files):
-            return stage
-    return None if builtin else "other"
+    if _builtin(f):
+        return next((stage for stage, _, names in _RULES if any(n in name for n in names)), None)
+    if "/exobench/" not in f:
+        return None
+    return next((stage for stage, files, _ in _RULES if any(p in f for p in files)), "other")
 
 
 def stages_of(profile: cProfile.Profile) -> dict[str, float]:
-    """Seconds of own time per stage (:data:`STAGES`) of a finished profile; a built-in no rule
-    names (a numpy or Open3D call) counts in its caller's stage, by the time of each call site."""
-    out = dict.fromkeys(STAGES, 0.0)
+    """Seconds of own time per stage (:data:`STAGES`) of a finished profile. A function without
+    a stage of its own (a numpy, Open3D or MuJoCo call) counts in its callers' stages, shared by
+    the time it spent under each caller, up to the nearest caller that has one."""
     stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
-    for (filename, _, name), (_, _, tottime, _, callers) in stats.items():
-        stage = stage_of(filename, name)
-        if stage is not None:
-            out[stage] += tottime
-            continue
-        if not callers:
-            out["other"] += tottime
-            continue
-        for (cfile, _, cname), site in callers.items():
-            out[stage_of(cfile, cname) or "other"] += site[2]  # this function's own time under that caller
-    return out
+    shares: dict[Any, dict[str, float]] = {}
+    visiting: set[Any] = set()
+
+    def share(key: Any) -> dict[str, float]:
+        if key not in shares:
+            own = stage_of(key[0], key[2])
+            out: dict[str, float] = {}
+            total = 0.0
+            if own is None:
+                visiting.add(key)  # a recursive call adds nothing to its own share
+                for c, site in stats[key][4].items():
+                    if c in visiting or c not in stats or site[3] <= 0:
+                        continue
+                    total += site[3]
+                    for stage, x in share(c).items():
+                        out[stage] = out.get(stage, 0.0) + x * site[3]
+                visiting.discard(key)
+            shares[key] = {k: v / total for k, v in out.items()} if total > 0 else {own or "other": 1.0}
+        return shares[key]
+
+    result = dict.fromkeys(STAGES, 0.0)
+    for key, (_, _, tottime, _, _) in stats.items():
+        for stage, x in share(key).items():
+            result[stage] += tottime * x
+    return result
 
 
 def bench_case(track_name: str, seed: int = 0, *, distance_m: float = BENCH_DISTANCE_M, duration_s: float = BENCH_DURATION_S) -> dict[str, Any]:
