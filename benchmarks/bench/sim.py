@@ -31,7 +31,7 @@ STAGES = ("motion", "state", "casting", "optics", "rendering", "noise", "truth",
 _RULES: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
     ("casting", ("sensors/lidar/cast", "sensors/lidar/ray_scene", "sensors/tof/"), ("mj_multiRay", "mj_ray", "RaycastingScene", "cast_rays")),
     ("optics", ("sensors/lidar/optics", "sensors/lidar/pane_shape"), ()),
-    ("rendering", ("sensors/rgbd/render", "envs/gl_platform"), ("mjr_", "MjrContext", "MjvScene", "mjv_")),
+    ("rendering", ("sensors/rgbd/render",), ("mjr_", "MjrContext", "MjvScene", "mjv_")),  # not gl_platform: its probe is setup
     ("truth", ("sensors/lidar/labels", "sensors/rgbd/segmentation", "core/truth", "sim/pose"), ()),
     ("noise", ("sensors/common", "sensors/lidar/model", "sensors/lidar/faults", "sensors/rgbd/model", "sensors/imu/",
                "sensors/encoders/", "sensors/contact/", "sensors/odometry/"), ("Generator", "random")),  # fmt: skip

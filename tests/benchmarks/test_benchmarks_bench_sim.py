@@ -8,6 +8,7 @@ time must go to its caller's stage), the caster three times as often.
 from __future__ import annotations
 
 import cProfile
+import time
 
 import numpy as np
 
@@ -32,7 +33,7 @@ def test_library_time_counts_in_the_stage_of_the_exobench_code_that_called_it():
     cast = _module("/x/exobench/envs/sensors/lidar/cast.py")
     optics = _module("/x/exobench/envs/sensors/lidar/optics.py")
     a = np.random.default_rng(0).random(300_000)
-    profile = cProfile.Profile()
+    profile = cProfile.Profile(time.process_time)  # CPU time: other processes do not move it
     profile.enable()
     cast(a, 12)
     optics(a, 4)
@@ -40,7 +41,7 @@ def test_library_time_counts_in_the_stage_of_the_exobench_code_that_called_it():
     got = stages_of(profile)
     assert set(got) == set(STAGES)
     assert got["casting"] > 0 and got["optics"] > 0
-    assert 2.0 < got["casting"] / got["optics"] < 4.5  # 3x the same sorts
+    assert 1.5 < got["casting"] / got["optics"] < 6.0  # 3x the same sorts
     assert got["other"] < 0.1 * got["casting"]  # numpy's time is not left unassigned
 
 
