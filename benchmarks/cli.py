@@ -344,16 +344,24 @@ def list_() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
-def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
-    """Time the RTLS update against a batch refit (rtls), the simulator (sim), the LiDAR (lidar) or
-    the locomotion track at 640x480 (locomotion: latency per prediction, TSDF and rendering fps)."""
+@click.option("--track", "tracks", multiple=True, help="sim: a track whose paper episode to break down (repeatable; default: every track).")
+def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tuple[str, ...]) -> None:
+    """Time the RTLS update against a batch refit (rtls), the simulator (sim: the stairs real-time
+    factor, and per track a paper episode cut short: time per stage and pipeline, peak memory),
+    the LiDAR (lidar) or the locomotion track at 640x480 (locomotion: latency per prediction,
+    TSDF and rendering fps)."""
     from exobench.core.errors import ConfigError
 
     from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
     from .results import json_safe
+    from .tracks import get_track
 
     if session and what != "rtls":
         raise ConfigError("--session", session, "bench rtls only")
+    if tracks and what != "sim":
+        raise ConfigError("--track", ",".join(tracks), "bench sim only")
+    for name in tracks:
+        get_track(name)  # an unknown name is refused before anything runs
     if what == "rtls":
         if session:
             from exobench.envs.session import read_meta, read_session
@@ -372,7 +380,9 @@ def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
 
         result = bench_locomotion(seed=seed)
     else:
-        result = bench_sim(seed=seed)
+        from .bench.sim import bench_sim_tracks
+
+        result = {**bench_sim(seed=seed), "episodes": bench_sim_tracks(tracks or None, seed)}
     if result.get("error"):  # nothing to time: never a table of zeros with exit 0
         if session:
             raise ConfigError("--session", session, f"a stairs session the RTLS pipeline finds surfaces in ({result['error']})")
@@ -381,7 +391,7 @@ def bench(what: str, as_json: bool, seed: int, session: str | None) -> None:
     if as_json:
         click.echo(json.dumps(json_safe(result), indent=2))
         return
-    if what in ("lidar", "locomotion"):  # one figure per line: exobench.static.ms_per_sweep ...
+    if what in ("lidar", "locomotion", "sim"):  # one figure per line: exobench.static.ms_per_sweep ...
         result = _flat(result)
     w = max(28, *(len(k) + 1 for k in result))
     for key, value in json_safe(result).items():

@@ -8,24 +8,65 @@
   jobs that were not finished are submitted again, except the ones that were in the workers
   then: they are suspects, and are retried once each alone in a pool of one worker after the
   other jobs, so that a job that kills its worker again is named without doubt. A job that dies
-  twice is handed to ``on_lost`` (which records it as failed) and the run goes on.
+  twice is handed to ``on_lost`` (which records it as failed) and the run goes on, with the
+  reason (:func:`lost_reason`): a worker killed by SIGKILL (what the kernel's out-of-memory
+  killer sends) is said to be likely out of memory, with its peak resident memory as last seen
+  (the parent reads each worker's ``VmHWM`` in ``/proc`` about every :data:`WATCH_INTERVAL_S`).
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from exobench.envs import gl_platform
 
 WATCH_INTERVAL_S = 0.5
 LOST_REASON = "the worker process running the episode died twice (killed, or out of memory)"
+
+
+@dataclass(frozen=True)
+class Death:
+    """How a worker ended: its exit code (negative: the signal that killed it) and its peak
+    resident memory as last seen, bytes (None: never seen)."""
+
+    exitcode: int | None
+    peak_bytes: int | None
+
+
+def lost_reason(death: Death | None) -> str:
+    """Why a job that died twice is lost, from how its worker died the second time (alone)."""
+    if death is None or death.exitcode is None:
+        return LOST_REASON
+    peak = f", peak {death.peak_bytes / 1e9:.2f} GB" if death.peak_bytes else ""
+    if death.exitcode == -signal.SIGKILL:
+        return f"the worker process running the episode was killed (SIGKILL) twice, likely out of memory{peak}"
+    if death.exitcode < 0:
+        name = signal.Signals(-death.exitcode).name if -death.exitcode in signal.valid_signals() else str(-death.exitcode)
+        return f"the worker process running the episode was killed ({name}) twice{peak}"
+    return f"the worker process running the episode died twice (exit status {death.exitcode}){peak}"
+
+
+def peak_rss_bytes(pid: int) -> int | None:
+    """A live process's peak resident memory (``VmHWM`` of ``/proc/<pid>/status``), None where
+    it cannot be read (the process is gone, or no /proc)."""
+    try:
+        text = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return None
+    for line in text.splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) * 1024
+    return None
 
 
 def _watch_parent(parent_pid: int) -> None:
@@ -61,25 +102,36 @@ def run_pool(
     todo = list(jobs)
     suspects: list[Any] = []
     while todo:
-        todo, broken = _run_batch(todo, workers, work, finish)
+        todo, broken, _ = _run_batch(todo, workers, work, finish)
         suspects += broken
     for job in suspects:  # alone, so that a second death is this job's
-        _, again = _run_batch([job], 1, work, finish)
+        _, again, deaths = _run_batch([job], 1, work, finish)
         for lost in again:
-            finish(*on_lost(lost, LOST_REASON))
+            finish(*on_lost(lost, lost_reason(deaths[0] if deaths else None)))
 
 
-def _run_batch(jobs: list[Any], workers: int, work: Callable[[Any], tuple], finish: Callable[..., None]) -> tuple[list[Any], list[Any]]:
+def _run_batch(
+    jobs: list[Any], workers: int, work: Callable[[Any], tuple], finish: Callable[..., None]
+) -> tuple[list[Any], list[Any], list[Death]]:
     """Run ``jobs`` until all are done or the pool breaks; returns the jobs that did not finish:
-    (those that had not started, those that may have been in a worker)."""
+    (those that had not started, those that may have been in a worker), and how the workers
+    that died ended."""
     workers = min(workers, len(jobs))
     pool = make_pool(workers)
     futures: list[Future] = []
+    procs: dict[int, Any] = {}  # pid -> multiprocessing.Process, kept after the pool drops them
+    peaks: dict[int, int] = {}
     try:
         futures = [pool.submit(work, job) for job in jobs]
+        procs.update(getattr(pool, "_processes", None) or {})
         pending, broken = set(futures), False
         while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            finished, pending = wait(pending, timeout=WATCH_INTERVAL_S, return_when=FIRST_COMPLETED)
+            procs.update(getattr(pool, "_processes", None) or {})  # the executor's own table of its workers
+            for pid in procs:
+                peak = peak_rss_bytes(pid)
+                if peak is not None:
+                    peaks[pid] = max(peak, peaks.get(pid, 0))
             for fut in finished:
                 err = fut.exception()
                 if err is not None and not isinstance(err, BrokenProcessPool):
@@ -95,8 +147,9 @@ def _run_batch(jobs: list[Any], workers: int, work: Callable[[Any], tuple], fini
         raise
     pool.shutdown(wait=True)
     if not broken:
-        return [], []
+        return [], [], []
+    deaths = [Death(p.exitcode, peaks.get(pid)) for pid, p in procs.items() if p.exitcode not in (0, None)]
     # the pool hands jobs to its workers in submission order, at most one more than it has
     # workers at a time: the ones in a worker were the first unfinished ones
     unfinished = [job for job, fut in zip(jobs, futures, strict=True) if fut.exception() is not None]
-    return unfinished[workers + 1 :], unfinished[: workers + 1]
+    return unfinished[workers + 1 :], unfinished[: workers + 1], deaths

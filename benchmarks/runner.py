@@ -6,8 +6,9 @@ Two steps, so that nothing touches the disk until everything is valid:
   overrides (every case's scenario is validated with them) and the seeds, and returns a
   :class:`RunPlan`. It has no side effects.
 - :func:`execute` creates the output folder, writes ``run_config.json`` and runs the episodes,
-  in this process or a pool of ``jobs`` processes. Each episode is simulated once and the same
-  frames go to every pipeline; its records are appended atomically to ``results.jsonl`` as
+  in this process or a pool of ``jobs`` processes. Each episode is simulated once and each
+  frame goes to every pipeline in turn (as it is simulated, when the track streams: a long
+  walk is never held whole); its records are appended atomically to ``results.jsonl`` as
   soon as it is finished. A pipeline that raises is recorded as failed and the run goes on.
   A failure of the harness itself (the simulation or the scorer raised) is recorded as failed
   too, and its record carries the reason in ``harness_error`` (see :func:`harness_errors`).
@@ -36,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from exobench.core.counters import count_metrics
+from exobench.core.episode import EpisodeStream
 from exobench.core.errors import ConfigError, FolderError, UnknownNameError
 from exobench.core.pipeline import coerce_like
 
@@ -198,41 +200,77 @@ def run_pipelines(
     timeline_every_s: float | None = None,
     scorer_errors: dict[str, str] | None = None,
 ) -> tuple[dict[str, Any], dict[str, dict[str, Any]], dict[str, float], dict[str, list]]:
-    """Feed the same frames to each pipeline; estimates, metrics, wall times and online timelines.
+    """Feed the same frames to every pipeline in lockstep; estimates, metrics, wall times and
+    online timelines.
 
+    ``episode`` is an :class:`~exobench.core.Episode` or an
+    :class:`~exobench.core.episode.EpisodeStream`: each frame goes to every pipeline as it comes,
+    so a streamed episode is never held whole, and is scored as its ``finish()`` once the
+    frames are exhausted (an exception of the stream itself is raised as :class:`StreamError`).
     Estimates are scored under ``scoring`` (the track's scoring settings, see
     :func:`~.tracks.spec.scoring_of`; None: their defaults). A pipeline that raises, or whose
     ``finalize()`` returns anything but an instance of ``track.estimate_type``, is scored with
-    ``track.failed_metrics`` and the reason; so is a scorer that raises, whose reasons also go to
-    ``scorer_errors`` (pipeline name -> reason) when it is given. A score with no headline
-    metric finite is failed (:func:`unscored_failed`). With ``timeline_every_s`` the
-    online estimates are kept at most that often (for rerun).
+    ``track.failed_metrics`` and the reason, and the others go on; so is a scorer that raises,
+    whose reasons also go to ``scorer_errors`` (pipeline name -> reason) when it is given. A
+    score with no headline metric finite is failed (:func:`unscored_failed`). With
+    ``timeline_every_s`` the online estimates are kept at most that often (for rerun). A
+    pipeline's wall time is the sum of its own calls and its scoring.
     """
     estimates: dict[str, Any] = {}
+    errors: dict[str, str] = {}
+    walls: dict[str, float] = {p.name: 0.0 for p in pipelines}
+    timelines: dict[str, list] = {p.name: [] for p in pipelines}
+    last_t: dict[str, float] = {p.name: -np.inf for p in pipelines}
+    live: dict[str, Any] = {}
+
+    def call(name: str, fn: Callable[[], Any]) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return fn()
+        except Exception as e:  # a failing pipeline is a result, not a crash
+            errors[name] = f"pipeline raised {type(e).__name__}: {e}"
+            live.pop(name, None)
+            return None
+        finally:
+            walls[name] += time.perf_counter() - t0
+
+    for p in pipelines:
+        pipe = call(p.name, lambda p=p: load_entry_point(p.entry_point)(p.config))
+        if p.name not in errors:
+            live[p.name] = pipe
+            call(p.name, lambda pipe=pipe: pipe.reset(episode.calibration))
+    frames = iter(episode.frames)
+    while True:
+        try:
+            frame = next(frames)
+        except StopIteration:
+            break
+        except Exception as e:
+            raise StreamError(f"simulation raised {type(e).__name__}: {e}") from e
+        for name, pipe in list(live.items()):
+            online = call(name, lambda pipe=pipe, frame=frame: pipe.process(frame))
+            if timeline_every_s is not None and online is not None and frame.stamp_s - last_t[name] >= timeline_every_s:
+                timelines[name].append((float(frame.stamp_s), online))
+                last_t[name] = frame.stamp_s
+    for name, pipe in list(live.items()):
+        est = call(name, pipe.finalize)
+        if name in live:
+            estimates[name] = est
+    if isinstance(episode, EpisodeStream):
+        try:
+            episode = episode.finish()
+        except Exception as e:
+            raise StreamError(f"simulation raised {type(e).__name__}: {e}") from e
     metrics: dict[str, dict[str, Any]] = {}
-    walls: dict[str, float] = {}
-    timelines: dict[str, list] = {}
     for p in pipelines:
         t0 = time.perf_counter()
-        timeline: list = []
-        try:
-            pipe = load_entry_point(p.entry_point)(p.config)
-            pipe.reset(episode.calibration)
-            last_t = -np.inf
-            for frame in episode.frames:
-                online = pipe.process(frame)
-                if timeline_every_s is not None and online is not None and frame.stamp_s - last_t >= timeline_every_s:
-                    timeline.append((float(frame.stamp_s), online))
-                    last_t = frame.stamp_s
-            est = pipe.finalize()
-        except Exception as e:  # a failing pipeline is a result, not a crash
-            metrics[p.name] = track.failed_metrics(episode, f"pipeline raised {type(e).__name__}: {e}")
+        est = estimates.get(p.name)
+        if p.name in errors:
+            metrics[p.name] = track.failed_metrics(episode, errors[p.name])
+        elif not isinstance(est, track.estimate_type):  # a missing estimate is never scored as one
+            reason = f"finalize() returned {type(est).__name__}, not {track.estimate_type.__name__}"
+            metrics[p.name] = track.failed_metrics(episode, reason)
         else:
-            estimates[p.name] = est
-            if not isinstance(est, track.estimate_type):  # a missing estimate is never scored as one
-                reason = f"finalize() returned {type(est).__name__}, not {track.estimate_type.__name__}"
-                metrics[p.name] = track.failed_metrics(episode, reason)
-        if p.name not in metrics:
             try:
                 metrics[p.name] = unscored_failed(track, track.score(episode, est, scoring))
             except Exception as e:  # a failure of the benchmark, not of the pipeline
@@ -243,9 +281,29 @@ def run_pipelines(
             counts = getattr(est, "counts", None)
             if counts:
                 metrics[p.name].update(count_metrics(counts, getattr(track, "streams", ())))
-        walls[p.name] = time.perf_counter() - t0
-        timelines[p.name] = timeline
+        walls[p.name] += time.perf_counter() - t0
     return estimates, metrics, walls, timelines
+
+
+class StreamError(Exception):
+    """A streamed episode's simulation raised while its frames were being read."""
+
+
+class _TimedFrames:
+    """The frames of a stream, with the time spent producing them (the simulation's wall time)."""
+
+    def __init__(self, frames: Any) -> None:
+        self.frames, self.wall_s = iter(frames), 0.0
+
+    def __iter__(self) -> _TimedFrames:
+        return self
+
+    def __next__(self) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return next(self.frames)
+        finally:
+            self.wall_s += time.perf_counter() - t0
 
 
 def unscored_reason(track: Track, metrics: Mapping[str, Any]) -> str:
@@ -280,20 +338,29 @@ class _Job:
 
 
 def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | None]:
+    """Simulate an episode and run every pipeline on it; a track that streams (``stream``, see
+    :class:`~.tracks.spec.Track`) hands its frames to the pipelines as they are produced."""
     plan, track = job.plan, job.track
+    stream = getattr(track, "stream", None)
     t0 = time.perf_counter()
     try:
-        episode = track.simulate(plan.scenario, plan.seed)
+        episode = stream(plan.scenario, plan.seed) if stream is not None else track.simulate(plan.scenario, plan.seed)
     except Exception as e:  # scored as a failure of every pipeline; the run goes on
-        episode, sim_error = None, f"simulation raised {type(e).__name__}: {e}"
-    else:
-        sim_error = ""
+        return _failed_job(job, f"simulation raised {type(e).__name__}: {e}", time.perf_counter() - t0)
     sim_wall = time.perf_counter() - t0
-    if episode is None:
-        return _failed_job(job, sim_error, sim_wall)
     harness: dict[str, str] = {}
     scoring = scoring_of(track, plan.scenario)
-    estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scoring=scoring, scorer_errors=harness)
+    if isinstance(episode, EpisodeStream):
+        timed = _TimedFrames(episode.frames)
+        episode = dataclasses.replace(episode, frames=timed)
+        try:
+            estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scoring=scoring, scorer_errors=harness)
+        except StreamError as e:
+            return _failed_job(job, str(e), sim_wall + timed.wall_s)
+        sim_wall += timed.wall_s
+        episode = episode.finish()
+    else:
+        estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scoring=scoring, scorer_errors=harness)
     figure = None
     if plan.case.figure:
         try:

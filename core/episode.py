@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -70,3 +71,30 @@ class Episode:
     calibration: Calibration
     frames: tuple[Frame, ...]
     truth: EpisodeTruth
+
+
+@dataclass(eq=False)
+class EpisodeStream:
+    """An episode whose frames are handed out as the simulation produces them (a long walk is
+    never held whole).
+
+    Attributes:
+        scenario, seed, calibration: as in :class:`Episode`, known before the first frame.
+        frames: every frame, time-ordered as :attr:`Episode.frames`; one pass.
+        make_episode: called (by :meth:`finish`, once) when ``frames`` is exhausted: the
+            :class:`Episode` with its truth (its ``frames`` holds only what the producer kept,
+            usually nothing).
+    """
+
+    scenario: dict[str, Any]
+    seed: int
+    calibration: Calibration
+    frames: Iterator[Frame]
+    make_episode: Callable[[], Episode]
+    _episode: Episode | None = field(default=None, repr=False)
+
+    def finish(self) -> Episode:
+        """The episode, once every frame has been read (the same object on every call)."""
+        if self._episode is None:
+            self._episode = self.make_episode()
+        return self._episode

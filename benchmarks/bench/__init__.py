@@ -4,7 +4,9 @@
 - :mod:`.stairs`: :func:`bench_rtls` (the recursive plane update against batch refits) and
   :func:`bench_sim` (the stairs simulator's real-time factor);
 - :mod:`.lidar`: :func:`bench_lidar` (a VLP-16 sweep of the office against mujoco-lidar);
-- :mod:`.locomotion`: :func:`bench_locomotion` (rendering, TSDF, pipeline latency at 640x480).
+- :mod:`.locomotion`: :func:`bench_locomotion` (rendering, TSDF, pipeline latency at 640x480);
+- :mod:`.sim`: :func:`~.sim.bench_sim_tracks` (per track, a paper episode's time per stage and
+  pipeline, and its peak memory; part of `bench sim`).
 """
 
 from .lidar import bench_lidar

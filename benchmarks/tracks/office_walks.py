@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from exobench.core.episode import Episode
+from exobench.core.episode import Episode, EpisodeStream
 from exobench.core.errors import UnknownNameError
 from exobench.core.frames import LidarScan
 
@@ -85,6 +85,17 @@ def simulate_office_episode(scenario: Mapping[str, Any], seed: int, extra: Mappi
 
     office = {k: v for k, v in scenario.items() if k not in dict(extra or {})}
     return simulate_office(OfficeScenario.from_dict(office), seed)
+
+
+def stream_office_episode(
+    scenario: Mapping[str, Any], seed: int, extra: Mapping[str, Any] | None = None, *, lidar_truth: bool = True
+) -> EpisodeStream:
+    """:func:`simulate_office_episode` as a stream (``stream_office``), without the per-point
+    LiDAR truth unless ``lidar_truth``."""
+    from exobench.envs.sim.scenarios.office import OfficeScenario, stream_office
+
+    office = {k: v for k, v in scenario.items() if k not in dict(extra or {})}
+    return stream_office(OfficeScenario.from_dict(office), seed, lidar_truth=lidar_truth)
 
 
 # ------------------------------------------------------------------------- truth per point

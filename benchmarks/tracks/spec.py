@@ -186,7 +186,10 @@ class Track(Protocol):
         printed beside them."""
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
-        """Simulate one episode."""
+        """Simulate one episode. A track may also have ``stream(scenario, seed)``, returning an
+        :class:`~exobench.core.episode.EpisodeStream` of the same frames and an episode that
+        :meth:`score` and :meth:`figure_data` score alike: the runner then hands the frames to
+        its pipelines as they are produced, so a long walk is never held whole."""
 
     def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         """Metrics of one estimate (an instance of :attr:`estimate_type`) against the episode's

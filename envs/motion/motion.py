@@ -32,6 +32,7 @@ from ..terrain import Terrain
 from .kinematics import GaitError, leg_ik, rot_yaw_pitch, sole_grid_f, toe_pivot
 
 DIFF_H_S = 2e-4  # central-difference step for qvel/qacc
+TRUTH_CHUNK = 10_000  # instants of the motion solved at once for its truth (10 s at 1 kHz)
 
 
 def min_jerk(s: np.ndarray) -> np.ndarray:
@@ -288,14 +289,16 @@ class Motion:
         """Deepest point of either sole below the terrain under it over the times ``t``, m."""
         terrain = Terrain(truth)
         pts = sole_grid_f(self.exo) if sole_f is None else sole_f
-        st = self.state(t)
+        t = np.atleast_1d(np.asarray(t, dtype=float))
         worst = 0.0
-        for side in ("l", "r"):
-            p = st.sole_points_w(side, pts)
-            moved = np.ones(len(p), dtype=bool)  # a foot at rest needs checking once
-            moved[1:] = np.any(np.abs(np.diff(p, axis=0)) > 0.0, axis=(1, 2))
-            p = p[moved].reshape(-1, 3)
-            worst = max(worst, float(np.max(terrain.penetration(p), initial=0.0)))
+        for k in range(0, len(t), TRUTH_CHUNK):  # in chunks: a long walk's soles at 1 kHz are big
+            st = self.state(t[k : k + TRUTH_CHUNK])
+            for side in ("l", "r"):
+                p = st.sole_points_w(side, pts)
+                moved = np.ones(len(p), dtype=bool)  # a foot at rest needs checking once
+                moved[1:] = np.any(np.abs(np.diff(p, axis=0)) > 0.0, axis=(1, 2))
+                p = p[moved].reshape(-1, 3)
+                worst = max(worst, float(np.max(terrain.penetration(p), initial=0.0)))
         return worst
 
 

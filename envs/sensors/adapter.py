@@ -9,6 +9,10 @@ with velocities and accelerations when ``needs_dynamics``), to observe the state
 reading in time order may also stream (``streams``): :meth:`~SensorAdapter.take` gives the frames
 of the instants observed since the last call, so a recording stepped while its motion grows
 (:meth:`exobench.envs.sim.recorder.Recorder.advance_to`) gives the frames of one ``finish``.
+A kind whose frames are big (``chunked``: LiDAR sweeps, RGB-D images) hands over the frames
+observed so far with :meth:`~SensorAdapter.take` (the same frames one ``finish`` would give, its
+noise already drawn), ``finish`` then the rest and the whole truth: a recording then streams
+(:func:`exobench.envs.sim.recorder.stream_record`) without holding every frame.
 The calibration builder asks the adapter
 class for the parameters a pipeline may know (:meth:`~SensorAdapter.calibration_params`) and any
 calibration ``extra`` entries. What an adapter may read while recording is a :class:`RecordContext`.
@@ -120,6 +124,7 @@ class SensorAdapter(Protocol):
     calibration_shared: ClassVar[bool]  # its params also describe the device's unmounted sensors of the kind
     has_mount: ClassVar[bool]  # it appears in Calibration.mounts
     streams: ClassVar[bool]  # take() gives its frames step by step, equal to those of one finish()
+    chunked: ClassVar[bool]  # take() hands over the frames so far; finish() the rest and the whole truth
 
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None: ...
 
@@ -151,6 +156,7 @@ class BaseAdapter:
     calibration_shared: ClassVar[bool] = False
     has_mount: ClassVar[bool] = True
     streams: ClassVar[bool] = False
+    chunked: ClassVar[bool] = False
 
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
         self.sensor, self.ctx = sensor, ctx

@@ -19,11 +19,18 @@ Two ways to run it, one loop (:meth:`Recorder.observe`):
   the motion step by step has not planned yet; so a motion recorded step by step gives the frames
   :func:`record` gives over the final motion, bit for bit. Only kinds whose adapters stream
   (``streams``: their noise is drawn reading by reading in time order) can be stepped.
+- :func:`stream_record`: the frames of :func:`record`, bit for bit and in its order, handed out
+  as they are produced, so that a long walk is never held whole. The small streams (IMU,
+  encoders, contacts: noise drawn over the whole recording) and the link tracks are recorded
+  whole first; the big ones (``chunked`` adapters: LiDAR sweeps, RGB-D images) are then observed
+  chunk by chunk and merged in. Each sensor's state at an instant is the motion's there whoever
+  else observes it, so splitting the rig changes no frame.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import heapq
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from functools import reduce
 from typing import Any
@@ -41,6 +48,7 @@ from .pose import RigidPose
 
 TRACKED_BODIES = ("pelvis", "thigh_l", "shank_l", "foot_l", "thigh_r", "shank_r", "foot_r", "head")
 TRACK_RATE_HZ = 50.0
+CHUNK_S = 0.5  # how much of a streamed recording's big streams is observed at once
 DUE_TOL_S = 1e-12  # a frame stamped at the requested time (up to rounding) is delivered
 
 
@@ -259,3 +267,81 @@ def record(
     ) as rec:  # fmt: skip
         rec.observe()
         return rec.finish()
+
+
+@dataclass(eq=False)
+class StreamedRecording:
+    """Output of :func:`stream_record`: :meth:`items` yields ``(frame, truth or None)`` in
+    :func:`record`'s order (once); when it is exhausted ``outputs`` holds each sensor's
+    :class:`SensorOutput` with its truth (a chunked sensor's ``frames`` and ``frame_truth`` are
+    then empty: they were handed out), ``body_tracks`` and ``context`` as in :class:`Recording`."""
+
+    small: Recording
+    recorder: Recorder
+    rank: dict[str, int]
+    chunk_s: float
+    outputs: dict[str, SensorOutput] = field(default_factory=dict)
+
+    @property
+    def body_tracks(self) -> dict[str, np.ndarray]:
+        return self.small.body_tracks
+
+    @property
+    def context(self) -> Context:
+        return self.small.context
+
+    def _small_items(self) -> Iterator[tuple[float, int, Frame, Any]]:
+        truths = {id(f): t for out in self.small.outputs.values() if out.frame_truth is not None
+                  for f, t in zip(out.frames, out.frame_truth, strict=True)}  # fmt: skip
+        for f in self.small.frames:
+            yield (f.stamp_s, self.rank[f.sensor_id], f, truths.get(id(f)))
+
+    def _big_items(self) -> Iterator[tuple[float, int, Frame, Any]]:
+        rec, pending = self.recorder, []
+        with rec:
+            ends = np.arange(self.chunk_s, rec.ctx.duration_s, self.chunk_s)
+            for hi in [*ends.tolist(), None]:
+                rec.observe(hi)
+                for s, a in zip(rec.ctx.rig, rec._adapters):
+                    out = a.take() if hi is not None else a.finish()
+                    truths = out.frame_truth if out.frame_truth is not None else [None] * len(out.frames)
+                    pending += [(f.stamp_s, self.rank[s.sensor_id], f, tr) for f, tr in zip(out.frames, truths, strict=True)]
+                    if hi is None:
+                        self.outputs[s.sensor_id] = SensorOutput([], None, out.truth)
+                pending.sort(key=lambda x: (x[0], x[1]))  # stable, as in Recorder.finish
+                # an instant not yet observed gives stamps at or after it (chunked kinds never stamp back)
+                due = len(pending) if hi is None else sum(1 for p in pending if p[0] < hi)
+                yield from pending[:due]
+                pending = pending[due:]
+
+    def items(self) -> Iterator[tuple[Frame, Any]]:
+        self.outputs.update(self.small.outputs)
+        merged = heapq.merge(self._small_items(), self._big_items(), key=lambda x: (x[0], x[1]))
+        for _, _, f, tr in merged:
+            yield f, tr
+
+
+def stream_record(
+    model: Any,
+    truth: SceneTruth,
+    exo: ExoSpec,
+    motion: Motion,
+    rig: Sequence[MountedSensor],
+    seed: int,
+    *,
+    track_bodies: Sequence[str] = (),
+    track_rate_hz: float = TRACK_RATE_HZ,
+    chunk_s: float = CHUNK_S,
+) -> StreamedRecording:
+    """:func:`record` of ``rig`` over the whole ``motion`` (no hooks, no watched geoms) as a
+    stream (see the module docstring). The small streams are recorded here; the big ones as
+    :meth:`StreamedRecording.items` is iterated. Their kinds must never stamp a frame before the
+    instant it was observed at (a LiDAR clock stepping back cannot stream)."""
+    ids = [s.sensor_id for s in rig]
+    if len(set(ids)) != len(ids):
+        raise ConfigError("rig", ids, "sensors with distinct ids")
+    big = [s for s in rig if adapter_class(s.kind).chunked]
+    small = record(model, truth, exo, motion, [s for s in rig if not adapter_class(s.kind).chunked], seed, track_bodies=track_bodies,
+                   track_rate_hz=track_rate_hz)  # fmt: skip
+    rec = Recorder(model, truth, exo, motion, big, seed)
+    return StreamedRecording(small, rec, {sid: i for i, sid in enumerate(ids)}, float(chunk_s))

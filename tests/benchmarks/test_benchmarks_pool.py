@@ -3,17 +3,27 @@
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-from exobench.benchmarks.pool import LOST_REASON, run_pool
+import numpy as np
+
+from exobench.benchmarks.pool import LOST_REASON, WATCH_INTERVAL_S, Death, lost_reason, run_pool
 
 
 def _work(job):
-    """(key, value); a job "kill:<marker>" kills its worker, once if a marker path is given."""
+    """(key, value); a job "kill:<marker>" kills its worker, once if a marker path is given;
+    "hog:<MB>" holds that much memory for a while, then its worker is killed as the kernel's
+    out-of-memory killer does (SIGKILL)."""
+    if job.startswith("hog:"):
+        held = np.ones(int(job.partition(":")[2]) * 2**20, dtype=np.uint8)  # touched: resident
+        time.sleep(4 * WATCH_INTERVAL_S)
+        held[0] = 0
+        os.kill(os.getpid(), signal.SIGKILL)
     if job.startswith("kill"):
         marker = job.partition(":")[2]
         if not marker or not os.path.exists(marker):
@@ -36,7 +46,23 @@ def _run(jobs, workers=2):
 def test_a_job_that_kills_its_worker_twice_is_lost_and_the_others_finish():
     jobs = ["a", "b", "kill", "c", "d", "e"]
     out = _run(jobs)
-    assert out == {**{j: f"done {j}" for j in jobs if j != "kill"}, "kill": f"lost: {LOST_REASON}"}
+    assert {j: v for j, v in out.items() if j != "kill"} == {j: f"done {j}" for j in jobs if j != "kill"}
+    assert out["kill"].startswith("lost: the worker process running the episode was killed (SIGKILL) twice, likely out of memory")
+
+
+def test_a_worker_killed_as_out_of_memory_is_reported_with_its_peak():
+    out = _run(["a", "hog:600", "b"])
+    assert out["a"] == "done a" and out["b"] == "done b"
+    reason = out["hog:600"]
+    assert "killed (SIGKILL) twice, likely out of memory" in reason, reason
+    peak_gb = float(re.search(r"peak ([0-9.]+) GB", reason).group(1))
+    assert 0.6 <= peak_gb < 2.0  # the 629 MB it held, plus the interpreter's own
+
+
+def test_how_a_worker_died_is_said():
+    assert lost_reason(None) == LOST_REASON
+    assert lost_reason(Death(-signal.SIGTERM, None)) == "the worker process running the episode was killed (SIGTERM) twice"
+    assert lost_reason(Death(3, 2_500_000_000)).endswith("died twice (exit status 3), peak 2.50 GB")
 
 
 def test_a_job_whose_worker_was_killed_once_is_retried(tmp_path):

@@ -261,5 +261,5 @@ def test_a_killed_worker_is_retried_then_recorded_as_failed_and_the_run_finishes
     out = execute(plan, tmp_path / "run", jobs=2)
     assert sorted(r["episode"] for r in out.records) == sorted(e.key for e in plan.episodes)
     b = [r for r in out.records if r["case"] == "B"]
-    assert len(b) == 1 and b[0]["metrics"]["failed"] and "died" in b[0]["harness_error"]
+    assert len(b) == 1 and b[0]["metrics"]["failed"] and "killed (SIGKILL) twice, likely out of memory" in b[0]["harness_error"]
     assert not any(r["metrics"]["failed"] for r in out.records if r["case"] != "B")

@@ -7,6 +7,7 @@ import json
 from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
+from exobench.benchmarks.registry import default_registry
 from exobench.benchmarks.results import json_safe, read_records
 from exobench.benchmarks.runner import execute, plan_run, run_pipelines, untimed_metrics
 from exobench.benchmarks.tracks.stairs import StairsTrack
@@ -62,8 +63,18 @@ def test_record_then_replay_scores_like_the_live_run(tmp_path):
 def test_bench_commands_report_json():
     rtls = json.loads(_invoke(["bench", "rtls", "--json"]).output)
     assert rtls["points"] > 0 and rtls["rtls_update_median_us"] > 0 and rtls["batch_over_rtls"] > 0
-    sim = json.loads(_invoke(["bench", "sim", "--json"]).output)
+    sim = json.loads(_invoke(["bench", "sim", "--json", "--track", "stairs"]).output)
     assert sim["simulated_s"] > 0 and sim["real_time_factor"] > 0 and sim["frames"]["tof"] > 0
+    ep = sim["episodes"]["stairs"]  # the paper suite's first case, in a process of its own
+    assert set(ep["pipelines_wall_s"]) == set(default_registry().names(track="stairs")) and not ep["failed"]
+    stages = ep["stages_s"]
+    assert stages["casting"] > 0 and stages["pipelines"] > 0 and stages["motion"] > 0  # ToF cones, RTLS, the walk
+    assert 0.5 * ep["wall_s"] < sum(stages.values()) < 1.1 * ep["wall_s"]  # every stage of the episode's time
+    assert 0.1 < ep["peak_rss_gb"] < 8
+    bad = CliRunner().invoke(cli, ["bench", "sim", "--track", "nope"])
+    assert bad.exit_code == 2 and "nope" in bad.stderr
+    bad = CliRunner().invoke(cli, ["bench", "lidar", "--track", "stairs"])
+    assert bad.exit_code == 2 and "bench sim only" in bad.stderr
 
 
 def test_interrupted_run_says_how_to_resume(tmp_path, monkeypatch):

@@ -276,3 +276,22 @@ def test_walk_starts_with_the_route_start_lean_and_takes_up_the_walking_lean():
     with pytest.raises(ConfigError) as e:
         Route(wps, start_lean_deg=20.0)
     assert e.value.field == "route.start_lean_deg"
+
+
+def test_max_penetration_in_chunks_is_the_deepest_point_of_every_instant(monkeypatch):
+    """Soles lowered 5 mm into a staircase walk: the deepest point over the instants, computed
+    10 s of motion at a time (here a few instants at a time), is the one of a direct sweep."""
+    from exobench.envs.motion import motion as motion_module
+    from exobench.envs.sim import plan_climb
+
+    scenario = StairScenario(duration_s=3.0)
+    scene, motion = plan_climb(scenario)
+    exo = scenario.exo_spec()
+    sole = sole_grid_f(exo) - np.array([0.0, 0.0, 0.005])
+    t = np.arange(0.0, motion.duration_s, 0.01)
+    terrain = Terrain(scene.truth)
+    st = motion.state(t)
+    want = max(float(np.max(terrain.penetration(st.sole_points_w(side, sole).reshape(-1, 3)))) for side in ("l", "r"))
+    assert want > 0.004
+    monkeypatch.setattr(motion_module, "TRUTH_CHUNK", 7)
+    assert motion.max_penetration_m(scene.truth, t, sole) == want

@@ -5,7 +5,9 @@ from the sensor pose at its firing block's time (the recording's exact pose func
 rigid with the pelvis); the legs, head and anything else the beams can hit are frozen at their
 pose in the middle of the sweep, which is the instant the recorder gives the sensor. The stream's
 delivery faults (:mod:`.faults`) apply to each sweep in turn; the output is in delivery order
-(stamp), its ``truth["sweep_start_s"]`` the true start of each frame's sweep.
+(stamp), its ``truth["sweep_start_s"]`` the true start of each frame's sweep (of every frame
+delivered, those already handed over by :meth:`LidarAdapter.take` first). Chunked: ``take``
+hands over the frames delivered so far, in delivery order.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ from .model import LidarSensor
 
 
 class LidarAdapter(BaseAdapter):
+    chunked = True
+
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
         super().__init__(sensor, ctx)
         self.model = LidarSensor(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
@@ -32,6 +36,7 @@ class LidarAdapter(BaseAdapter):
         self.mid = {t0 + 0.5 * period: t0 for t0 in self.starts}
         self.frames: list[Any] = []
         self.truth: list[Any] = []
+        self.taken_starts: list[float] = []  # true starts of the frames take() handed over
 
     def instants(self) -> np.ndarray:
         return np.array(sorted(self.mid))
@@ -44,8 +49,16 @@ class LidarAdapter(BaseAdapter):
 
     def finish(self) -> SensorOutput:
         order = sorted(range(len(self.frames)), key=lambda i: self.frames[i].stamp_s)  # stable: duplicates keep their order
-        starts = np.array([self.faults.true_starts[i] for i in order])
+        first = len(self.taken_starts)
+        starts = np.array(self.taken_starts + [self.faults.true_starts[first + i] for i in order])
         return SensorOutput([self.frames[i] for i in order], [self.truth[i] for i in order], {"sweep_start_s": starts})
+
+    def take(self) -> SensorOutput:
+        n = len(self.taken_starts)
+        self.taken_starts += self.faults.true_starts[n : n + len(self.frames)]
+        out = SensorOutput(self.frames, self.truth)
+        self.frames, self.truth = [], []
+        return out
 
     @staticmethod
     def calibration_params(sensor: MountedSensor) -> dict[str, Any]:

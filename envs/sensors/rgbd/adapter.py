@@ -6,6 +6,8 @@ covered by each group of the recording's watched geoms (pedestrians). With
 ``RgbdConfig.segmentation_truth``, one :class:`~exobench.core.SegmentationTruth` per emitted frame
 (``SensorOutput.frame_truth``; :mod:`.segmentation`). The geom ids are rendered only for these
 two consumers (watched geoms, segmentation truth) or when the config asks (``segmentation``).
+Chunked: ``take`` hands over the frames captured so far (and their segmentation truth);
+``finish`` then the rest and the whole truth.
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ from .segmentation import SegmentationLabeler
 
 
 class RgbdAdapter(BaseAdapter):
+    chunked = True
+
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
         super().__init__(sensor, ctx)
         self.t = sample_times(sensor.config.rate_hz, ctx.duration_s)
@@ -59,6 +63,11 @@ class RgbdAdapter(BaseAdapter):
     def finish(self) -> SensorOutput:
         seg = self.segmentation if self.labeler is not None else None
         return SensorOutput(self.frames, seg, {"t_s": self.t, "T_world_sensor": self.T, "watch_fraction": self.fraction})
+
+    def take(self) -> SensorOutput:
+        out = self.finish()
+        self.frames, self.segmentation = [], []
+        return out
 
     def close(self) -> None:
         self.camera.close()

@@ -29,13 +29,14 @@ protocol assumes (seeds/003 section 5.2.2).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
 from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
+from exobench.core.episode import EpisodeStream
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.office_params import FACADE_GLASSES, FACADES
 from exobench.models.world_params import ParamSpec
@@ -54,7 +55,7 @@ from ...sensors.adapter import MountedSensor
 from ..calibration import build_calibration
 from ..compose import attached_sites, compose_rig
 from ..pose import pose_rows
-from ..recorder import TRACK_RATE_HZ, TRACKED_BODIES, record
+from ..recorder import TRACK_RATE_HZ, TRACKED_BODIES, record, stream_record
 from ..rig import LIDAR_TRUNK, Rig, scalar_rig, segmentation_truths, with_presets, with_segmentation_truth
 from ..scenario import scenario_base
 from .common import COMMON_PARAMS
@@ -222,20 +223,65 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
 def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> Episode:
     """A walk along the scenario's office route with every sensor of ``rig`` (default
     :meth:`OfficeScenario.rig`; a trunk LiDAR ``lidar_trunk`` is what the LiDAR truth follows)."""
+    rig, exo, scene, motion = _office_setup(scenario, rig)
+    rec = record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+    lidar_truth = rec.frame_truth([s.sensor_id for s in rig if s.kind == "lidar"])
+    if scenario.lidar_truth != "full":
+        lidar_truth = tuple(compact_truth(t) for t in lidar_truth)
+    return _office_episode(scenario, seed, rig, exo, motion, scene.truth, rec, rec.frames, lidar_truth, segmentation_truths(rec, rig))
+
+
+def stream_office(
+    scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor] | None = None, *, lidar_truth: bool = True
+) -> EpisodeStream:
+    """:func:`simulate_office` as a stream (:func:`~exobench.envs.sim.recorder.stream_record`):
+    the same frames in the same order, and the same episode at the end without its frames, and
+    without the per-point LiDAR truth unless ``lidar_truth`` (it is most of a walk's memory).
+    A LiDAR whose clock may step back cannot stream: then the walk is recorded whole first."""
+    rig, exo, scene, motion = _office_setup(scenario, rig)
+    cal = build_calibration(exo, rig)
+    if any(s.kind == "lidar" and s.config.time_jump_prob > 0 and s.config.time_jump_s < 0 for s in rig):
+        whole = simulate_office(scenario, seed, rig)
+        return EpisodeStream(scenario.as_dict(), int(seed), whole.calibration, iter(whole.frames), lambda: whole)
+    srec = stream_record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+    lidars = {s.sensor_id for s in rig if s.kind == "lidar"} if lidar_truth else set()
+    cams = {s.sensor_id for s in rig if s.kind == "rgbd" and s.config.segmentation_truth}
+    kept_lidar: list[Any] = []
+    kept_seg: list[Any] = []
+    compact = scenario.lidar_truth != "full"
+
+    def frames() -> Iterator[Any]:
+        for f, tr in srec.items():
+            if f.sensor_id in lidars:
+                kept_lidar.append(compact_truth(tr) if compact else tr)
+            elif f.sensor_id in cams:
+                kept_seg.append(tr)
+            yield f
+
+    def finish() -> Episode:
+        return _office_episode(scenario, seed, rig, exo, motion, scene.truth, srec, (), tuple(kept_lidar), tuple(kept_seg))
+
+    return EpisodeStream(scenario.as_dict(), int(seed), cal, frames(), finish)
+
+
+def _office_setup(scenario: OfficeScenario, rig: Sequence[MountedSensor] | None) -> tuple[tuple[MountedSensor, ...], ExoSpec, Any, Motion]:
     rig = tuple(scenario.rig() if rig is None else rig)
     if scenario.segmentation_truth:
         rig = with_segmentation_truth(rig)
     exo = scenario.exo_spec()
     scene, motion = plan_office_walk(scenario, rig)
-    model, truth = scene.model, scene.truth
+    return rig, exo, scene, motion
+
+
+def _office_episode(
+    scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor], exo: ExoSpec, motion: Motion, truth: Any, rec: Any,
+    frames: Sequence[Any], lidar_truth: Sequence[Any], segmentation: Sequence[Any],
+) -> Episode:  # fmt: skip
+    """The episode of a recording (``rec``: its ``outputs``' truth, ``body_tracks``, ``context``)."""
     dur = motion.duration_s
-    rec = record(model, truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
     body_tracks = dict(rec.body_tracks)
     t_trk = sample_times(TRACK_RATE_HZ, dur)
     lidars = [s.sensor_id for s in rig if s.kind == "lidar"]
-    lidar_truth = rec.frame_truth(lidars)
-    if scenario.lidar_truth != "full":
-        lidar_truth = tuple(compact_truth(t) for t in lidar_truth)
     extra: dict[str, Any] = {}
     T_world_est = np.eye(4)
     trajectory = np.zeros((0, 8))
@@ -259,8 +305,8 @@ def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSe
         events=dict(motion.events),
         lidar=tuple(lidar_truth),
         trajectory_w=trajectory,
-        segmentation=segmentation_truths(rec, rig),
+        segmentation=tuple(segmentation),
         extra=extra,
     )
     cal = build_calibration(exo, rig)
-    return Episode(scenario=scenario.as_dict(), seed=int(seed), calibration=cal, frames=rec.frames, truth=ep_truth)
+    return Episode(scenario=scenario.as_dict(), seed=int(seed), calibration=cal, frames=tuple(frames), truth=ep_truth)
