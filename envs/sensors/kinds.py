@@ -47,7 +47,8 @@ def register_sensor_kind(name: str, adapter: type[SensorAdapter], codec: FrameCo
     frame kind or frame type registered twice is refused with a ``ValueError``."""
     if name in SENSOR_KINDS:
         raise ValueError(f"sensor kind {name!r} is registered already")
-    register_codec(codec)
+    if codecs.CODECS.get(codec.kind) is not codec:  # the shipped codecs register themselves
+        register_codec(codec)
     SENSOR_KINDS[name] = kind = SensorKind(name, adapter, codec)
     return kind
 

@@ -10,10 +10,11 @@ refers to the file:
   ``points_xyz`` (N, 3), ``intensity`` (N,), ``ring`` (N,), ``time_offset_s`` (N,);
 - ``rgbd``: ``shape`` [H, W], ``file``, ``index``; the file holds ``rgb``, ``depth_m`` and ``K``.
 
-The codecs of the shipped kinds are defined here (the on-disk format in one place); a new kind
-defines its codec in its sensor folder. Either way the kind's line in the sensor kind table
-(:mod:`exobench.envs.sensors.kinds`) registers it into :data:`CODECS`, which this module loads
-the first time a frame is written or read, so reading a session needs no other import.
+The codecs of the shipped kinds are defined and registered here (the on-disk format in one
+place), so reading a session needs no other import; a new kind defines its codec in its sensor
+folder, and its line in the sensor kind table (:mod:`exobench.envs.sensors.kinds`) registers it
+into :data:`CODECS`. The dependency is one way: the sensor kind table imports this module, never
+the reverse.
 """
 
 from __future__ import annotations
@@ -71,18 +72,12 @@ class FrameCodec:
 
 
 CODECS: dict[str, FrameCodec] = {}
-"""Every frame kind a session reads and writes, by kind name (filled by the sensor kind table)."""
-
-_TABLE_LOADED: list[bool] = [False]
+"""Every frame kind a session reads and writes, by kind name (the shipped ones registered at the
+end of this module, others by the sensor kind table)."""
 
 
 def codec_table() -> dict[str, FrameCodec]:
-    """:data:`CODECS`, with the sensor kind table that registers the codecs loaded."""
-    if not _TABLE_LOADED[0]:
-        # imported here, not above: the table imports this module to register its codecs
-        import exobench.envs.sensors.kinds  # noqa: F401
-
-        _TABLE_LOADED[0] = True
+    """:data:`CODECS`: every registered codec by frame kind name."""
     return CODECS
 
 
@@ -279,3 +274,7 @@ def _rgbd_example(rng: np.random.Generator) -> RgbdFrame:
 
 LIDAR = FrameCodec("lidar", LidarScan, _lidar_encode, _lidar_decode, _lidar_example, binary=True)
 RGBD = FrameCodec("rgbd", RgbdFrame, _rgbd_encode, _rgbd_decode, _rgbd_example, binary=True)
+
+
+for _codec in (TOF, IMU, JOINTS, CONTACT, ODOMETRY, LIDAR, RGBD):  # the shipped kinds
+    register_codec(_codec)
