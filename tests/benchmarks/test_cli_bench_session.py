@@ -20,7 +20,7 @@ def lidar_session(tmp_path_factory):
     return path
 
 
-def _one_line(r, *needles):
+def assert_one_error_line(r, *needles):
     assert r.exit_code == 2, (r.exit_code, r.output)
     err = r.stderr.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("exobench: error: "), r.stderr
@@ -30,8 +30,8 @@ def _one_line(r, *needles):
 
 
 def test_bench_rtls_on_a_session_of_another_track(lidar_session):
-    _one_line(CliRunner().invoke(cli, ["bench", "rtls", "--session", str(lidar_session)]), "--session", "'lidar-filter'")
-    _one_line(CliRunner().invoke(cli, ["bench", "rtls", "--json", "--session", str(lidar_session)]), "'lidar-filter'")
+    assert_one_error_line(CliRunner().invoke(cli, ["bench", "rtls", "--session", str(lidar_session)]), "--session", "'lidar-filter'")
+    assert_one_error_line(CliRunner().invoke(cli, ["bench", "rtls", "--json", "--session", str(lidar_session)]), "'lidar-filter'")
 
 
 def test_bench_rtls_on_an_old_session_without_a_track_and_no_surfaces(lidar_session, tmp_path):
@@ -43,9 +43,9 @@ def test_bench_rtls_on_an_old_session_without_a_track_and_no_surfaces(lidar_sess
     for key in ("track", "files", "truth_counts"):
         meta.pop(key)
     (path / "meta.json").write_text(json.dumps({**meta, "version": 3}))
-    _one_line(CliRunner().invoke(cli, ["bench", "rtls", "--session", str(path)]), "--session", "assigned no points")
+    assert_one_error_line(CliRunner().invoke(cli, ["bench", "rtls", "--session", str(path)]), "--session", "assigned no points")
 
 
 @pytest.mark.parametrize("what", ["sim", "lidar", "locomotion"])
 def test_session_is_for_bench_rtls_only(lidar_session, what):
-    _one_line(CliRunner().invoke(cli, ["bench", what, "--session", str(lidar_session)]), "--session", "bench rtls only")
+    assert_one_error_line(CliRunner().invoke(cli, ["bench", what, "--session", str(lidar_session)]), "--session", "bench rtls only")

@@ -69,7 +69,7 @@ def _replay(path):
     return CliRunner().invoke(cli, ["replay", str(path), "--track", "stairs", "--pipeline", "batch-ransac", "--json"])
 
 
-def _refused(r, *needles):
+def assert_refused(r, *needles):
     assert r.exit_code == 2, (r.exit_code, r.output)
     err = r.stderr.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("exobench: error: "), r.stderr
@@ -85,7 +85,7 @@ def _metrics(r):
 def test_an_old_format_with_its_truth_halved_is_refused_naming_the_truth_file(session):
     _old_format(session)
     _halve_lines(session / "truth" / "tof.jsonl")
-    _refused(_replay(session), "truth/tof.jsonl", "ToF reading")
+    assert_refused(_replay(session), "truth/tof.jsonl", "ToF reading")
 
 
 def test_a_halved_truth_with_its_counts_and_hashes_forged_is_refused(session):
@@ -94,7 +94,7 @@ def test_a_halved_truth_with_its_counts_and_hashes_forged_is_refused(session):
     meta["truth_counts"]["tof"] = kept
     _write_meta(session, meta)
     _rehash(session)
-    _refused(_replay(session), "truth/tof.jsonl")
+    assert_refused(_replay(session), "truth/tof.jsonl")
 
 
 def test_an_old_format_whose_counts_agree_is_scored_as_the_hashed_session(session, tmp_path):
@@ -112,7 +112,7 @@ def test_an_old_format_listing_hashes_has_them_checked(session):
     _write_meta(session, {**meta, "version": 3})
     f = session / "frames.jsonl"
     f.write_text(f.read_text().replace('"range_m":0.5', '"range_m":0.9', 1))  # same counts, one value changed
-    _refused(_replay(session), "frames.jsonl", "content differs")
+    assert_refused(_replay(session), "frames.jsonl", "content differs")
 
 
 @pytest.mark.parametrize("how", ["edited-and-unlisted", "empty-list"])
@@ -125,7 +125,7 @@ def test_a_file_taken_off_the_hash_list_is_refused(session, how):
     else:
         del meta["files"]["truth/tof.jsonl"]
     _write_meta(session, meta)
-    _refused(_replay(session), "calibration.json" if how == "empty-list" else "tof.jsonl", "not listed")  # the first unlisted
+    assert_refused(_replay(session), "calibration.json" if how == "empty-list" else "tof.jsonl", "not listed")  # the first unlisted
 
 
 @pytest.mark.parametrize("version", [4, 5])
@@ -133,7 +133,7 @@ def test_a_format_with_hashes_but_no_file_list_is_refused(session, version):
     meta = _meta(session)
     meta.pop("files")
     _write_meta(session, {**meta, "version": version})
-    _refused(_replay(session), "meta.json", "'files'")
+    assert_refused(_replay(session), "meta.json", "'files'")
 
 
 # --- LiDAR scans and the trajectory (office walks), RGB-D segmentation and odometry (course walks)
