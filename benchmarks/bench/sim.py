@@ -13,6 +13,7 @@ The pipelines' wall times are the runner's own (``wall_s`` of each record).
 from __future__ import annotations
 
 import cProfile
+import functools
 import json
 import os
 import pstats
@@ -37,7 +38,7 @@ _RULES: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
                "sensors/encoders/", "sensors/contact/", "sensors/odometry/"), ("Generator", "random")),  # fmt: skip
     ("motion", ("envs/motion/", "models/"), ()),
     ("state", ("sim/recorder", "sensors/__init__", "sensors/dynamics"), ("mj_kinematics", "mj_forward", "mj_rne", "mj_camlight", "mj_")),
-    ("pipelines", ("exobench/perception/", "exobench/mapping/"), ()),
+    ("pipelines", ("perception/", "mapping/"), ()),
     ("scoring", ("benchmarks/tracks/", "benchmarks/trajectory"), ()),
 )
 
@@ -53,9 +54,20 @@ def stage_of(filename: str, name: str) -> str | None:
     f = filename.replace("\\", "/")
     if _builtin(f):
         return next((stage for stage, _, names in _RULES if any(n in name for n in names)), None)
-    if "/exobench/" not in f:
+    rel = next((f[len(root):] for root in _package_roots() if f.startswith(root)), None)
+    if rel is None or rel.startswith(".") or "site-packages/" in rel:  # a venv inside the checkout is not exobench
         return None
-    return next((stage for stage, files, _ in _RULES if any(p in f for p in files)), "other")
+    return next((stage for stage, files, _ in _RULES if any(p in rel for p in files)), "other")
+
+
+@functools.cache
+def _package_roots() -> tuple[str, ...]:
+    """The folder of the package ``exobench`` with a trailing slash, as imported and resolved:
+    a checkout need not be named ``exobench`` (an editable install of /work/main is not)."""
+    import exobench
+
+    here = os.path.dirname(os.path.abspath(exobench.__file__)).replace("\\", "/")
+    return tuple(dict.fromkeys((here + "/", os.path.realpath(here).replace("\\", "/") + "/")))
 
 
 def stages_of(profile: cProfile.Profile) -> dict[str, float]:

@@ -8,11 +8,16 @@ time must go to its caller's stage), the caster three times as often.
 from __future__ import annotations
 
 import cProfile
+import os
 import time
 
 import numpy as np
 
+import exobench
 from exobench.benchmarks.bench.sim import STAGES, stage_of, stages_of
+
+# the package's own folder, whatever the checkout is named (/work/main is not named exobench)
+PKG = os.path.dirname(os.path.abspath(exobench.__file__))
 
 SRC = """
 import numpy as np
@@ -30,8 +35,8 @@ def _module(path: str):
 
 
 def test_library_time_counts_in_the_stage_of_the_exobench_code_that_called_it():
-    cast = _module("/x/exobench/envs/sensors/lidar/cast.py")
-    optics = _module("/x/exobench/envs/sensors/lidar/optics.py")
+    cast = _module(f"{PKG}/envs/sensors/lidar/cast.py")
+    optics = _module(f"{PKG}/envs/sensors/lidar/optics.py")
     a = np.random.default_rng(0).random(300_000)
     profile = cProfile.Profile(time.process_time)  # CPU time: other processes do not move it
     profile.enable()
@@ -52,6 +57,8 @@ def test_stage_rules():
     assert stage_of("~", "<method 'reduce' of 'numpy.ufunc' objects>") is None  # its caller's
     assert stage_of("/venv/site-packages/numpy/_core/fromnumeric.py", "sort") is None
     assert stage_of("/venv/site-packages/foo/models/x.py", "f") is None  # only exobench's own files have stages
-    assert stage_of("/w/exobench/mapping/odometry/kiss_icp.py", "process") == "pipelines"
-    assert stage_of("/w/exobench/envs/motion/walk.py", "plan_walk") == "motion"
-    assert stage_of("/w/exobench/benchmarks/runner.py", "_run_job") == "other"
+    assert stage_of("/elsewhere/exobench/perception/stairs/rtls.py", "process") is None  # another copy is not this one
+    assert stage_of(f"{PKG}/.venv/lib/python3.11/site-packages/numpy/_core/fromnumeric.py", "sort") is None  # a venv in the checkout
+    assert stage_of(f"{PKG}/mapping/odometry/kiss_icp.py", "process") == "pipelines"
+    assert stage_of(f"{PKG}/envs/motion/walk.py", "plan_walk") == "motion"
+    assert stage_of(f"{PKG}/benchmarks/runner.py", "_run_job") == "other"
