@@ -95,7 +95,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5, *, office: Any = None, config: 
         return T
 
     default_bench = office is None and config is None
-    config = config if config is not None else LidarConfig()
+    config = config if config is not None else LidarConfig(caster="bvh")  # the BVH caster against the MuJoCo reference
     pat = config.pattern
     dirs_s = pat.rays(0.0).dirs_s
     n_rays = len(dirs_s)
