@@ -71,6 +71,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5, *, office: Any = None, config: 
     import mujoco
 
     from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
+    from exobench.envs.sim.pose import site_pose
     from exobench.models.exo_spec import ExoSpec
     from exobench.models.office import build_office
     from exobench.models.worlds import compose
@@ -80,10 +81,7 @@ def bench_lidar(seed: int = 0, repeats: int = 5, *, office: Any = None, config: 
     model, truth = scene.model, scene.truth
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "lidar_trunk")
-    T0 = np.eye(4)
-    T0[:3, :3] = np.asarray(data.site_xmat[site]).reshape(3, 3)
-    T0[:3, 3] = data.site_xpos[site]
+    T0 = site_pose(model, data, "lidar_trunk")
     pelvis = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "pelvis")
     heading_w = np.asarray(data.xmat[pelvis]).reshape(3, 3)[:, 0].copy()
     heading_w[2] = 0.0
@@ -183,6 +181,7 @@ def bench_lidar_scaling(seed: int = 0, repeats: int = 5, n_offices: tuple[int, .
     import mujoco
 
     from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
+    from exobench.envs.sim.pose import site_pose
     from exobench.models.exo_spec import ExoSpec
     from exobench.models.office import build_office
     from exobench.models.office_params import OfficeParams
@@ -192,10 +191,7 @@ def bench_lidar_scaling(seed: int = 0, repeats: int = 5, n_offices: tuple[int, .
         scene = compose(build_office(params), ExoSpec())
         data = mujoco.MjData(scene.model)
         mujoco.mj_forward(scene.model, data)
-        site = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_SITE, "lidar_trunk")
-        T0 = np.eye(4)
-        T0[:3, :3] = np.asarray(data.site_xmat[site]).reshape(3, 3)
-        T0[:3, 3] = data.site_xpos[site]
+        T0 = site_pose(scene.model, data, "lidar_trunk")
         if height_m is not None:
             T0[2, 3] = height_m
         return scene.model, data, scene.truth, T0

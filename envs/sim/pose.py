@@ -39,6 +39,16 @@ class RigidPose:
         return T @ self.T_pelvis_sensor
 
 
+def site_pose(model: Any, data: Any, site: str) -> np.ndarray:
+    """``T_world_site`` of a named site in ``data``'s current (computed) state."""
+    import mujoco
+
+    sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, site)
+    if sid < 0:
+        raise ConfigError("site", site, "a site of the model")
+    return make_T(np.asarray(data.site_xmat[sid]).reshape(3, 3), data.site_xpos[sid])
+
+
 def pose_rows(t: np.ndarray, T: np.ndarray) -> np.ndarray:
     """Rows ``[t, x, y, z, qw, qx, qy, qz]`` of poses ``T`` (N, 4, 4) at times ``t`` (N,)."""
     q = np.array([matrix_to_quat_wxyz(R) for R in T[:, :3, :3]]).reshape(-1, 4)

@@ -14,6 +14,7 @@ import pytest
 from exobench.core import ConfigError, PlanarSurface, SceneTruth
 from exobench.core.transforms import rot_z
 from exobench.envs.sensors.lidar import LidarConfig, LidarPattern, LidarSensor, ReturnKind
+from exobench.envs.sim.pose import site_pose
 from exobench.models.materials import LidarMaterial
 
 H = 1.0  # sensor height above the floor, m
@@ -532,10 +533,7 @@ def _office_scene():
     scene = compose(build_office(), ExoSpec())
     data = mujoco.MjData(scene.model)
     mujoco.mj_forward(scene.model, data)
-    site = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_SITE, "lidar_trunk")
-    T0 = np.eye(4)
-    T0[:3, :3] = np.asarray(data.site_xmat[site]).reshape(3, 3)
-    T0[:3, 3] = data.site_xpos[site]
+    T0 = site_pose(scene.model, data, "lidar_trunk")
     return scene.model, data, scene.truth, T0
 
 

@@ -19,6 +19,7 @@ from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
 from exobench.envs.sensors.lidar import cast as cast_module
 from exobench.envs.sensors.lidar.bvh import _face_table, _in_any_box, exact_hits, face_hits
 from exobench.envs.sensors.lidar.optics import cast_rays
+from exobench.envs.sim.pose import site_pose
 
 
 def _scene(world):
@@ -28,10 +29,7 @@ def _scene(world):
     scene = compose(world, ExoSpec())
     data = mujoco.MjData(scene.model)
     mujoco.mj_forward(scene.model, data)
-    site = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_SITE, "lidar_trunk")
-    T0 = np.eye(4)
-    T0[:3, :3] = np.asarray(data.site_xmat[site]).reshape(3, 3)
-    T0[:3, 3] = data.site_xpos[site]
+    T0 = site_pose(scene.model, data, "lidar_trunk")
     return scene.model, data, scene.truth, T0
 
 
