@@ -99,7 +99,11 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.option("--seed", type=int, default=None, help="Run seed (default 0).")
 @click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
-@click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
+@click.option("--jobs", type=int, default=None, help="Episodes at once: processes of the local pool (default 1: in this process), or Ray tasks (default: the cluster's CPUs).")
+@click.option("--executor", type=click.Choice(["local", "ray"]), default="local", show_default=True, help="Where episodes run: this machine (--jobs processes) or Ray (optional extra `ray`).")
+@click.option("--address", default=None, help="Ray: the head's host:port (or ray://host:port); default: start a local Ray.")
+@click.option("--episode-cpus", type=float, default=None, help="Ray: CPUs each episode reserves (default 1).")
+@click.option("--episode-gpus", type=float, default=None, help="Ray: GPU fraction each episode reserves, for tracks that render (default 0).")
 @click.option("--out", type=click.Path(), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
 @click.option("--resume", is_flag=True, help="Continue the run in --out DIR with the settings stored there, skipping finished episodes.")
 @click.option("--rerun", "rerun_path", type=click.Path(), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
@@ -111,7 +115,11 @@ def run(
     seed: int | None,
     seeds: int | None,
     assignments: tuple[str, ...],
-    jobs: int,
+    jobs: int | None,
+    executor: str,
+    address: str | None,
+    episode_cpus: float | None,
+    episode_gpus: float | None,
     out: str | None,
     resume: bool,
     rerun_path: str | None,
@@ -124,14 +132,16 @@ def run(
     run_config.json, or run_all.json of a run of every track); options given with it must match."""
     from exobench.core.errors import ConfigError, FolderError
 
-    from .out_paths import check_out_dir, check_out_file, exclusive_lock
+    from .out_paths import check_out_dir, check_out_file
     from .overrides import parse_assignments
-    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, run_all_config, write_json_atomic
+    from .results import RUN_CONFIG_FILE
     from .runner import check_resume, plan_run
     from .tracks import track_names
 
-    if jobs < 1:
+    if jobs is not None and jobs < 1:
         raise ConfigError("--jobs", jobs, "--jobs >= 1")
+    ray_ex = _ray_executor(executor, address, jobs, episode_cpus, episode_gpus)
+    jobs = jobs or 1
     if resume and out is None:
         raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
     run_seeds = _seeds(seed, seeds)
@@ -156,7 +166,8 @@ def run(
         check_out_dir("--out", out)
         if rerun_path is not None:
             check_out_file("--rerun", rerun_path)
-        errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report))
+        with _connected(ray_ex):
+            errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report, ray_ex), ray_ex)
         _exit_on_harness_errors(errors)
         return
     if pipelines or overrides:
@@ -178,8 +189,19 @@ def run(
     elif root.is_dir() and _has_files(root):
         again = " (or --resume to continue the run in it)" if _stored_settings(str(root), must=False) else ""
         raise ConfigError("--out", str(root), f"a new or empty folder{again}")
-    hint = _continue_command(str(root), jobs, rerun_path, no_report)
-    root.mkdir(parents=True, exist_ok=True)
+    hint = _continue_command(str(root), jobs, rerun_path, no_report, ray_ex)
+    with _connected(ray_ex):
+        root.mkdir(parents=True, exist_ok=True)
+        errors = _run_all(plans, root, names, suite, run_seeds, jobs, resume, rerun_path, no_report, hint, ray_ex)
+    _exit_on_harness_errors(errors)
+
+
+def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, run_seeds: list[int], jobs: int,
+             resume: bool, rerun_path: str | None, no_report: bool, hint: str, ray_ex: Any) -> list[str]:
+    """Run every track's plan into its folder of ``root`` (a run of every track)."""
+    from .out_paths import exclusive_lock
+    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, run_all_config, write_json_atomic
+
     errors: list[str] = []
     with exclusive_lock(root, "run"):
         if not resume:  # what `--resume --out ROOT` reads to continue every track
@@ -190,8 +212,40 @@ def run(
             folder = root / plan.track.name
             # tracks not started yet get their folders; finished and interrupted ones are continued
             started = resume and (folder / RUN_CONFIG_FILE).exists()
-            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, last=plan is plans[-1])
-    _exit_on_harness_errors(errors)
+            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, ray_ex, last=plan is plans[-1])
+    return errors
+
+
+def _ray_executor(executor: str, address: str | None, jobs: int | None, cpus: float | None, gpus: float | None) -> Any:
+    """The Ray executor of `run`'s options (None for the local one, which takes none of them)."""
+    from exobench.core.errors import ConfigError
+
+    if executor != "ray":
+        for option, value in (("--address", address), ("--episode-cpus", cpus), ("--episode-gpus", gpus)):
+            if value is not None:
+                raise ConfigError(option, value, f"{option} with --executor ray")
+        return None
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ConfigError("--executor", "ray", "ray installed: pip install 'exobench[ray]'") from None
+    from .ray_executor import RayExecutor
+
+    return RayExecutor(address=address, jobs=jobs, cpus=1.0 if cpus is None else cpus, gpus=0.0 if gpus is None else gpus)
+
+
+@contextlib.contextmanager
+def _connected(ray_ex: Any) -> Any:
+    """Connected to Ray for the block (an unreachable address is refused here, before any
+    folder is made), and disconnected after it, however it ends."""
+    if ray_ex is None:
+        yield
+        return
+    ray_ex.connect()
+    try:
+        yield
+    finally:
+        ray_ex.close()
 
 
 def _has_files(folder: Path) -> bool:
@@ -226,12 +280,17 @@ def _stored_settings(out: str, *, must: bool = True) -> dict[str, Any]:
     raise ConfigError("--out", out, f"a run folder to resume: with {RUN_CONFIG_FILE} (one track) or {RUN_ALL_FILE} (every track)")
 
 
-def _continue_command(out: str, jobs: int, rerun_path: str | None, no_report: bool) -> str:
-    """The command that continues this run: its settings are read back from the folder."""
+def _continue_command(out: str, jobs: int, rerun_path: str | None, no_report: bool, ray_ex: Any = None) -> str:
+    """The command that continues this run: its settings are read back from the folder (any
+    executor can continue it; this one names the run's own)."""
     import shlex
 
     words = ["exobench", "run", "--resume", "--out", str(out)]
-    words += ["--jobs", str(jobs)] if jobs != 1 else []
+    if ray_ex is not None:
+        words += ["--executor", "ray", *(["--address", ray_ex.address] if ray_ex.address else [])]
+        words += ["--jobs", str(ray_ex.jobs)] if ray_ex.jobs else []
+    else:
+        words += ["--jobs", str(jobs)] if jobs != 1 else []
     words += ["--rerun", rerun_path] if rerun_path else []
     words += ["--no-report"] if no_report else []
     return shlex.join(words)
@@ -248,7 +307,8 @@ def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160)
 
 
 def _run_plan(
-    plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool, hint: str, last: bool = True
+    plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool, hint: str,
+    ray_ex: Any = None, last: bool = True,
 ) -> list[str]:
     """Execute one validated plan with a progress bar; print its table and where it went.
     ``hint`` is the command that continues the run; ``last``: no track of the run comes after
@@ -256,7 +316,7 @@ def _run_plan(
     :func:`runner.harness_errors`)."""
     from tqdm import tqdm
 
-    from exobench.core.errors import FolderError
+    from exobench.core.errors import ExobenchError, FolderError
 
     from .runner import execute
 
@@ -271,7 +331,7 @@ def _run_plan(
         bar["tqdm"].update(1)
 
     try:
-        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode)
+        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode, executor=ray_ex)
         bar["tqdm"].close()
         bar["finished"] = True
         return _finish_plan(plan, outcome, out_dir, rerun_path, no_report, hint, last)
@@ -280,8 +340,9 @@ def _run_plan(
             bar["tqdm"].close()
         click.echo(f"exobench: interrupted; finished episodes are kept in {out_dir} (continue: {hint})", err=True)
         sys.exit(EXIT_INTERRUPTED)
-    except FolderError as e:
-        if "tqdm" not in bar or "finished" in bar:
+    except ExobenchError as e:
+        lost = type(e).__name__ == "ClusterLostError"  # the Ray cluster went away mid-run
+        if not (isinstance(e, FolderError) or lost) or "tqdm" not in bar or "finished" in bar:
             raise  # refused before anything ran, or a report's error that says what to do
 
         bar["tqdm"].close()  # a write failed during the run (disk full)

@@ -1,0 +1,141 @@
+"""The Ray executor (``--executor ray``): the pool's records, its retry rule, resume across
+executors, an unreachable address refused at once. One local Ray (2 CPUs, a small object store)
+serves the whole module and is shut down after it."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import time
+from pathlib import Path
+
+import pytest
+import ray
+from test_benchmarks_runner import KillingTrack, _comparable, _plan
+from test_benchmarks_support import FakeStairs
+
+from exobench.benchmarks import ray_executor
+from exobench.benchmarks.cli import main
+from exobench.benchmarks.pool import Death, lost_reason
+from exobench.benchmarks.ray_executor import ClusterLostError, RayExecutor, run_actors
+from exobench.benchmarks.registry import PipelineRegistry
+from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE
+from exobench.benchmarks.runner import execute
+from exobench.core import ConfigError
+
+HERE = Path(__file__).parent
+
+
+@pytest.fixture(scope="module")
+def executor():
+    # the workers unpickle this folder's fake tracks and pipelines: they import them as the driver does
+    old = os.environ.get("PYTHONPATH")
+    os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE), str(HERE.parent), old]))
+    ex = RayExecutor(jobs=2, num_cpus=2)
+    try:
+        ex.connect()
+        yield ex
+    finally:
+        ex.close()
+        if old is None:
+            os.environ.pop("PYTHONPATH", None)
+        else:
+            os.environ["PYTHONPATH"] = old
+    assert not ray.is_initialized()
+
+
+@pytest.fixture
+def reg() -> PipelineRegistry:
+    r = PipelineRegistry()
+    r.register("fake", FakeStairs)
+    return r
+
+
+def test_ray_gives_the_pools_records_and_records_which_executor_ran(executor, reg, tmp_path):
+    plan = _plan(reg, seeds=[0, 1], pipelines=["fake"])
+    pool = execute(plan, tmp_path / "pool", jobs=2)
+    on_ray = execute(plan, tmp_path / "ray", executor=executor)
+    assert len(pool.records) == 12
+    assert _comparable(on_ray.records) == _comparable(pool.records)
+    assert json.loads((tmp_path / "ray" / RUN_CONFIG_FILE).read_text())["executor"]["name"] == "ray"
+    assert json.loads((tmp_path / "pool" / RUN_CONFIG_FILE).read_text())["executor"] == {"name": "pool", "jobs": 2}
+
+
+def test_workers_import_exobench_from_where_the_driver_does(executor):
+    import exobench
+
+    @ray.remote
+    def where() -> str:
+        import exobench
+
+        return exobench.__file__
+
+    assert ray.get(where.remote()) == exobench.__file__
+
+
+def test_a_run_started_on_ray_is_resumed_on_the_pool_and_the_other_way(executor, reg, tmp_path):
+    plan = _plan(reg, pipelines=["fake"])
+    full = execute(plan, tmp_path / "whole", jobs=1).records
+    for first, then in (("ray", "pool"), ("pool", "ray")):
+        out = tmp_path / f"{first}-then-{then}"
+        execute(plan, out, executor=executor if first == "ray" else None, jobs=2)
+        lines = (out / RESULTS_FILE).read_text().splitlines(keepends=True)
+        (out / RESULTS_FILE).write_text("".join(lines[:2]))  # as if the run stopped after two episodes
+        resumed = execute(plan, out, resume=True, executor=executor if then == "ray" else None, jobs=2)
+        assert len(resumed.skipped) == 2 and len(resumed.ran) == len(plan.episodes) - 2
+        assert _comparable(resumed.records) == _comparable(full)
+
+
+def test_a_killed_worker_is_retried_once_then_recorded_failed_with_the_pools_reason(executor, reg, tmp_path):
+    plan = _plan(reg, track=KillingTrack(), pipelines=["fake"])
+    out = execute(plan, tmp_path / "run", executor=executor)
+    assert sorted(r["episode"] for r in out.records) == sorted(e.key for e in plan.episodes)
+    b = [r for r in out.records if r["case"] == "B"]
+    assert len(b) == 1 and b[0]["metrics"]["failed"]
+    assert b[0]["harness_error"] == lost_reason(Death(-signal.SIGKILL, None))  # the pool's words for it
+    assert not any(r["metrics"]["failed"] for r in out.records if r["case"] != "B")
+
+
+def _kill_once(job):
+    """(job, "done"); a job naming a marker path kills its worker the first time."""
+    if job.startswith("kill:") and not os.path.exists(job[5:]):
+        Path(job[5:]).write_text("killed once")
+        os.kill(os.getpid(), 9)
+    return job, "done"
+
+
+def test_a_worker_killed_once_is_retried_and_its_episode_finishes(executor, tmp_path):
+    got: dict[str, str] = {}
+    job = f"kill:{tmp_path / 'marker'}"
+    run_actors(["a", job, "b"], 2, _kill_once, got.__setitem__, lambda j, why: (j, f"lost: {why}"))
+    assert got == {"a": "done", job: "done", "b": "done"}
+
+
+def test_a_lost_cluster_keeps_what_finished_and_records_nothing_as_failed(executor, tmp_path, monkeypatch):
+    monkeypatch.setattr(ray_executor, "_cluster_alive", lambda: False)  # every node gone once a worker dies
+    got: dict[str, str] = {}
+    with pytest.raises(ClusterLostError, match="the Ray cluster was lost"):
+        # one worker: "a" finishes before the job that kills its worker starts
+        run_actors(["a", f"kill:{tmp_path / 'marker'}", "b"], 1, _kill_once, got.__setitem__, lambda j, why: (j, "lost"))
+    assert got == {"a": "done"}
+
+
+def test_an_unreachable_address_is_refused_at_once_before_anything_is_written(tmp_path, capsys):
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    t0 = time.monotonic()
+    with pytest.raises(SystemExit) as e:
+        main(["run", "--track", "stairs", "--executor", "ray", "--address", f"127.0.0.1:{port}", "--out", str(tmp_path / "run")])
+    assert e.value.code == 2 and time.monotonic() - t0 < 30
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("exobench: error: --address=") and f"127.0.0.1:{port}" in err[0], err
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("address", ["nohost", "host:99999", "ray://:10001"])
+def test_a_malformed_address_is_refused(address):
+    with pytest.raises(ConfigError, match="--address"):
+        RayExecutor(address=address)
