@@ -585,6 +585,50 @@ def _report_folder(folder: Path) -> None:
     click.echo(f"report: {write_report(folder)}")
 
 
+@cli.command()
+@click.argument("run_a", type=click.Path(file_okay=False))
+@click.argument("run_b", type=click.Path(file_okay=False))
+@click.option("--threshold", type=float, default=0.05, show_default=True,
+              help="A change is flagged when its whole 95 % interval is beyond this fraction of A's mean (0: any significant change).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object per comparison.")
+def compare(run_a: str, run_b: str, threshold: float, as_json: bool) -> None:
+    """Compare run B against run A (same tracks and suites): per track, group, pipeline and
+    headline metric, B - A with its 95 % confidence interval (paired t over the episodes both
+    have; Welch's t where none pair). Exit status 1 when a headline metric is worse beyond
+    --threshold, so a CI can gate on it."""
+    import dataclasses
+
+    from exobench.core.errors import ConfigError
+
+    from .compare import check_comparable, compare_track, config_changes, format_comparisons, load_runs
+    from .results import json_safe
+    from .tracks import get_track
+
+    if not (threshold >= 0 and threshold == threshold):
+        raise ConfigError("--threshold", threshold, "a fraction >= 0 of A's mean (0.05: 5 %)")
+    runs_a, runs_b = load_runs(run_a), load_runs(run_b)
+    check_comparable(runs_a, runs_b, run_a, run_b)
+    comps, digits = [], {}
+    for name in runs_a:
+        track = get_track(name)
+        digits.update({(name, r.metric): r.digits for r in track.summary_rows()})
+        if not as_json:
+            for change in config_changes(runs_a[name], runs_b[name]):
+                click.echo(f"{name}: {change}")
+        comps += compare_track(track, runs_a[name], runs_b[name], threshold)
+    if as_json:
+        for c in comps:
+            click.echo(json.dumps(json_safe(dataclasses.asdict(c))))
+    else:
+        click.echo(format_comparisons(comps, digits))
+    worse = [c for c in comps if c.verdict == "worse"]
+    if worse:
+        first = "; ".join(f"{c.track} {c.group} {c.pipeline} {c.metric}" for c in worse[:3])
+        more = f" (and {len(worse) - 3} more)" if len(worse) > 3 else ""
+        click.echo(f"exobench: {len(worse)} headline comparisons worse beyond the threshold {threshold:g}: {first}{more}", err=True)
+        sys.exit(EXIT_FAILED)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
     cli.main(args=argv, prog_name="exobench")
