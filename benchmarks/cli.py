@@ -134,13 +134,14 @@ def run(
 
     from .out_paths import check_out_dir, check_out_file
     from .overrides import parse_assignments
+    from .ray_executor import connected, executor_from_options
     from .results import RUN_CONFIG_FILE
     from .runner import check_resume, plan_run
     from .tracks import track_names
 
     if jobs is not None and jobs < 1:
         raise ConfigError("--jobs", jobs, "--jobs >= 1")
-    ray_ex = _ray_executor(executor, address, jobs, episode_cpus, episode_gpus)
+    ray_ex = executor_from_options(executor, address, jobs, episode_cpus, episode_gpus)
     jobs = jobs or 1
     if resume and out is None:
         raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
@@ -166,7 +167,7 @@ def run(
         check_out_dir("--out", out)
         if rerun_path is not None:
             check_out_file("--rerun", rerun_path)
-        with _connected(ray_ex):
+        with connected(ray_ex):
             errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report, ray_ex), ray_ex)
         _exit_on_harness_errors(errors)
         return
@@ -190,7 +191,7 @@ def run(
         again = " (or --resume to continue the run in it)" if _stored_settings(str(root), must=False) else ""
         raise ConfigError("--out", str(root), f"a new or empty folder{again}")
     hint = _continue_command(str(root), jobs, rerun_path, no_report, ray_ex)
-    with _connected(ray_ex):
+    with connected(ray_ex):
         root.mkdir(parents=True, exist_ok=True)
         errors = _run_all(plans, root, names, suite, run_seeds, jobs, resume, rerun_path, no_report, hint, ray_ex)
     _exit_on_harness_errors(errors)
@@ -214,38 +215,6 @@ def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, 
             started = resume and (folder / RUN_CONFIG_FILE).exists()
             errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, ray_ex, last=plan is plans[-1])
     return errors
-
-
-def _ray_executor(executor: str, address: str | None, jobs: int | None, cpus: float | None, gpus: float | None) -> Any:
-    """The Ray executor of `run`'s options (None for the local one, which takes none of them)."""
-    from exobench.core.errors import ConfigError
-
-    if executor != "ray":
-        for option, value in (("--address", address), ("--episode-cpus", cpus), ("--episode-gpus", gpus)):
-            if value is not None:
-                raise ConfigError(option, value, f"{option} with --executor ray")
-        return None
-    try:
-        import ray  # noqa: F401
-    except ImportError:
-        raise ConfigError("--executor", "ray", "ray installed: pip install 'exobench[ray]'") from None
-    from .ray_executor import RayExecutor
-
-    return RayExecutor(address=address, jobs=jobs, cpus=1.0 if cpus is None else cpus, gpus=0.0 if gpus is None else gpus)
-
-
-@contextlib.contextmanager
-def _connected(ray_ex: Any) -> Any:
-    """Connected to Ray for the block (an unreachable address is refused here, before any
-    folder is made), and disconnected after it, however it ends."""
-    if ray_ex is None:
-        yield
-        return
-    ray_ex.connect()
-    try:
-        yield
-    finally:
-        ray_ex.close()
 
 
 def _has_files(folder: Path) -> bool:
@@ -598,35 +567,37 @@ def compare(run_a: str, run_b: str, threshold: float, as_json: bool) -> None:
     --threshold, so a CI can gate on it."""
     import dataclasses
 
-    from exobench.core.errors import ConfigError
-
-    from .compare import check_comparable, compare_track, config_changes, format_comparisons, load_runs
+    from .compare import compare_folders, format_comparisons
     from .results import json_safe
-    from .tracks import get_track
 
-    if not (threshold >= 0 and threshold == threshold):
-        raise ConfigError("--threshold", threshold, "a fraction >= 0 of A's mean (0.05: 5 %)")
-    runs_a, runs_b = load_runs(run_a), load_runs(run_b)
-    check_comparable(runs_a, runs_b, run_a, run_b)
-    comps, digits = [], {}
-    for name in runs_a:
-        track = get_track(name)
-        digits.update({(name, r.metric): r.digits for r in track.summary_rows()})
-        if not as_json:
-            for change in config_changes(runs_a[name], runs_b[name]):
-                click.echo(f"{name}: {change}")
-        comps += compare_track(track, runs_a[name], runs_b[name], threshold)
+    changes, comps, digits = compare_folders(run_a, run_b, threshold)
     if as_json:
         for c in comps:
             click.echo(json.dumps(json_safe(dataclasses.asdict(c))))
     else:
-        click.echo(format_comparisons(comps, digits))
+        click.echo("\n".join([*changes, format_comparisons(comps, digits)]))
     worse = [c for c in comps if c.verdict == "worse"]
     if worse:
         first = "; ".join(f"{c.track} {c.group} {c.pipeline} {c.metric}" for c in worse[:3])
         more = f" (and {len(worse) - 3} more)" if len(worse) > 3 else ""
         click.echo(f"exobench: {len(worse)} headline comparisons worse beyond the threshold {threshold:g}: {first}{more}", err=True)
         sys.exit(EXIT_FAILED)
+
+
+@cli.command()
+@click.argument("runs", nargs=-1, required=True, type=click.Path(file_okay=False))
+@click.option("--out", default="leaderboard", show_default=True, type=click.Path(), help="Folder of leaderboard.md and its figures.")
+def leaderboard(runs: tuple[str, ...], out: str) -> None:
+    """Rank the pipelines of RUNS... per track on its headline metrics, beside the published
+    figures: OUT/leaderboard.md (printed too) and a figure per track, with the versions and
+    configs that produced each entry."""
+    from .leaderboard import write_leaderboard
+    from .out_paths import check_out_dir
+
+    check_out_dir("--out", out)
+    path = write_leaderboard(runs, out)
+    click.echo(path.read_text())
+    click.echo(f"leaderboard: {path}")
 
 
 def main(argv: list[str] | None = None) -> None:

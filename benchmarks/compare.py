@@ -248,3 +248,24 @@ def format_comparisons(comps: Sequence[Comparison], digits: dict[tuple[str, str]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
     return "\n".join(lines)
+
+
+def compare_folders(run_a: str, run_b: str, threshold: float = 0.05) -> tuple[list[str], list[Comparison], dict[tuple[str, str], int]]:
+    """What `exobench compare` shows: the config changes (``track: change``), every comparison,
+    and the decimals of each (track, metric); refusals as ConfigError before anything is read
+    twice."""
+    from .tracks import get_track
+
+    if not (threshold >= 0 and math.isfinite(threshold)):
+        raise ConfigError("--threshold", threshold, "a fraction >= 0 of A's mean (0.05: 5 %)")
+    runs_a, runs_b = load_runs(run_a), load_runs(run_b)
+    check_comparable(runs_a, runs_b, run_a, run_b)
+    changes: list[str] = []
+    comps: list[Comparison] = []
+    digits: dict[tuple[str, str], int] = {}
+    for name in runs_a:
+        track = get_track(name)
+        digits.update({(name, r.metric): r.digits for r in track.summary_rows()})
+        changes += [f"{name}: {c}" for c in config_changes(runs_a[name], runs_b[name])]
+        comps += compare_track(track, runs_a[name], runs_b[name], threshold)
+    return changes, comps, digits

@@ -25,9 +25,10 @@ with the pool. The choices, and why:
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -260,3 +261,30 @@ def _lost_text(err: Exception) -> str:
     first = str(err).strip().splitlines()[0][:160] if str(err).strip() else type(err).__name__
     return f"the Ray cluster was lost ({first})"
 
+
+def executor_from_options(executor: str, address: str | None, jobs: int | None, cpus: float | None, gpus: float | None) -> RayExecutor | None:
+    """The Ray executor of `run`'s options (None for the local one, which takes none of them)."""
+    if executor != "ray":
+        for option, value in (("--address", address), ("--episode-cpus", cpus), ("--episode-gpus", gpus)):
+            if value is not None:
+                raise ConfigError(option, value, f"{option} with --executor ray")
+        return None
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ConfigError("--executor", "ray", "ray installed: pip install 'exobench[ray]'") from None
+    return RayExecutor(address=address, jobs=jobs, cpus=1.0 if cpus is None else cpus, gpus=0.0 if gpus is None else gpus)
+
+
+@contextlib.contextmanager
+def connected(ray_ex: RayExecutor | None) -> Iterator[None]:
+    """Connected to Ray for the block (an unreachable address is refused here, before any
+    folder is made), and disconnected after it, however it ends."""
+    if ray_ex is None:
+        yield
+        return
+    ray_ex.connect()
+    try:
+        yield
+    finally:
+        ray_ex.close()
