@@ -370,16 +370,17 @@ def list_() -> None:
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion"]))
+@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion", "executor"]))
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
-@click.option("--track", "tracks", multiple=True, help="sim: a track whose paper episode to break down (repeatable; default: every track).")
+@click.option("--track", "tracks", multiple=True, help="sim: a track whose paper episode to break down (repeatable; default: every track); executor: the track whose suite to time (default stairs: its paper suite).")
 def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tuple[str, ...]) -> None:
     """Time the RTLS update against a batch refit (rtls), the simulator (sim: the stairs real-time
     factor, and per track a paper episode cut short: time per stage and pipeline, peak memory),
     the LiDAR (lidar) or the locomotion track at 640x480 (locomotion: latency per prediction,
-    TSDF and rendering fps)."""
+    TSDF and rendering fps) or the executors (executor: episodes per second of the stairs paper
+    suite on the pool at 1 and 2 workers and on a local Ray at 2, Ray's overhead per episode)."""
     from exobench.core.errors import ConfigError
 
     from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
@@ -388,8 +389,8 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
 
     if session and what != "rtls":
         raise ConfigError("--session", session, "bench rtls only")
-    if tracks and what != "sim":
-        raise ConfigError("--track", ",".join(tracks), "bench sim only")
+    if tracks and what not in ("sim", "executor") or (what == "executor" and len(tracks) > 1):
+        raise ConfigError("--track", ",".join(tracks), "bench sim (any number) or bench executor (one)")
     for name in tracks:
         get_track(name)  # an unknown name is refused before anything runs
     if what == "rtls":
@@ -409,6 +410,14 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
         from .bench import bench_locomotion
 
         result = bench_locomotion(seed=seed)
+    elif what == "executor":
+        from .bench.executor import SUITES, bench_executor
+        from .ray_executor import executor_from_options
+        from .runner import plan_run
+
+        name = tracks[0] if tracks else "stairs"
+        executor_from_options("ray", None, 2, None, None)  # refused at once when Ray is not installed
+        result = bench_executor(plan_run(name, SUITES.get(name, "quick"), None, [seed]))
     else:
         from .bench.sim import bench_sim_tracks
 
@@ -421,7 +430,7 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
     if as_json:
         click.echo(json.dumps(json_safe(result), indent=2))
         return
-    if what in ("lidar", "locomotion", "sim"):  # one figure per line: exobench.static.ms_per_sweep ...
+    if what in ("lidar", "locomotion", "sim", "executor"):  # one figure per line: exobench.static.ms_per_sweep ...
         result = _flat(result)
     w = max(28, *(len(k) + 1 for k in result))
     for key, value in json_safe(result).items():

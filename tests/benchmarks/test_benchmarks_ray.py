@@ -139,3 +139,18 @@ def test_an_unreachable_address_is_refused_at_once_before_anything_is_written(tm
 def test_a_malformed_address_is_refused(address):
     with pytest.raises(ConfigError, match="--address"):
         RayExecutor(address=address)
+
+
+def test_bench_executor_times_the_pool_at_1_and_2_and_ray_on_the_same_records(executor, reg):
+    from exobench.benchmarks.bench.executor import bench_executor
+
+    plan = _plan(reg, pipelines=["fake"], seeds=[0, 1])
+    got = bench_executor(plan, ray_executor=executor)
+    n = len(plan.episodes)
+    assert got["episodes"] == n == 12 and got["records_identical"] is True
+    walls = got["wall_s"]
+    assert set(walls) == {"pool_1", "pool_2", "ray_2"} and all(w > 0 for w in walls.values())
+    assert got["episodes_per_s"]["pool_1"] == pytest.approx(n / walls["pool_1"])
+    assert got["pool_2_over_pool_1_speedup"] == pytest.approx(walls["pool_1"] / walls["pool_2"])
+    assert got["ray_overhead_s_per_episode"] == pytest.approx((walls["ray_2"] - walls["pool_2"]) / n)
+    assert ray.is_initialized()  # the executor it was given is left connected
