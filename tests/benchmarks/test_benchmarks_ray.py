@@ -154,3 +154,23 @@ def test_bench_executor_times_the_pool_at_1_and_2_and_ray_on_the_same_records(ex
     assert got["pool_2_over_pool_1_speedup"] == pytest.approx(walls["pool_1"] / walls["pool_2"])
     assert got["ray_overhead_s_per_episode"] == pytest.approx((walls["ray_2"] - walls["pool_2"]) / n)
     assert ray.is_initialized()  # the executor it was given is left connected
+
+
+def test_the_command_line_runs_a_suite_on_ray_and_says_so_in_run_config(executor, tmp_path, capsys):
+    out = tmp_path / "run"
+    with pytest.raises(SystemExit) as e:
+        main(["run", "quick", "--track", "stairs", "--pipeline", "rtls", "--executor", "ray", "--jobs", "2", "--out", str(out), "--no-report"])
+    assert e.value.code in (0, None), capsys.readouterr().err
+    config = json.loads((out / RUN_CONFIG_FILE).read_text())
+    assert config["executor"] == {"name": "ray", "address": None, "jobs": 2, "episode_cpus": 1.0, "episode_gpus": 0.0}
+    lines = (out / RESULTS_FILE).read_text().splitlines()
+    assert len(lines) == len(config["episodes"]) > 0 and not any(json.loads(x)["metrics"]["failed"] for x in lines)
+
+
+@pytest.mark.parametrize("option", [["--address", "h:1"], ["--episode-cpus", "2"], ["--episode-gpus", "0.5"]])
+def test_ray_options_without_the_ray_executor_are_refused(option, tmp_path, capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["run", "--track", "stairs", *option, "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.startswith(f"exobench: error: {option[0]}=") and "with --executor ray" in err
+    assert not (tmp_path / "run").exists()
