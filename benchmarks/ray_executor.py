@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import os
 import socket
+import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -181,6 +182,7 @@ def run_actors(
     cpus: float = 1.0,
     gpus: float = 0.0,
     wait_s: float = 0.5,
+    health_every_s: float = 5.0,
 ) -> None:
     """Run ``jobs`` on ``workers`` actors of an initialised Ray (see the module doc); results
     ready together are handed to ``finish`` in key order, as the pool does."""
@@ -198,6 +200,7 @@ def run_actors(
         actor = idle.pop() if idle else worker_cls.remote()
         running[actor.run.remote(work_ref, job)] = (actor, job, deaths)
 
+    checked = time.monotonic()
     try:
         while todo or retry or running:
             while idle and (retry or todo):
@@ -205,6 +208,11 @@ def run_actors(
                 submit(job, deaths)
             ready, _ = ray.wait(list(running), num_returns=1, timeout=wait_s)
             if not ready:
+                # with every node gone, nothing ever finishes and a new actor is never placed
+                if time.monotonic() - checked > health_every_s:
+                    checked = time.monotonic()
+                    if not _cluster_alive():
+                        raise ClusterLostError(_lost_text(RuntimeError("no node of the cluster is alive")))
                 continue
             ready, _ = ray.wait(list(running), num_returns=len(running), timeout=0)
             results = []

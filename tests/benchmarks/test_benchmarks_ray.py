@@ -4,10 +4,13 @@ serves the whole module and is shut down after it."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import socket
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -174,3 +177,55 @@ def test_ray_options_without_the_ray_executor_are_refused(option, tmp_path, caps
     err = capsys.readouterr().err
     assert e.value.code == 2 and err.startswith(f"exobench: error: {option[0]}=") and "with --executor ray" in err
     assert not (tmp_path / "run").exists()
+
+
+def _descendants(pid: int) -> dict[int, str]:
+    """pid -> command name of every process below ``pid``."""
+    procs = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:
+            continue
+        name, rest = text[text.index("(") + 1 : text.rindex(")")], text[text.rindex(")") + 2 :].split()
+        procs[int(stat.parent.name)] = (name, int(rest[1]))
+    out, frontier = {}, [pid]
+    while frontier:
+        parent = frontier.pop()
+        for p, (name, ppid) in procs.items():
+            if ppid == parent and p not in out:
+                out[p] = name
+                frontier.append(p)
+    return out
+
+
+def test_a_cluster_lost_mid_run_keeps_what_finished_and_resume_completes_it_on_the_pool(reg, tmp_path):
+    out = tmp_path / "run"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(HERE), str(HERE.parent), os.environ.get("PYTHONPATH")])))
+    child = subprocess.Popen([sys.executable, str(HERE / "ray_lost_child.py"), str(out)], env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)  # fmt: skip
+    seen: dict[int, str] = {}
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not ((out / RESULTS_FILE).exists() and (out / RESULTS_FILE).read_text()):
+            time.sleep(0.2)
+        seen.update(_descendants(child.pid))
+        raylets = [p for p, name in seen.items() if name == "raylet"]
+        assert raylets, "the child's Ray has no raylet"
+        for p in raylets:
+            os.kill(p, signal.SIGKILL)  # the only node of the child's cluster is gone
+        stdout, _ = child.communicate(timeout=120)
+    finally:
+        seen.update(_descendants(child.pid))
+        for p, name in seen.items():  # leave none of the child's Ray behind (a pid taken since by another is spared)
+            with contextlib.suppress(OSError, ValueError):
+                if name in Path(f"/proc/{p}/stat").read_text():
+                    os.kill(p, signal.SIGKILL)
+        child.kill()
+        child.wait()
+    assert child.returncode == 3 and "LOST: the Ray cluster was lost" in stdout, stdout
+    kept = [json.loads(x) for x in (out / RESULTS_FILE).read_text().splitlines()]
+    assert kept and not any(r["metrics"]["failed"] for r in kept)  # no unfinished episode recorded as failed
+    plan = _plan(reg, pipelines=["fake"])  # the same plan as the child's (SlowTrack is a FakeTrack)
+    resumed = execute(plan, out, resume=True, jobs=2)
+    assert len(resumed.skipped) == len(kept) and len(resumed.records) == len(plan.episodes)
