@@ -125,6 +125,19 @@ def test_a_lost_cluster_keeps_what_finished_and_records_nothing_as_failed(execut
     assert got == {"a": "done"}
 
 
+def _slow(job):
+    time.sleep(float(job))
+    return job, "done"
+
+
+def test_a_cluster_found_gone_while_waiting_stops_the_run_without_waiting_for_its_episodes(executor, monkeypatch):
+    monkeypatch.setattr(ray_executor, "_cluster_alive", lambda: False)  # as if every node had gone
+    t0 = time.monotonic()
+    with pytest.raises(ClusterLostError, match="no node of the cluster is alive"):
+        run_actors(["20"], 1, _slow, lambda *a: None, lambda j, why: (j, "lost"), health_every_s=0.5)
+    assert time.monotonic() - t0 < 15  # not the 20 s of the episode (nor forever: no node would run it)
+
+
 def test_an_unreachable_address_is_refused_at_once_before_anything_is_written(tmp_path, capsys):
     with socket.socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
