@@ -166,9 +166,6 @@ def _make_actor_class() -> Any:
         def run(self, work: Callable[[Any], tuple], job: Any) -> tuple:
             return work(job)
 
-        def pid(self) -> int:
-            return os.getpid()
-
     return ray.remote(max_restarts=0, max_task_retries=0)(EpisodeWorker)
 
 
@@ -215,7 +212,7 @@ def run_actors(
                         raise ClusterLostError(_lost_text(RuntimeError("no node of the cluster is alive")))
                 continue
             ready, _ = ray.wait(list(running), num_returns=len(running), timeout=0)
-            results = []
+            results, lost = [], None
             for ref in ready:
                 actor, job, deaths = running.pop(ref)
                 try:
@@ -224,7 +221,8 @@ def run_actors(
                 except (rx.ActorDiedError, rx.ActorUnavailableError, rx.WorkerCrashedError, rx.OutOfMemoryError) as e:
                     ray.kill(actor, no_restart=True)
                     if not _cluster_alive():
-                        raise ClusterLostError(_lost_text(e)) from None
+                        lost = ClusterLostError(_lost_text(e))
+                        continue
                     idle.append(worker_cls.remote())  # a fresh process in its place
                     if deaths == 0:
                         retry.append((job, 1))
@@ -233,9 +231,11 @@ def run_actors(
                 except rx.RayTaskError as e:  # a bug of the harness itself: let it show
                     raise e.as_instanceof_cause() from None
                 except (rx.RaySystemError, rx.GetTimeoutError, ConnectionError) as e:
-                    raise ClusterLostError(_lost_text(e)) from None
-            for result in sorted(results, key=lambda r: r[0]):
+                    lost = ClusterLostError(_lost_text(e))
+            for result in sorted(results, key=lambda r: r[0]):  # what finished is kept, even now
                 finish(*result)
+            if lost is not None:
+                raise lost
     finally:
         for actor in [a for a, _, _ in running.values()] + idle:
             try:
