@@ -214,7 +214,8 @@ def _descendants(pid: int) -> dict[int, str]:
 
 def test_a_cluster_lost_mid_run_keeps_what_finished_and_resume_completes_it_on_the_pool(reg, tmp_path):
     out = tmp_path / "run"
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(HERE), str(HERE.parent), os.environ.get("PYTHONPATH")])))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(HERE), str(HERE.parent), os.environ.get("PYTHONPATH")])),
+               RAY_health_check_period_ms="500", RAY_health_check_failure_threshold="2")  # the dead node found in ~1 s, not ~15
     child = subprocess.Popen([sys.executable, str(HERE / "ray_lost_child.py"), str(out)], env=env,
                              stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)  # fmt: skip
     seen: dict[int, str] = {}
