@@ -99,7 +99,11 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.option("--seed", type=int, default=None, help="Run seed (default 0).")
 @click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
-@click.option("--jobs", type=int, default=1, show_default=True, help="Episodes in parallel processes.")
+@click.option("--jobs", type=int, default=None, help="Episodes at once: processes of the local pool (default 1: in this process), or Ray tasks (default: the cluster's CPUs).")
+@click.option("--executor", type=click.Choice(["local", "ray"]), default="local", show_default=True, help="Where episodes run: this machine (--jobs processes) or Ray (optional extra `ray`).")
+@click.option("--address", default=None, help="Ray: the head's host:port (or ray://host:port); default: start a local Ray.")
+@click.option("--episode-cpus", type=float, default=None, help="Ray: CPUs each episode reserves (default 1).")
+@click.option("--episode-gpus", type=float, default=None, help="Ray: GPU fraction each episode reserves, for tracks that render (default 0).")
 @click.option("--out", type=click.Path(), default=None, help="Run folder (default runs/<track>-<suite>-<time>; with --track all, one subfolder per track).")
 @click.option("--resume", is_flag=True, help="Continue the run in --out DIR with the settings stored there, skipping finished episodes.")
 @click.option("--rerun", "rerun_path", type=click.Path(), default=None, help="Also write the first episode as a rerun .rrd (with --track all, one per track: NAME-<track>.rrd).")
@@ -111,7 +115,11 @@ def run(
     seed: int | None,
     seeds: int | None,
     assignments: tuple[str, ...],
-    jobs: int,
+    jobs: int | None,
+    executor: str,
+    address: str | None,
+    episode_cpus: float | None,
+    episode_gpus: float | None,
     out: str | None,
     resume: bool,
     rerun_path: str | None,
@@ -124,14 +132,17 @@ def run(
     run_config.json, or run_all.json of a run of every track); options given with it must match."""
     from exobench.core.errors import ConfigError, FolderError
 
-    from .out_paths import check_out_dir, check_out_file, exclusive_lock
+    from .out_paths import check_out_dir, check_out_file
     from .overrides import parse_assignments
-    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, run_all_config, write_json_atomic
+    from .ray_executor import connected, executor_from_options
+    from .results import RUN_CONFIG_FILE
     from .runner import check_resume, plan_run
     from .tracks import track_names
 
-    if jobs < 1:
+    if jobs is not None and jobs < 1:
         raise ConfigError("--jobs", jobs, "--jobs >= 1")
+    ray_ex = executor_from_options(executor, address, jobs, episode_cpus, episode_gpus)
+    jobs = jobs or 1
     if resume and out is None:
         raise ConfigError("--resume", True, "--resume together with --out DIR of the run to continue")
     run_seeds = _seeds(seed, seeds)
@@ -156,7 +167,8 @@ def run(
         check_out_dir("--out", out)
         if rerun_path is not None:
             check_out_file("--rerun", rerun_path)
-        errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report))
+        with connected(ray_ex):
+            errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report, ray_ex), ray_ex)
         _exit_on_harness_errors(errors)
         return
     if pipelines or overrides:
@@ -178,8 +190,19 @@ def run(
     elif root.is_dir() and _has_files(root):
         again = " (or --resume to continue the run in it)" if _stored_settings(str(root), must=False) else ""
         raise ConfigError("--out", str(root), f"a new or empty folder{again}")
-    hint = _continue_command(str(root), jobs, rerun_path, no_report)
-    root.mkdir(parents=True, exist_ok=True)
+    hint = _continue_command(str(root), jobs, rerun_path, no_report, ray_ex)
+    with connected(ray_ex):
+        root.mkdir(parents=True, exist_ok=True)
+        errors = _run_all(plans, root, names, suite, run_seeds, jobs, resume, rerun_path, no_report, hint, ray_ex)
+    _exit_on_harness_errors(errors)
+
+
+def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, run_seeds: list[int], jobs: int,
+             resume: bool, rerun_path: str | None, no_report: bool, hint: str, ray_ex: Any) -> list[str]:
+    """Run every track's plan into its folder of ``root`` (a run of every track)."""
+    from .out_paths import exclusive_lock
+    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, run_all_config, write_json_atomic
+
     errors: list[str] = []
     with exclusive_lock(root, "run"):
         if not resume:  # what `--resume --out ROOT` reads to continue every track
@@ -190,8 +213,8 @@ def run(
             folder = root / plan.track.name
             # tracks not started yet get their folders; finished and interrupted ones are continued
             started = resume and (folder / RUN_CONFIG_FILE).exists()
-            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, last=plan is plans[-1])
-    _exit_on_harness_errors(errors)
+            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, ray_ex, last=plan is plans[-1])
+    return errors
 
 
 def _has_files(folder: Path) -> bool:
@@ -226,12 +249,17 @@ def _stored_settings(out: str, *, must: bool = True) -> dict[str, Any]:
     raise ConfigError("--out", out, f"a run folder to resume: with {RUN_CONFIG_FILE} (one track) or {RUN_ALL_FILE} (every track)")
 
 
-def _continue_command(out: str, jobs: int, rerun_path: str | None, no_report: bool) -> str:
-    """The command that continues this run: its settings are read back from the folder."""
+def _continue_command(out: str, jobs: int, rerun_path: str | None, no_report: bool, ray_ex: Any = None) -> str:
+    """The command that continues this run: its settings are read back from the folder (any
+    executor can continue it; this one names the run's own)."""
     import shlex
 
     words = ["exobench", "run", "--resume", "--out", str(out)]
-    words += ["--jobs", str(jobs)] if jobs != 1 else []
+    if ray_ex is not None:
+        words += ["--executor", "ray", *(["--address", ray_ex.address] if ray_ex.address else [])]
+        words += ["--jobs", str(ray_ex.jobs)] if ray_ex.jobs else []
+    else:
+        words += ["--jobs", str(jobs)] if jobs != 1 else []
     words += ["--rerun", rerun_path] if rerun_path else []
     words += ["--no-report"] if no_report else []
     return shlex.join(words)
@@ -248,7 +276,8 @@ def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160)
 
 
 def _run_plan(
-    plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool, hint: str, last: bool = True
+    plan: Any, out_dir: str, jobs: int, resume: bool, rerun_path: str | None, no_report: bool, hint: str,
+    ray_ex: Any = None, last: bool = True,
 ) -> list[str]:
     """Execute one validated plan with a progress bar; print its table and where it went.
     ``hint`` is the command that continues the run; ``last``: no track of the run comes after
@@ -256,7 +285,7 @@ def _run_plan(
     :func:`runner.harness_errors`)."""
     from tqdm import tqdm
 
-    from exobench.core.errors import FolderError
+    from exobench.core.errors import ExobenchError, FolderError
 
     from .runner import execute
 
@@ -271,7 +300,7 @@ def _run_plan(
         bar["tqdm"].update(1)
 
     try:
-        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode)
+        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode, executor=ray_ex)
         bar["tqdm"].close()
         bar["finished"] = True
         return _finish_plan(plan, outcome, out_dir, rerun_path, no_report, hint, last)
@@ -280,8 +309,9 @@ def _run_plan(
             bar["tqdm"].close()
         click.echo(f"exobench: interrupted; finished episodes are kept in {out_dir} (continue: {hint})", err=True)
         sys.exit(EXIT_INTERRUPTED)
-    except FolderError as e:
-        if "tqdm" not in bar or "finished" in bar:
+    except ExobenchError as e:
+        lost = type(e).__name__ == "ClusterLostError"  # the Ray cluster went away mid-run
+        if not (isinstance(e, FolderError) or lost) or "tqdm" not in bar or "finished" in bar:
             raise  # refused before anything ran, or a report's error that says what to do
 
         bar["tqdm"].close()  # a write failed during the run (disk full)
@@ -340,16 +370,17 @@ def list_() -> None:
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion"]))
+@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion", "executor"]))
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
-@click.option("--track", "tracks", multiple=True, help="sim: a track whose paper episode to break down (repeatable; default: every track).")
+@click.option("--track", "tracks", multiple=True, help="sim: a track whose paper episode to break down (repeatable; default: every track); executor: the track whose suite to time (default stairs: its paper suite).")
 def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tuple[str, ...]) -> None:
     """Time the RTLS update against a batch refit (rtls), the simulator (sim: the stairs real-time
     factor, and per track a paper episode cut short: time per stage and pipeline, peak memory),
     the LiDAR (lidar) or the locomotion track at 640x480 (locomotion: latency per prediction,
-    TSDF and rendering fps)."""
+    TSDF and rendering fps) or the executors (executor: episodes per second of the stairs paper
+    suite on the pool at 1 and 2 workers and on a local Ray at 2, Ray's overhead per episode)."""
     from exobench.core.errors import ConfigError
 
     from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
@@ -358,8 +389,8 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
 
     if session and what != "rtls":
         raise ConfigError("--session", session, "bench rtls only")
-    if tracks and what != "sim":
-        raise ConfigError("--track", ",".join(tracks), "bench sim only")
+    if tracks and what not in ("sim", "executor") or (what == "executor" and len(tracks) > 1):
+        raise ConfigError("--track", ",".join(tracks), "bench sim (any number) or bench executor (one)")
     for name in tracks:
         get_track(name)  # an unknown name is refused before anything runs
     if what == "rtls":
@@ -379,6 +410,14 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
         from .bench import bench_locomotion
 
         result = bench_locomotion(seed=seed)
+    elif what == "executor":
+        from .bench.executor import SUITES, bench_executor
+        from .ray_executor import executor_from_options
+        from .runner import plan_run
+
+        name = tracks[0] if tracks else "stairs"
+        executor_from_options("ray", None, 2, None, None)  # refused at once when Ray is not installed
+        result = bench_executor(plan_run(name, SUITES.get(name, "quick"), None, [seed]))
     else:
         from .bench.sim import bench_sim_tracks
 
@@ -391,7 +430,7 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
     if as_json:
         click.echo(json.dumps(json_safe(result), indent=2))
         return
-    if what in ("lidar", "locomotion", "sim"):  # one figure per line: exobench.static.ms_per_sweep ...
+    if what in ("lidar", "locomotion", "sim", "executor"):  # one figure per line: exobench.static.ms_per_sweep ...
         result = _flat(result)
     w = max(28, *(len(k) + 1 for k in result))
     for key, value in json_safe(result).items():
@@ -522,6 +561,52 @@ def _report_folder(folder: Path) -> None:
     records = sort_records(read_records(folder / RESULTS_FILE), names)
     click.echo(summary_text(records, get_track(config["track"]), names, config["episodes"]))
     click.echo(f"report: {write_report(folder)}")
+
+
+@cli.command()
+@click.argument("run_a", type=click.Path(file_okay=False))
+@click.argument("run_b", type=click.Path(file_okay=False))
+@click.option("--threshold", type=float, default=0.05, show_default=True,
+              help="A change is flagged when its whole 95 % interval is beyond this fraction of A's mean (0: any significant change).")
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object per comparison.")
+def compare(run_a: str, run_b: str, threshold: float, as_json: bool) -> None:
+    """Compare run B against run A (same tracks and suites): per track, group, pipeline and
+    headline metric, B - A with its 95 % confidence interval (paired t over the episodes both
+    have; Welch's t where none pair). Exit status 1 when a headline metric is worse beyond
+    --threshold, so a CI can gate on it."""
+    import dataclasses
+
+    from .compare import compare_folders, format_comparisons
+    from .results import json_safe
+
+    changes, comps, digits = compare_folders(run_a, run_b, threshold)
+    if as_json:
+        for c in comps:
+            click.echo(json.dumps(json_safe(dataclasses.asdict(c))))
+    else:
+        click.echo("\n".join([*changes, format_comparisons(comps, digits)]))
+    worse = [c for c in comps if c.verdict == "worse"]
+    if worse:
+        first = "; ".join(f"{c.track} {c.group} {c.pipeline} {c.metric}" for c in worse[:3])
+        more = f" (and {len(worse) - 3} more)" if len(worse) > 3 else ""
+        click.echo(f"exobench: {len(worse)} headline comparisons worse beyond the threshold {threshold:g}: {first}{more}", err=True)
+        sys.exit(EXIT_FAILED)
+
+
+@cli.command()
+@click.argument("runs", nargs=-1, required=True, type=click.Path(file_okay=False))
+@click.option("--out", default="leaderboard", show_default=True, type=click.Path(), help="Folder of leaderboard.md and its figures.")
+def leaderboard(runs: tuple[str, ...], out: str) -> None:
+    """Rank the pipelines of RUNS... per track on its headline metrics, beside the published
+    figures: OUT/leaderboard.md (printed too) and a figure per track, with the versions and
+    configs that produced each entry."""
+    from .leaderboard import write_leaderboard
+    from .out_paths import check_out_dir
+
+    check_out_dir("--out", out)
+    path = write_leaderboard(runs, out)
+    click.echo(path.read_text())
+    click.echo(f"leaderboard: {path}")
 
 
 def main(argv: list[str] | None = None) -> None:

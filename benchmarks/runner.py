@@ -17,6 +17,9 @@ Two steps, so that nothing touches the disk until everything is valid:
   (:func:`exobench.core.counters.count_metrics`), the same in every track.
   With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them. The worker pool
   (:mod:`.pool`) retries the episode of a worker that died once, then records it as failed.
+  An ``executor`` (:class:`.ray_executor.RayExecutor`) runs the same unit of work elsewhere
+  under the same contract; ``run_config.json`` records which executor ran (``executor``), and
+  a resume may use any.
 
 Episode seeds are derived from the run seed and the case name, so a case keeps its seed when a
 suite grows, and ``--jobs N`` gives the same results as ``--jobs 1``.
@@ -424,7 +427,7 @@ def _holds_only_lock(out: Path) -> bool:
     return all(p.name == LOCK_FILE for p in out.iterdir())
 
 
-def prepare_output(out_dir: str | os.PathLike, plan: RunPlan, *, resume: bool) -> Path:
+def prepare_output(out_dir: str | os.PathLike, plan: RunPlan, *, resume: bool, executor: dict[str, Any] | None = None) -> Path:
     """Check the run folder (resuming: its run_config.json matches the plan, its results can be
     appended to; else: it is new or empty) and write run_config.json. Call it holding the
     folder's lock (see :func:`execute`); it runs nothing."""
@@ -448,7 +451,7 @@ def prepare_output(out_dir: str | os.PathLike, plan: RunPlan, *, resume: bool) -
     if not _holds_only_lock(out):
         again = " (or --resume to continue the run in it)" if (out / RUN_CONFIG_FILE).exists() else ""
         raise ConfigError("--out", str(out), f"a new or empty folder{again}")
-    write_json_atomic(out / RUN_CONFIG_FILE, plan.run_config())
+    write_json_atomic(out / RUN_CONFIG_FILE, {**plan.run_config(), **({"executor": executor} if executor else {})})
     return out
 
 
@@ -475,8 +478,13 @@ def execute(
     resume: bool = False,
     on_start: Callable[[int, int], None] | None = None,
     on_episode: Callable[[str, list[dict[str, Any]]], None] | None = None,
+    executor: Any = None,
 ) -> RunOutcome:
     """Run the plan into ``out_dir`` (see the module docstring).
+
+    ``executor``: None runs the episodes in this process (``jobs`` 1) or the local pool; else
+    an object with ``run(jobs, work, finish, on_lost)`` and ``describe()`` (a connected
+    :class:`.ray_executor.RayExecutor`), which gets every episode, whatever ``jobs`` says.
 
     One writer per run folder: the folder's lock (:func:`.out_paths.exclusive_lock`) is held
     for the whole run, and a second writer gets FolderError before anything runs.
@@ -497,8 +505,9 @@ def execute(
             prepare_output(out, plan, resume=False)
         out.mkdir(parents=True, exist_ok=True)
     with exclusive_lock(out, "run"):
-        prepare_output(out, plan, resume=resume)
-        return _execute(plan, out, jobs, on_start, on_episode)
+        used = executor.describe() if executor is not None else {"name": "local" if jobs == 1 else "pool", "jobs": jobs}
+        prepare_output(out, plan, resume=resume, executor=used)
+        return _execute(plan, out, jobs, on_start, on_episode, executor)
 
 
 def _execute(
@@ -507,6 +516,7 @@ def _execute(
     jobs: int,
     on_start: Callable[[int, int], None] | None,
     on_episode: Callable[[str, list[dict[str, Any]]], None] | None,
+    executor: Any = None,
 ) -> RunOutcome:
     results = out / RESULTS_FILE
     done = {r["episode"] for r in read_records(results)}
@@ -528,7 +538,9 @@ def _execute(
         if on_episode:
             on_episode(key, records)
 
-    if jobs == 1 or len(job_list) <= 1:
+    if executor is not None:
+        executor.run(job_list, _run_job, finish, _failed_job)
+    elif jobs == 1 or len(job_list) <= 1:
         for job in job_list:
             finish(*_run_job(job))
     else:

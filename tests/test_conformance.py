@@ -52,6 +52,7 @@ from exobench.benchmarks.registry import build_registry
 from exobench.benchmarks.results import json_safe
 from exobench.benchmarks.runner import PipelineRun, run_pipelines, untimed_metrics
 from exobench.benchmarks.tracks.registry import build_track_registry
+from exobench.benchmarks.tracks.spec import headline_rows
 from exobench.core.counters import FrameCounts, stream_rates
 from exobench.core.errors import FrameTypeError, PipelineStateError, UnknownNameError
 from exobench.core.faults import STREAM_FAULTS, inject_faults, inject_stream_faults, n_absurd_points
@@ -358,6 +359,19 @@ def test_track_summary_rows_and_references_resolve(name):
         assert ref.metric in rows, f"{name}: reference to {ref.metric!r}, which no summary row shows"
         assert set(ref.pipelines) <= set(pipes), f"{name}: reference to pipelines {sorted(set(ref.pipelines) - set(pipes))}"
         assert set(ref.groups) <= groups, f"{name}: reference to groups {sorted(set(ref.groups) - groups)}"
+
+
+@pytest.mark.parametrize("name", TRACKS)
+def test_track_marks_its_headline_metrics_and_which_way_is_better(name):
+    track = _track(name)
+    headline = tuple(getattr(track, "headline_metrics", ()))
+    assert headline, f"{name}: no headline_metrics (what compare and leaderboard rank on)"
+    marked = [r for r in track.summary_rows() if r.better]
+    assert all(r.better in ("higher", "lower") for r in marked)
+    assert sorted(r.metric for r in marked) == sorted(headline), (
+        f"{name}: headline metrics {sorted(headline)} need one summary row each with better='higher' or 'lower'; "
+        f"marked: {sorted(r.metric for r in marked)}")
+    assert [r.metric for r in headline_rows(track)] == list(headline)
 
 
 # ------------------------------------------------------------------ sensor kinds

@@ -14,7 +14,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SKIP_DIRS = {".venv", ".git", "__pycache__", "build", "dist"}
-OUTPUTS = {"report.md"}  # files exobench writes into a run folder, not part of the repository
+OUTPUTS = {"report.md", "leaderboard.md"}  # files exobench writes (a run folder, a leaderboard), not part of the repository
 MD = re.compile(r"[\w./-]*[\w-]+\.md\b")
 PY = re.compile(r"`{1,2}([\w./-]*\w\.py)`{1,2}")
 

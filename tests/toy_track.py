@@ -50,6 +50,7 @@ class ToyScaleTrack:
     scoring_keys: ClassVar[frozenset[str]] = frozenset()
     smoke_scenario: ClassVar[Mapping[str, Any]] = {"duration_s": 1.5}
     timing_metrics: ClassVar[frozenset[str]] = frozenset()
+    headline_metrics: ClassVar[tuple[str, ...]] = ("mass_error_kg",)
     report_intro: ClassVar[str] = "A toy track: its reference figure is invented."
 
     def params(self) -> list[ParamInfo]:
@@ -98,7 +99,7 @@ class ToyScaleTrack:
         return [Reference("mass_error_kg", "< 5", "invented for the toy", value=5.0, bound="<")]
 
     def summary_rows(self) -> list[SummaryRow]:
-        return [SummaryRow("mass_error_kg", "mass error (kg)", absolute=True)]
+        return [SummaryRow("mass_error_kg", "mass error (kg)", absolute=True, better="lower")]
 
     def figure_data(self, episode: Episode, estimates: dict[str, Any], scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         pads = [f for f in episode.frames if isinstance(f, ContactSample)]

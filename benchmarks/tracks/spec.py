@@ -125,6 +125,10 @@ class SummaryRow:
     """A metric row of the summary table.
 
     ``scale`` converts the stored SI value to the shown unit; ``absolute`` shows |x|.
+    ``better`` marks the row of a headline metric (one of ``track.headline_metrics``):
+    ``"higher"`` or ``"lower"``, said of the value shown (|x| for an ``absolute`` row); empty
+    for every other row. ``exobench compare`` and ``exobench leaderboard`` rank and gate on
+    these rows (:func:`headline_rows`).
     """
 
     metric: str
@@ -133,6 +137,25 @@ class SummaryRow:
     absolute: bool = False
     digits: int = 2
     terminal: bool = True
+    better: str = ""
+
+    def __post_init__(self) -> None:
+        if self.better not in BETTER:
+            raise ValueError(f"SummaryRow {self.metric!r}: better={self.better!r}, allowed: {', '.join(map(repr, BETTER))}")
+
+    def shown(self, value: float) -> float:
+        """A stored value in the row's unit and sign (what the table shows)."""
+        return abs(value * self.scale) if self.absolute else value * self.scale
+
+
+BETTER = ("", "higher", "lower")
+
+
+def headline_rows(track: Any) -> list[SummaryRow]:
+    """The summary rows marked ``better`` of the track's ``headline_metrics``, in that order;
+    a headline metric without such a row is left out (the conformance tests require one)."""
+    marked = {r.metric: r for r in track.summary_rows() if r.better}
+    return [marked[m] for m in getattr(track, "headline_metrics", ()) if m in marked]
 
 
 @runtime_checkable
@@ -141,9 +164,10 @@ class Track(Protocol):
 
     Optional member (not required of a track class, so tracks written before it still load):
     ``headline_metrics: ClassVar[tuple[str, ...]]``, the metric keys that say how good an
-    estimate is. A record with none of them finite scored nothing, and the runner fails it
-    with that reason (:func:`exobench.benchmarks.runner.unscored_reason`), so an estimate that
-    could not be scored is never counted as a result.
+    estimate is, each with one summary row that says whether higher or lower is better
+    (:attr:`SummaryRow.better`). A record with none of them finite scored nothing, and the
+    runner fails it with that reason (:func:`exobench.benchmarks.runner.unscored_reason`), so
+    an estimate that could not be scored is never counted as a result.
     """
 
     name: ClassVar[str]

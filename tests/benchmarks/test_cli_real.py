@@ -74,7 +74,7 @@ def test_bench_commands_report_json():
     bad = CliRunner().invoke(cli, ["bench", "sim", "--track", "nope"])
     assert bad.exit_code == 2 and "nope" in bad.stderr
     bad = CliRunner().invoke(cli, ["bench", "lidar", "--track", "stairs"])
-    assert bad.exit_code == 2 and "bench sim only" in bad.stderr
+    assert bad.exit_code == 2 and "bench sim (any number) or bench executor (one)" in bad.stderr
 
 
 def test_interrupted_run_says_how_to_resume(tmp_path, monkeypatch):

@@ -143,15 +143,15 @@ def quick_cases() -> list[Case]:
 
 
 SUMMARY_ROWS = [
-    SummaryRow("accuracy", "accuracy (%)", scale=100),
+    SummaryRow("accuracy", "accuracy (%)", scale=100, better="higher"),
     *(SummaryRow(f"accuracy_{m}", f"accuracy {m} (%)", scale=100) for m in LOCOMOTION_MODES),
-    SummaryRow("transition_accuracy", "transition steps right (%)", scale=100, digits=1),
-    SummaryRow("anticipation_s", "anticipation (s)", digits=3),
+    SummaryRow("transition_accuracy", "transition steps right (%)", scale=100, digits=1, better="higher"),
+    SummaryRow("anticipation_s", "anticipation (s)", digits=3, better="higher"),
     SummaryRow("anticipation_min_s", "anticipation, shortest (s)", digits=3, terminal=False),
     *(SummaryRow(f"anticipation_s_{a}_{b}", f"anticipation {a}->{b} (s)", digits=3, terminal=False) for a, b in TRANSITION_TYPES),
     SummaryRow("latency_ms_median", "latency median (ms)", digits=1),
     SummaryRow("latency_ms_p95", "latency p95 (ms)", digits=1, terminal=False),
-    SummaryRow("footprint_error_m", "footprint error (m)", digits=3),
+    SummaryRow("footprint_error_m", "footprint error (m)", digits=3, better="lower"),
     SummaryRow("n_steps", "steps", digits=1, terminal=False),
     SummaryRow("n_undecided", "steps without a mode", digits=2),
     SummaryRow("n_stale_decisions", "decisions before the last strike was seen", digits=2, terminal=False),

@@ -86,9 +86,9 @@ TABLE_5_5 = {  # sequence -> (SC++, GSC height, GSC Huber) max recall at 100 % p
 }  # fmt: skip
 
 SUMMARY_ROWS = [
-    SummaryRow("max_recall_at_full_precision", "max recall at 100 % precision (%)", scale=100, digits=1),
-    SummaryRow("pr_auc", "PR AUC", digits=3),
-    SummaryRow("best_f1", "best F1", digits=3),
+    SummaryRow("max_recall_at_full_precision", "max recall at 100 % precision (%)", scale=100, digits=1, better="higher"),
+    SummaryRow("pr_auc", "PR AUC", digits=3, better="higher"),
+    SummaryRow("best_f1", "best F1", digits=3, better="higher"),
     SummaryRow("time_per_keyframe_ms", "time per keyframe (ms)", digits=1),
     SummaryRow("n_keyframes", "keyframes", digits=0),
     SummaryRow("n_revisits", "keyframes with a true loop", digits=0),

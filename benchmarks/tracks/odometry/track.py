@@ -68,11 +68,11 @@ TABLE_5_3 = {  # pipeline -> metric -> values per VBR sequence (m)
 }
 
 SUMMARY_ROWS = [
-    SummaryRow("ate_m", "ATE RMSE (m)", digits=3),
-    SummaryRow("rpe_m", "RPE RMSE, consecutive (m)", digits=4),
+    SummaryRow("ate_m", "ATE RMSE (m)", digits=3, better="lower"),
+    SummaryRow("rpe_m", "RPE RMSE, consecutive (m)", digits=4, better="lower"),
     SummaryRow("rpe_1m_m", "RPE RMSE, 1 m (m)", digits=3, terminal=False),
-    SummaryRow("drift_per_m", "drift (% of path)", scale=100, digits=2),
-    SummaryRow("te_m", "loop TE (m)", digits=3),
+    SummaryRow("drift_per_m", "drift (% of path)", scale=100, digits=2, better="lower"),
+    SummaryRow("te_m", "loop TE (m)", digits=3, better="lower"),
     SummaryRow("oe_rad", "loop OE (rad)", digits=4),
     SummaryRow("tve_x_m", "loop TVE x (m)", digits=3, absolute=True, terminal=False),
     SummaryRow("tve_y_m", "loop TVE y (m)", digits=3, absolute=True, terminal=False),
