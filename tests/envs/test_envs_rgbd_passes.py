@@ -174,3 +174,20 @@ def test_with_shadows_colour_depth_and_geom_ids_are_those_of_the_baseline(stairs
     np.testing.assert_array_equal(f.depth_m, g.depth_m)
     np.testing.assert_array_equal(t["depth_m"], u["depth_m"])
     np.testing.assert_array_equal(t["geom_id"], u["geom_id"])
+
+
+def test_a_model_without_multisampling_renders_both_passes_in_one_context():
+    scene = worlds.compose(worlds.build_staircase(worlds.StaircaseParams(position_m=(1.0, 0.0))), ExoSpec())
+    model = scene.model
+    model.vis.quality.offsamples = 0
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    config = RgbdConfig(width_px=96, height_px=72)
+    with RgbdCamera("rgbd_chest", config, model, seed=2, segmentation=True) as cam, \
+            ThreePassCamera("rgbd_chest", config, model, seed=2) as ref:  # fmt: skip
+        assert cam.renderer._depth_con is cam.renderer._con and cam.renderer._con.offSamples == 0
+        (f, t), (g, u) = cam.capture(model, data, 0.0), ref.capture(model, data, 0.0)
+    np.testing.assert_array_equal(f.rgb, g.rgb)
+    np.testing.assert_array_equal(f.depth_m, g.depth_m)
+    np.testing.assert_array_equal(t["geom_id"], u["geom_id"])
+    cam.close()  # closing twice frees nothing twice
