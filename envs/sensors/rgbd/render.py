@@ -25,8 +25,8 @@ segmentation and colour modes, bit for bit, from two passes instead of three:
    resolving them (half the pass's time);
 2. the colour pass, in a context with the model's buffer (multisampled, with the shadow map).
    Its own depth buffer cannot stand in for pass 1's: the colour pass is multisampled (the
-   resolved depth differs in the last bits) and draws the skybox at 0.7 of the far plane,
-   where pass 1 leaves no surface.
+   resolve takes a sample off the pixel centre: the depth differs in the last bits on every
+   surface pixel) and draws the skybox at 0.7 of the far plane, where pass 1 leaves no surface.
 
 Both contexts live in one GL context (``mjr_render`` draws into whichever buffer is bound, so
 each pass binds its own first). The off-screen buffers are made exactly the image's size (the
