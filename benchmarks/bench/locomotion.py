@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import hashlib
 import time
-from contextlib import nullcontext
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager, nullcontext
 from typing import Any
 
 import numpy as np
@@ -84,12 +85,57 @@ def _rgbd_digest(episode: Episode) -> str:
     return h.hexdigest()
 
 
+@contextmanager
+def render_stage_clock(cpu_s: dict[str, float], calls: dict[str, int]) -> Iterator[None]:
+    """Within the block, each RGB-D frame's stages add their CPU time (``time.process_time``:
+    every thread of the process, llvmpipe's included) to ``cpu_s`` and their calls to ``calls``:
+    ``scene`` (``mjv_updateScene``), ``depth_pass`` and ``colour_pass`` (``mjr_render`` and
+    ``mjr_readPixels`` of each: llvmpipe draws when the pixels are read), ``depth_to_metres``
+    and ``noise`` (the depth model)."""
+    import mujoco
+
+    from exobench.envs.sensors.rgbd.model import RgbdCamera
+    from exobench.envs.sensors.rgbd.render import RgbdRenderer
+
+    segment = int(mujoco.mjtRndFlag.mjRND_SEGMENT)
+
+    def clocked(fn: Callable[..., Any], stage: Callable[..., str]) -> Callable[..., Any]:
+        def call(*args: Any) -> Any:
+            name = stage(*args)
+            t0 = time.process_time()
+            try:
+                return fn(*args)
+            finally:
+                cpu_s[name] = cpu_s.get(name, 0.0) + time.process_time() - t0
+                calls[name] = calls.get(name, 0) + 1
+
+        return call
+
+    patches: list[tuple[Any, str, Callable[..., str]]] = [
+        (mujoco, "mjv_updateScene", lambda *a: "scene"),
+        (mujoco, "mjr_render", lambda rect, scene, con: "depth_pass" if scene.flags[segment] else "colour_pass"),
+        (mujoco, "mjr_readPixels", lambda rgb, depth, rect, con: "depth_pass" if depth is not None else "colour_pass"),
+        (RgbdRenderer, "_metric_depth", lambda *a: "depth_to_metres"),
+        (RgbdCamera, "measure", lambda *a: "noise"),
+    ]  # fmt: skip
+    saved = [(owner, name, getattr(owner, name)) for owner, name, _ in patches]
+    try:
+        for owner, name, stage in patches:
+            setattr(owner, name, clocked(getattr(owner, name), stage))
+        yield
+    finally:
+        for owner, name, fn in saved:
+            setattr(owner, name, fn)
+
+
 def _episode_rgbd_rate(seed: int, repeats: int) -> dict[str, Any]:
     """RGB-D frames per CPU-second (``time.process_time`` around the whole simulation: motion,
     IMU, odometry and the camera) of the locomotion quick suite's first case at 30 Hz, rendered
     by the two-pass renderer and by the three-pass baseline, alternately, ``repeats`` times each
     (the least CPU time of each counts); ``speedup`` is their ratio, ``identical_frames`` whether
-    the two gave the same images bit for bit."""
+    the two gave the same images bit for bit. ``cpu_ms_per_frame_two_pass``: one more two-pass
+    run, untimed in the above, with each frame's stages clocked (:func:`render_stage_clock`;
+    ``other``: the rest of the simulation, per RGB-D frame)."""
     from ..tracks.locomotion import LocomotionTrack
     from ..tracks.locomotion.track import quick_cases
     from .render_baseline import three_pass_rendering
@@ -110,12 +156,19 @@ def _episode_rgbd_rate(seed: int, repeats: int) -> dict[str, Any]:
                 cpu[name].append(time.process_time() - t0)
             digest[name] = _rgbd_digest(episode)
             frames = sum(frame_kind(f) == "rgbd" for f in episode.frames)
+    stages: dict[str, float] = {}
+    with render_stage_clock(stages, {}):
+        t0 = time.process_time()
+        track.simulate(scenario, seed)
+        total = time.process_time() - t0
+    stages["other"] = total - sum(stages.values())
     best = {k: min(v) for k, v in cpu.items()}
     return {
         "case": case.name, "rate_hz": EPISODE_RATE_HZ, "image_px": f"{scenario['width_px']}x{scenario['height_px']}",
         "rgbd_frames": frames, "cpu_s_two_pass": best["two_pass"], "cpu_s_three_pass": best["three_pass"],
         "frames_per_cpu_s_two_pass": frames / best["two_pass"], "frames_per_cpu_s_three_pass": frames / best["three_pass"],
         "speedup": best["three_pass"] / best["two_pass"], "identical_frames": digest["two_pass"] == digest["three_pass"],
+        "cpu_ms_per_frame_two_pass": {k: 1e3 * v / max(1, frames) for k, v in stages.items()},
     }  # fmt: skip
 
 
@@ -189,8 +242,8 @@ def bench_locomotion(seed: int = 0, *, repeats: int = 2, pipelines: tuple[str, .
     - ``latency``: median / p95 ``latency_s`` per prediction of each pipeline on that episode
       (all predictions; ``_ok`` only those with status ok);
     - ``episode_rgbd``: RGB-D frames per CPU-second of a whole 30 Hz episode (the quick suite's
-      first case) with two render passes a frame against the three of before
-      (:func:`_episode_rgbd_rate`).
+      first case) with two render passes a frame against the three of before, and where the
+      CPU time of a frame goes (:func:`_episode_rgbd_rate`).
     """
     from ..tracks.locomotion import LocomotionTrack
 

@@ -138,3 +138,56 @@ def test_a_recording_renders_geom_ids_only_for_a_consumer(monkeypatch):
         ref = simulate_locomotion(LocomotionScenario.from_dict(COURSE), 2)
     np.testing.assert_array_equal(walk.truth.extra["pedestrian_pixel_fraction"], ref.truth.extra["pedestrian_pixel_fraction"])
     assert walk.truth.extra["pedestrian_pixel_fraction"].max() > 0.01
+
+
+def test_the_depth_pass_draws_single_sample_and_the_colour_pass_with_the_models_samples(stairs, monkeypatch):
+    """MuJoCo draws the segmentation-mode pass with multisampling off, so the depth pass gets a
+    single-sample buffer without a shadow map (nothing to resolve); the colour pass keeps the
+    model's multisampled buffer and its shadow map, each exactly the image's size."""
+    model, data = stairs
+    config = RgbdConfig(width_px=160, height_px=120)
+    seen = []
+    render = mujoco.mjr_render
+    segment = int(mujoco.mjtRndFlag.mjRND_SEGMENT)
+
+    def spy(rect, scene, con):
+        seen.append((bool(scene.flags[segment]), con.offSamples, bool(con.shadowFBO), con.offWidth, con.offHeight))
+        return render(rect, scene, con)
+
+    monkeypatch.setattr(mujoco, "mjr_render", spy)
+    with RgbdCamera("rgbd_chest", config, model, seed=0, segmentation=True) as cam:
+        for k in range(2):
+            cam.capture(model, data, k / 30.0)
+    assert model.vis.quality.offsamples == 4 and model.vis.quality.shadowsize > 0  # the model is left as it was
+    assert seen == [(True, 0, False, 160, 120), (False, 4, True, 160, 120)] * 2
+
+
+def test_with_shadows_colour_depth_and_geom_ids_are_those_of_the_baseline(stairs):
+    """The colour pass casts shadows from its own context's shadow map (the depth pass's has none)."""
+    model, data = stairs
+    lit, shaded = (RgbdConfig(width_px=160, height_px=120, shadows=s) for s in (False, True))
+    with RgbdCamera("rgbd_chest", shaded, model, seed=4, segmentation=True) as cam, \
+            ThreePassCamera("rgbd_chest", shaded, model, seed=4) as ref, RgbdCamera("rgbd_chest", lit, model, seed=4) as flat:  # fmt: skip
+        (f, t), (g, u), (h, _) = cam.capture(model, data, 0.0), ref.capture(model, data, 0.0), flat.capture(model, data, 0.0)
+    assert (f.rgb != h.rgb).any()  # the shadows show
+    np.testing.assert_array_equal(f.rgb, g.rgb)
+    np.testing.assert_array_equal(f.depth_m, g.depth_m)
+    np.testing.assert_array_equal(t["depth_m"], u["depth_m"])
+    np.testing.assert_array_equal(t["geom_id"], u["geom_id"])
+
+
+def test_a_model_without_multisampling_renders_both_passes_in_one_context():
+    scene = worlds.compose(worlds.build_staircase(worlds.StaircaseParams(position_m=(1.0, 0.0))), ExoSpec())
+    model = scene.model
+    model.vis.quality.offsamples = 0
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    config = RgbdConfig(width_px=96, height_px=72)
+    with RgbdCamera("rgbd_chest", config, model, seed=2, segmentation=True) as cam, \
+            ThreePassCamera("rgbd_chest", config, model, seed=2) as ref:  # fmt: skip
+        assert cam.renderer._depth_con is cam.renderer._con and cam.renderer._con.offSamples == 0
+        (f, t), (g, u) = cam.capture(model, data, 0.0), ref.capture(model, data, 0.0)
+    np.testing.assert_array_equal(f.rgb, g.rgb)
+    np.testing.assert_array_equal(f.depth_m, g.depth_m)
+    np.testing.assert_array_equal(t["geom_id"], u["geom_id"])
+    cam.close()  # closing twice frees nothing twice

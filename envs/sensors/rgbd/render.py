@@ -18,14 +18,20 @@ segmentation and colour modes, bit for bit, from two passes instead of three:
 
 1. a segmentation-mode pass (flat ID colours, no multisampling, no skybox): its depth buffer is
    the depth (``mujoco.Renderer`` renders depth this way too), and its colour buffer, read in the
-   same ``mjr_readPixels`` call only when segmentation is asked for, the geom ids;
-2. the colour pass. Its own depth buffer cannot stand in for pass 1's: the colour pass is
-   multisampled (the resolved depth differs in the last bits) and draws the skybox at 0.7 of
-   the far plane, where pass 1 leaves no surface.
+   same ``mjr_readPixels`` call only when segmentation is asked for, the geom ids. It draws into
+   a context of its own with a single-sample buffer: MuJoCo turns multisampling off in this
+   mode, so every sample of the model's multisampled buffer holds the pixel centre's depth and
+   ID colour, which are what a single-sample buffer holds, without writing four samples and
+   resolving them (half the pass's time);
+2. the colour pass, in a context with the model's buffer (multisampled, with the shadow map).
+   Its own depth buffer cannot stand in for pass 1's: the colour pass is multisampled (the
+   resolve takes a sample off the pixel centre: the depth differs in the last bits on every
+   surface pixel) and draws the skybox at 0.7 of the far plane, where pass 1 leaves no surface.
 
-The off-screen buffer is made exactly the image's size (the model's ``offwidth`` x ``offheight``,
-1280 x 960 on exobench's worlds, would be cleared and kept for nothing); the viewport, and so every
-pixel, is the same.
+Both contexts live in one GL context (``mjr_render`` draws into whichever buffer is bound, so
+each pass binds its own first). The off-screen buffers are made exactly the image's size (the
+model's ``offwidth`` x ``offheight``, 1280 x 960 on exobench's worlds, would be cleared and kept
+for nothing); the viewport, and so every pixel, is the same.
 """
 
 from __future__ import annotations
@@ -109,21 +115,20 @@ class RgbdRenderer:
         w, h = config.width_px, config.height_px
         self._gl: Any = None
         self._con: Any = None
+        self._depth_con: Any = None
         self._gl = mujoco.GLContext(w, h)
         try:
             self._gl.make_current()
-            g = model.vis.global_
-            saved = (int(g.offwidth), int(g.offheight))
-            g.offwidth, g.offheight = w, h  # read by MjrContext: the buffer is exactly the image
-            try:
-                self._con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150.value)
-            finally:
-                g.offwidth, g.offheight = saved
-            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._con)
+            q = model.vis.quality
+            self._con = _make_context(model, w, h, int(q.offsamples), int(q.shadowsize))
+            # the depth pass needs neither samples nor a shadow map (module docstring)
+            self._depth_con = _make_context(model, w, h, 0, 0) if self._con.offSamples else self._con
         except Exception:
             self.close()
             raise
-        self._con.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR  # as mujoco.Renderer
+        self._offscreen = mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value
+        for con in (self._con, self._depth_con):
+            con.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR  # as mujoco.Renderer
         self.scene = mujoco.MjvScene(model=model, maxgeom=10000)
         self._option = mujoco.MjvOption()
         self._camera = mujoco.MjvCamera()
@@ -153,12 +158,14 @@ class RgbdRenderer:
         self._gl.make_current()
         flags = self.scene.flags
         flags[self._flag["SEGMENT"]] = flags[self._flag["IDCOLOR"]] = 1
-        mujoco.mjr_render(self._rect, self.scene, self._con)
-        mujoco.mjr_readPixels(self._ids if segmentation else None, self._depth, self._rect, self._con)
+        mujoco.mjr_setBuffer(self._offscreen, self._depth_con)
+        mujoco.mjr_render(self._rect, self.scene, self._depth_con)
+        mujoco.mjr_readPixels(self._ids if segmentation else None, self._depth, self._rect, self._depth_con)
         depth = self._metric_depth(self._depth[::-1])
         geom_id = self._geom_ids(self._ids[::-1]) if segmentation else None
         flags[self._flag["SEGMENT"]] = flags[self._flag["IDCOLOR"]] = 0
         flags[self._flag["SHADOW"]] = int(bool(shadows))
+        mujoco.mjr_setBuffer(self._offscreen, self._con)
         mujoco.mjr_render(self._rect, self.scene, self._con)
         mujoco.mjr_readPixels(self._rgb, None, self._rect, self._con)
         return np.ascontiguousarray(self._rgb[::-1]), depth, geom_id
@@ -192,14 +199,32 @@ class RgbdRenderer:
 
     def close(self) -> None:
         """Free the MuJoCo and GL contexts (idempotent)."""
-        if self._con is not None:
-            if self._gl is not None:
-                self._gl.make_current()
-            self._con.free()
-            self._con = None
+        contexts = [c for c in (self._con, self._depth_con) if c is not None]
+        if contexts and self._gl is not None:
+            self._gl.make_current()
+        for con in {id(c): c for c in contexts}.values():
+            con.free()
+        self._con = self._depth_con = None
         if self._gl is not None:
             self._gl.free()
             self._gl = None
+
+
+def _make_context(model: mujoco.MjModel, width: int, height: int, samples: int, shadow_size: int) -> mujoco.MjrContext:
+    """A MuJoCo render context in the current GL context, its off-screen buffer ``width`` x
+    ``height`` with ``samples`` samples and its shadow map ``shadow_size`` square (0: none), bound
+    for drawing. MjrContext reads these from the model, which is left as it was."""
+    import mujoco
+
+    g, q = model.vis.global_, model.vis.quality
+    saved = (int(g.offwidth), int(g.offheight), int(q.offsamples), int(q.shadowsize))
+    g.offwidth, g.offheight, q.offsamples, q.shadowsize = width, height, samples, shadow_size
+    try:
+        con = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150.value)
+    finally:
+        g.offwidth, g.offheight, q.offsamples, q.shadowsize = saved
+    mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, con)
+    return con
 
 
 def set_intrinsics(renderer: RgbdRenderer | mujoco.Renderer, config: RgbdConfig) -> None:
