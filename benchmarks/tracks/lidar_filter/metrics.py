@@ -143,10 +143,10 @@ def kiss_on_kept(episode: Episode, keep: Sequence[np.ndarray], downsample: str =
     """kiss-icp's :class:`TrajectoryEstimate` on the kept points of every scan of
     :func:`scored_pairs` (or of ``pairs``, when given), one scan read at a time (as
     :func:`~exobench.mapping.odometry.kiss_icp.run_kiss_icp` registers them)."""
-    odo = _kiss(downsample)
-    for i, (scan, _) in enumerate(scored_pairs(episode) if pairs is None else pairs):
-        odo.add(scan, keep[i] if i < len(keep) else np.zeros(0, dtype=bool))
-    return odo.estimate()
+    from exobench.mapping.odometry.kiss_icp import KissConfig, run_kiss_icp
+
+    scans = (s for s, _ in (scored_pairs(episode) if pairs is None else pairs))
+    return run_kiss_icp(scans, keep, KissConfig(downsample=downsample))
 
 
 def kiss_trajectories(episode: Episode, estimates: Mapping[str, Any], downsample: str = "single") -> dict[str, Any]:
