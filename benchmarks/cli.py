@@ -375,7 +375,8 @@ def list_() -> None:
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
 @click.option("--track", "tracks", multiple=True, help="sim: a track whose paper episode to break down (repeatable; default: every track); executor: the track whose suite to time (default stairs: its paper suite).")
-def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tuple[str, ...]) -> None:
+@click.option("--case", "case", default=None, help="sim: run this paper case of the one --track whole, unprofiled: wall time and peak memory.")
+def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tuple[str, ...], case: str | None) -> None:
     """Time the RTLS update against a batch refit (rtls), the simulator (sim: the stairs real-time
     factor, and per track a paper episode cut short: time per stage and pipeline, peak memory),
     the LiDAR (lidar) or the locomotion track at 640x480 (locomotion: latency per prediction,
@@ -389,10 +390,16 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
 
     if session and what != "rtls":
         raise ConfigError("--session", session, "bench rtls only")
+    if case is not None and (what != "sim" or len(tracks) != 1):
+        raise ConfigError("--case", case, "bench sim with exactly one --track")
     if tracks and what not in ("sim", "executor") or (what == "executor" and len(tracks) > 1):
         raise ConfigError("--track", ",".join(tracks), "bench sim (any number) or bench executor (one)")
     for name in tracks:
         get_track(name)  # an unknown name is refused before anything runs
+    if case is not None:
+        from .runner import load_case
+
+        load_case(get_track(tracks[0]), "paper", case)
     if what == "rtls":
         if session:
             from exobench.envs.session import read_meta, read_session
@@ -418,6 +425,12 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
         name = tracks[0] if tracks else "stairs"
         executor_from_options("ray", None, 2, None, None)  # refused at once when Ray is not installed
         result = bench_executor(plan_run(name, SUITES.get(name, "quick"), None, [seed]))
+    elif case is not None:
+        from .bench.sim import bench_episode_alone
+
+        result = {"episode": bench_episode_alone(tracks[0], case, seed)}
+        if "error" in result["episode"]:
+            result["error"] = result["episode"]["error"]
     else:
         from .bench.sim import bench_sim_tracks
 

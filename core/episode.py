@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -39,6 +39,10 @@ class EpisodeTruth:
             record it (``RgbdConfig.segmentation_truth``; the scenarios' ``segmentation_truth``),
             in the same order as those frames (empty when no camera records it).
         extra: track-specific truth (e.g. pedestrian tracks, camera poses), plain values/arrays.
+        lidar_scans: a streamed episode's LiDAR scans with their (compact) truth, in frame
+            order, read back one at a time from where the harness spooled them (a sequence of
+            ``(LidarScan, LidarTruth)``, see ``exobench.benchmarks.tracks.scan_spool``); None
+            when ``Episode.frames`` and ``lidar`` hold them, or nothing scores them.
     """
 
     scene: SceneTruth
@@ -52,6 +56,7 @@ class EpisodeTruth:
     steps: tuple[StepTruth, ...] = ()
     segmentation: tuple[SegmentationTruth, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
+    lidar_scans: Sequence[tuple[Any, Any]] | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -6,7 +6,8 @@
 - :mod:`.lidar`: :func:`bench_lidar` (a VLP-16 sweep of the office against mujoco-lidar);
 - :mod:`.locomotion`: :func:`bench_locomotion` (rendering, TSDF, pipeline latency at 640x480);
 - :mod:`.sim`: :func:`~.sim.bench_sim_tracks` (per track, a paper episode's time per stage and
-  pipeline, and its peak memory; part of `bench sim`).
+  pipeline, and its peak memory; part of `bench sim`) and :func:`~.sim.bench_episode_alone`
+  (one paper case whole: its wall time and peak memory; `bench sim --track T --case NAME`).
 """
 
 from .lidar import bench_lidar

@@ -8,6 +8,11 @@ the whole bench takes minutes. Each runs in a fresh process, so that its peak re
 each function's own code is summed into stages by where the function lives (see
 :func:`stage_of`). Profiling slows Python code more than MuJoCo's: read the stages as shares.
 The pipelines' wall times are the runner's own (``wall_s`` of each record).
+
+:func:`bench_episode_alone` runs one paper case whole instead (``exobench bench sim --track T
+--case NAME``), unprofiled, for its peak memory: the longest episodes of each track are the
+ones to check (lidar-filter ``ring-windows-lowe``, loop-closure ``reflective-loop``, odometry
+``ring``).
 """
 
 from __future__ import annotations
@@ -145,12 +150,50 @@ def bench_sim_tracks(tracks: Sequence[str] | None = None, seed: int = 0, *, dist
 
     out: dict[str, Any] = {}
     for name in tracks or tuple(BUILTIN_TRACKS):
-        code = ("import json, sys; from exobench.benchmarks.bench.sim import bench_case; "
-                f"json.dump(bench_case({name!r}, {int(seed)}, distance_m={float(distance_m)!r}, duration_s={float(duration_s)!r}), sys.stdout)")  # fmt: skip
-        proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=dict(os.environ))
-        if proc.returncode != 0:
-            lines = (proc.stderr or "").strip().splitlines() or [f"exit status {proc.returncode}"]
-            out[name] = {"error": lines[-1]}
-            continue
-        out[name] = json.loads(proc.stdout.strip().splitlines()[-1])
+        out[name] = _in_fresh_process(
+            f"bench_case({name!r}, {int(seed)}, distance_m={float(distance_m)!r}, duration_s={float(duration_s)!r})")
     return out
+
+
+def bench_episode(track_name: str, case_name: str, seed: int = 0) -> dict[str, Any]:
+    """In this process: one case of ``track_name``'s paper suite, whole (not cut, not
+    profiled), run and scored as the runner runs it (streamed when the track streams); its wall
+    time, the simulation's share and this process's peak RSS: the figure that says whether the
+    longest episodes fit (issue 26: at most 3 GB)."""
+    from ..runner import _Job, _run_job, plan_run
+    from ..tracks import get_track
+
+    track = get_track(track_name)
+    plan = plan_run(track, "paper", None, [seed])
+    ep = next((e for e in plan.episodes if e.case.name == case_name), None)
+    if ep is None:
+        from exobench.core.errors import UnknownNameError
+
+        raise UnknownNameError(f"paper case of track {track.name!r}", case_name, [c.name for c in track.cases("paper", seed)])
+    t0 = time.perf_counter()
+    _, records, _ = _run_job(_Job(track, ep, tuple(plan.pipelines), {}))
+    return {
+        "track": track.name,
+        "case": case_name,
+        "wall_s": time.perf_counter() - t0,
+        "sim_wall_s": float(records[0]["sim_wall_s"]) if records else 0.0,
+        "pipelines_wall_s": {r["pipeline"]: float(r["wall_s"]) for r in records},
+        "failed": {r["pipeline"]: r["metrics"].get("failed_reason", "") for r in records if r["metrics"].get("failed")},
+        "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9,  # KiB on Linux
+    }
+
+
+def bench_episode_alone(track_name: str, case_name: str, seed: int = 0) -> dict[str, Any]:
+    """:func:`bench_episode` in a fresh process, so that the peak is the episode's own."""
+    return _in_fresh_process(f"bench_episode({track_name!r}, {case_name!r}, {int(seed)})")
+
+
+def _in_fresh_process(call: str) -> dict[str, Any]:
+    """The JSON result of ``call`` (a function of this module) run in a new interpreter, or
+    ``{"error": <its last line of stderr>}``."""
+    code = f"import json, sys; from exobench.benchmarks.bench import sim; json.dump(sim.{call}, sys.stdout)"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=dict(os.environ))
+    if proc.returncode != 0:
+        lines = (proc.stderr or "").strip().splitlines() or [f"exit status {proc.returncode}"]
+        return {"error": lines[-1]}
+    return json.loads(proc.stdout.strip().splitlines()[-1])

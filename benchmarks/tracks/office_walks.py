@@ -3,7 +3,9 @@
 - Scenario parameters: :func:`office_params` (the :data:`exobench.envs.sim.scenarios.office.PARAMS` table
   as :class:`ParamInfo` rows, plus a track's own extra rows), :func:`validate_office_scenario`
   (typed values; the track's extra keys validated by the same ``ParamSpec`` rules),
-  :func:`simulate_office_episode` (drops the extra keys, runs ``simulate_office``).
+  :func:`simulate_office_episode` (drops the extra keys, runs ``simulate_office``), and as
+  streams: :func:`stream_office_episode` (no per-point truth), :func:`stream_spooled_episode`
+  (scans and their truth spooled to disk as they flow).
 - Ground truth per LiDAR point: :func:`lidar_pairs` (scans with their ``LidarTruth``),
   :func:`point_classes` (genuine / glass / ghost codes and whether the true surface is ground),
   :func:`points_world` (each measured point in the world: the true ray origin and direction of
@@ -16,7 +18,7 @@ Their rerun views are in :mod:`.office_recording`, the scoring of a LiDAR trajec
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -98,12 +100,43 @@ def stream_office_episode(
     return stream_office(OfficeScenario.from_dict(office), seed, lidar_truth=lidar_truth)
 
 
+def stream_spooled_episode(scenario: Mapping[str, Any], seed: int, extra: Mapping[str, Any] | None = None) -> EpisodeStream:
+    """:func:`simulate_office_episode` as a stream whose LiDAR scans, with their compact
+    truth, are spooled to disk as they flow (:class:`.scan_spool.ScanSpool`): the finished
+    episode's ``truth.lidar_scans`` reads them back one at a time, so :func:`lidar_pairs` and
+    the scorers built on it see the scans of the whole walk without holding them."""
+    import dataclasses
+
+    from exobench.envs.sim.scenarios.office import OfficeScenario, stream_office
+
+    from .scan_spool import ScanSpool
+
+    office = {k: v for k, v in scenario.items() if k not in dict(extra or {})}
+    spool = ScanSpool()
+    stream = stream_office(OfficeScenario.from_dict(office), seed, lidar_sink=spool.add)
+
+    def finish() -> Episode:
+        episode = stream.finish()
+        if episode.frames:  # recorded whole (a LiDAR clock that steps back): its frames hold the scans
+            return episode
+        return dataclasses.replace(episode, truth=dataclasses.replace(episode.truth, lidar_scans=spool.pairs()))
+
+    return EpisodeStream(stream.scenario, stream.seed, stream.calibration, stream.frames, finish)
+
+
 # ------------------------------------------------------------------------- truth per point
 
 
-def lidar_pairs(episode: Episode, sensor_id: str | None = None) -> list[tuple[LidarScan, Any]]:
+def lidar_pairs(episode: Episode, sensor_id: str | None = None) -> Sequence[tuple[LidarScan, Any]]:
     """(scan, LidarTruth) in time order, matched by sensor and stamp (truth is per scan; scans of
-    one stamp, a duplicated scan, take that stamp's truths in order)."""
+    one stamp, a duplicated scan, take that stamp's truths in order). A streamed episode's pairs
+    (``truth.lidar_scans``, a :class:`.scan_spool.ScanPairs`) are read from its spool on demand."""
+    spooled = episode.truth.lidar_scans
+    if spooled is not None:
+        from .scan_spool import ScanPairs
+
+        pairs = spooled if isinstance(spooled, ScanPairs) else ScanPairs.of(spooled)
+        return pairs if sensor_id is None else pairs.select([s == sensor_id for s in pairs.sensor_ids])
     scans = [f for f in episode.frames if isinstance(f, LidarScan) and (sensor_id is None or f.sensor_id == sensor_id)]
     truths: dict[tuple[str, float], list[Any]] = {}
     for t in episode.truth.lidar:

@@ -42,7 +42,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import time
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -202,9 +202,10 @@ class KissOdometry:
         )
 
 
-def run_kiss_icp(scans: Sequence[LidarScan], keep: Sequence[np.ndarray] | None = None,
+def run_kiss_icp(scans: Iterable[LidarScan], keep: Sequence[np.ndarray] | None = None,
                  config: KissConfig | None = None) -> TrajectoryEstimate:
-    """kiss-icp over ``scans`` using only the points of ``keep`` (one mask per scan; None: all).
+    """kiss-icp over ``scans`` (read one at a time, in order) using only the points of ``keep``
+    (one mask per scan; None: all).
 
     The time per scan is the odometry's only (the masks are given).
     """

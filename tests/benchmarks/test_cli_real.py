@@ -77,6 +77,19 @@ def test_bench_commands_report_json():
     assert bad.exit_code == 2 and "bench sim (any number) or bench executor (one)" in bad.stderr
 
 
+def test_bench_sim_case_runs_one_paper_episode_whole_in_its_own_process():
+    out = json.loads(_invoke(["bench", "sim", "--json", "--track", "stairs", "--case", "B"]).output)["episode"]
+    assert out["case"] == "B" and not out["failed"]
+    assert set(out["pipelines_wall_s"]) == set(default_registry().names(track="stairs"))
+    assert 0 < out["sim_wall_s"] < out["wall_s"] and 0.1 < out["peak_rss_gb"] < 8
+    for args, says in ((["--case", "B"], "exactly one --track"), (["--track", "stairs", "--case", "nope"], "nope"),
+                       (["--track", "stairs", "--track", "odometry", "--case", "B"], "exactly one --track")):  # fmt: skip
+        bad = CliRunner().invoke(cli, ["bench", "sim", *args])
+        assert bad.exit_code == 2 and says in bad.stderr and "Traceback" not in bad.stderr, bad.output
+    bad = CliRunner().invoke(cli, ["bench", "lidar", "--track", "stairs", "--case", "B"])
+    assert bad.exit_code == 2 and "--case" in bad.stderr
+
+
 def test_interrupted_run_says_how_to_resume(tmp_path, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt

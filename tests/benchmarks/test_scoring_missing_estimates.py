@@ -37,7 +37,7 @@ def _episode(dropped_truth: bool = False) -> SimpleNamespace:
     kinds = {0.1: [G, GL, GH], 0.2: [G, G], 0.3: [GH, G, G, GL]}
     frames = [_scan(t, len(k)) for t, k in kinds.items()]
     truths = [_truth(t, k) for t, k in kinds.items() if not (dropped_truth and t == 0.2)]
-    return SimpleNamespace(frames=frames, truth=SimpleNamespace(lidar=truths, scene=SimpleNamespace(surfaces=())))
+    return SimpleNamespace(frames=frames, truth=SimpleNamespace(lidar=truths, scene=SimpleNamespace(surfaces=()), lidar_scans=None))
 
 
 def _est(stamps, keep) -> FilterEstimate:

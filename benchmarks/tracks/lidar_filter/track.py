@@ -26,9 +26,14 @@ Suites (cases deterministic; the run seed drives the sensor noise):
   over matt floors; ``ring-windows-float`` is the control with clear float windows.
 - ``full``: the paper suite, and its ring and corridor with VLP-32 and Ouster-64, and without range noise.
 
-Memory: the paper cases keep only the LiDAR truth's labels (``lidar_truth="labels"``: kind,
-surface and range per point, ~21 bytes instead of ~170), so the ring walk (~170 s, ~1,700
-sweeps) fits in about 3 GB; the full office ``loop`` route (~380 s, two laps) is in ``full``.
+Memory: a run streams its walks (:meth:`LidarFilterTrack.stream`): the frames go through the
+pipelines as they are simulated, and each scan with its truth's labels (kind, surface and range
+per point, ~21 bytes a point) is spooled to an anonymous temporary file, from which the scorer
+(and KISS-ICP on the kept points, and the figure) read it back one scan at a time
+(:mod:`..scan_spool`); so a walk's memory does not grow with its length, and a ring takes
+about its scans' size on disk while it is scored. ``simulate`` (sessions, rerun recordings)
+holds the whole walk; there the paper cases keep only the LiDAR truth's labels
+(``lidar_truth="labels"``). The full office ``loop`` route (~380 s, two laps) is in ``full``.
 """
 
 from __future__ import annotations
@@ -37,13 +42,18 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
-from exobench.core.episode import Episode
+from exobench.core.episode import Episode, EpisodeStream
 from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import FilterEstimate
 
 from ..lidar_trajectory import trajectory_figure_data, trajectory_sections
 from ..office_recording import write_lidar_recording
-from ..office_walks import office_params, simulate_office_episode, validate_office_scenario
+from ..office_walks import (
+    office_params,
+    simulate_office_episode,
+    stream_spooled_episode,
+    validate_office_scenario,
+)
 from ..spec import Case, ParamInfo, Reference, SummaryRow
 from .metrics import failure_metrics, kiss_trajectories, score_filter
 from .paper import published_references
@@ -165,6 +175,12 @@ class LidarFilterTrack:
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         return simulate_office_episode(scenario, seed, _extra())
+
+    def stream(self, scenario: dict[str, Any], seed: int) -> EpisodeStream:
+        """The walk's frames as they are simulated; each scan and its truth are spooled to disk
+        on the way (:func:`..office_walks.stream_spooled_episode`) and read back one at a time
+        by the scorer and the figure, so a walk's memory does not grow with its length."""
+        return stream_spooled_episode(scenario, seed, _extra())
 
     @staticmethod
     def _scoring(scoring: Mapping[str, Any] | None) -> dict[str, Any]:

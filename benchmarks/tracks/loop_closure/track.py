@@ -27,6 +27,11 @@ Suites (the run seed drives the sensor noise; the office layout is ``office_seed
 - ``paper``: the whole loop route (two laps) in the default office (24 m corridors, 3 offices),
   as built (40 % glass, 30 % polished) and fully glazed and polished ("reflective").
 - ``full``: the paper cases, two more office layouts, an office without glass, and a VLP-32.
+
+Memory: a run streams its walks (:meth:`LoopClosureTrack.stream`): the frames go through the
+pipelines as they are simulated, and no per-point LiDAR truth is kept (the scores and the
+figure read the true LiDAR trajectory only), so a two-lap loop's memory does not grow with its
+length. ``simulate`` (sessions, rerun recordings, which draw the scans) holds the whole walk.
 """
 
 from __future__ import annotations
@@ -37,7 +42,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
-from exobench.core.episode import Episode
+from exobench.core.episode import Episode, EpisodeStream
 from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import PlaceRecognitionEstimate
 from exobench.models.world_params import ParamSpec
@@ -132,6 +137,15 @@ def simulate_loop(scenario: Mapping[str, Any], seed: int) -> Episode:
     return simulate_office(_scenario_class()(**values), seed)
 
 
+def stream_loop(scenario: Mapping[str, Any], seed: int) -> EpisodeStream:
+    """:func:`simulate_loop` as a stream, without per-point LiDAR truth: the scores and the
+    figure read the LiDAR's true trajectory only, so a walk's memory stays flat in its length."""
+    from exobench.envs.sim.scenarios.office import stream_office
+
+    values = {k: v for k, v in scenario.items() if k not in SCORING_KEYS}
+    return stream_office(_scenario_class()(**values), seed, lidar_truth=False)
+
+
 def scoring_settings(scoring: Mapping[str, Any] | None) -> dict[str, float]:
     """``revisit_m`` and ``exclude_recent_s`` of the given settings, the thesis' values for those not given."""
     given = dict(scoring or {})
@@ -196,6 +210,9 @@ class LoopClosureTrack:
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
         return simulate_loop(scenario, seed)
+
+    def stream(self, scenario: dict[str, Any], seed: int) -> EpisodeStream:
+        return stream_loop(scenario, seed)
 
     def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
         try:

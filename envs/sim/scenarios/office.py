@@ -29,7 +29,7 @@ protocol assumes (seeds/003 section 5.2.2).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from functools import lru_cache
 from typing import Any
 
@@ -232,19 +232,24 @@ def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSe
 
 
 def stream_office(
-    scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor] | None = None, *, lidar_truth: bool = True
+    scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor] | None = None, *, lidar_truth: bool = True,
+    lidar_sink: Callable[[Any, Any], None] | None = None,
 ) -> EpisodeStream:
     """:func:`simulate_office` as a stream (:func:`~exobench.envs.sim.recorder.stream_record`):
     the same frames in the same order, and the same episode at the end without its frames, and
     without the per-point LiDAR truth unless ``lidar_truth`` (it is most of a walk's memory).
-    A LiDAR whose clock may step back cannot stream: then the walk is recorded whole first."""
+    With ``lidar_sink``, each LiDAR scan's truth (compacted as ``scenario.lidar_truth`` says)
+    goes to ``lidar_sink(scan, truth)`` just before the scan is handed out, and not into the
+    episode: the caller keeps of it what it needs (the harness spools it to disk).
+    A LiDAR whose clock may step back cannot stream: then the walk is recorded whole first
+    (its episode holds its frames and LiDAR truth, and ``lidar_sink`` is never called)."""
     rig, exo, scene, motion = _office_setup(scenario, rig)
     cal = build_calibration(exo, rig)
     if any(s.kind == "lidar" and s.config.time_jump_prob > 0 and s.config.time_jump_s < 0 for s in rig):
         whole = simulate_office(scenario, seed, rig)
         return EpisodeStream(scenario.as_dict(), int(seed), whole.calibration, iter(whole.frames), lambda: whole)
     srec = stream_record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
-    lidars = {s.sensor_id for s in rig if s.kind == "lidar"} if lidar_truth else set()
+    lidars = {s.sensor_id for s in rig if s.kind == "lidar"} if lidar_truth or lidar_sink is not None else set()
     cams = {s.sensor_id for s in rig if s.kind == "rgbd" and s.config.segmentation_truth}
     kept_lidar: list[Any] = []
     kept_seg: list[Any] = []
@@ -253,7 +258,11 @@ def stream_office(
     def frames() -> Iterator[Any]:
         for f, tr in srec.items():
             if f.sensor_id in lidars:
-                kept_lidar.append(compact_truth(tr) if compact else tr)
+                t = compact_truth(tr) if compact else tr
+                if lidar_sink is not None:
+                    lidar_sink(f, t)
+                else:
+                    kept_lidar.append(t)
             elif f.sensor_id in cams:
                 kept_seg.append(tr)
             yield f
