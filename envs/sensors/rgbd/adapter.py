@@ -82,7 +82,9 @@ class RgbdAdapter(BaseAdapter):
 
     @staticmethod
     def calibration_extra(sensor: MountedSensor, rig: Sequence[MountedSensor]) -> dict[str, Any]:
-        """The first camera of a rig: ``camera``, its IMU (``camera_imu``, ``T_camera_imu``) and odometry."""
+        """The first camera of a rig: ``camera``, its IMU (``camera_imu``; ``T_camera_imu``, the IMU's
+        pose in the optical frame; ``timeshift_cam_imu_s``, t_imu = t_cam + shift, kalibr's
+        convention, only when not 0 so that calibrations of before are unchanged) and odometry."""
         if next(s for s in rig if s.kind == "rgbd") is not sensor:
             return {}
         cam = sensor.sensor_id
@@ -98,5 +100,7 @@ class RgbdAdapter(BaseAdapter):
                 "rate_hz": odom[0].config.rate_hz,
             }  # fmt: skip
         if imu:
-            out["T_camera_imu"] = np.eye(4).tolist()
+            out["T_camera_imu"] = imu[0].config.T_camera_imu().tolist()
+            if imu[0].config.time_offset_s != 0.0:
+                out["timeshift_cam_imu_s"] = float(imu[0].config.time_offset_s)
         return out

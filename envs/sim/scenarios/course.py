@@ -60,8 +60,11 @@ Frames (time-ordered; ties: IMU, contacts, odometry, camera):
   ``latency_s``, lost with probability ``frame_dropout``; ``<m>`` is ``head``, ``chest`` or
   ``thigh_r`` (:func:`sensor_ids`);
 - ``imu_<m>`` :class:`~exobench.core.ImuSample` at ``imu_rate_hz`` from a site at the camera's
-  optical frame (the D455's BMI055, docs/sensor-reference.md noise x ``imu_noise_scale``); its calibration mount
-  has the camera's pose and ``calibration.extra["T_camera_imu"]`` is the identity;
+  optical frame (the D455's BMI055, docs/sensor-reference.md noise x ``imu_noise_scale``), or with
+  ``imu_extrinsics="d455"`` where a D455's IMU sits; its calibration mount has that pose and
+  ``calibration.extra["T_camera_imu"]`` the IMU's pose in the optical frame; stamps shifted by
+  ``imu_time_offset_s`` (``calibration.extra["timeshift_cam_imu_s"]`` when not 0); heel-strike
+  transients with ``heel_strike_scale`` (docs/vio-realism.md);
 - ``contact_{l,r}_{heel,toe}`` insole pads (:mod:`exobench.envs.sensors.contact`), 100 Hz;
 - ``odom_<m>`` :class:`~exobench.core.OdometrySample` at each camera measurement time (also for
   lost frames): the true optical-frame pose degraded by
@@ -112,6 +115,7 @@ from exobench.models.world_params import ParamSpec
 from ...motion import GaitError, Motion
 from ...sensors import ContactConfig, ImuConfig, RgbdConfig, sample_times, sensor_rngs
 from ...sensors.adapter import MountedSensor
+from ...sensors.imu.config import CAMERA_IMU_EXTRINSICS, MAX_TIME_OFFSET_S
 from ...sensors.odometry import OdometryConfig
 from ...terrain import Terrain
 from ..calibration import build_calibration
@@ -167,6 +171,14 @@ PARAMS: dict[str, ParamSpec] = {
     "frame_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability an RGB-D frame is lost", feeds=("rgbd.dropout_prob",)),
     "imu_rate_hz": ParamSpec(200.0, 200.0, 400.0, "Hz", "camera IMU rate (BMI055 in the D455: 200-400)", feeds=("imu.rate_hz",)),
     "imu_noise_scale": COMMON_PARAMS["imu_noise_scale"],
+    "imu_extrinsics": ParamSpec("identity", None, None, "", "pose of the camera's IMU in its optical frame: identity "
+                                "(at the optical frame) or d455 (a D455's BMI055: 27.5 mm left, 3.1 mm up, 23.6 mm behind "
+                                "the colour camera, kalibr; docs/vio-realism.md)", choices=tuple(CAMERA_IMU_EXTRINSICS),
+                                feeds=("imu.extrinsics",)),
+    "imu_time_offset_s": ParamSpec(0.0, -MAX_TIME_OFFSET_S, MAX_TIME_OFFSET_S, "s", "camera IMU clock minus camera clock "
+                                   "(t_imu = t_cam + offset, kalibr's timeshift_cam_imu; a D455: 0.0025)",
+                                   feeds=("imu.time_offset_s",)),
+    "heel_strike_scale": COMMON_PARAMS["heel_strike_scale"],
     "odom_drift_pct": ParamSpec(1.0, 0.0, 20.0, "%", "odometry translation drift, percent of the distance travelled",
                                 feeds=("odometry.drift_pct",)),
     "odom_yaw_drift_deg_per_m": ParamSpec(0.5, 0.0, 20.0, "deg/m", "odometry heading drift per metre travelled",

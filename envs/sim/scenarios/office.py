@@ -129,6 +129,7 @@ PARAMS: dict[str, ParamSpec] = {
     "user_height_m": COMMON_PARAMS["user_height_m"],
     "user_mass_kg": COMMON_PARAMS["user_mass_kg"],
     "imu_noise_scale": COMMON_PARAMS["imu_noise_scale"],
+    "heel_strike_scale": COMMON_PARAMS["heel_strike_scale"],
     "encoder_noise_rad": COMMON_PARAMS["encoder_noise_rad"],
     "extra_sensors": COMMON_PARAMS["extra_sensors"],
     "segmentation_truth": COMMON_PARAMS["segmentation_truth"],
