@@ -5,8 +5,9 @@ mount. :func:`compose_rig` adds what a rig needs beyond that: a site for each se
 a camera (its IMU, at the optical frame, or where its ``ImuConfig.extrinsics`` put it) and for each sensor with an explicit mount, the chest camera's two-hinge rig (``chest_rig`` on the
 pelvis with ``chest_yaw`` (z) and ``chest_pitch`` (y, + looks down), carrying ``rgbd_chest``,
 same pose at zero angles) when asked, and one mocap body ``ped<k>`` per pedestrian (a capsule
-torso+legs and a sphere head, group 0, so cameras see them). Without any of these it is exactly
-:func:`exobench.models.worlds.compose`.
+torso+legs and a sphere head, group 0, so cameras see them), and a
+:class:`~exobench.models.vision_look.WorldLook` (textures, featureless surfaces, light level)
+when it is not the default. Without any of these it is exactly :func:`exobench.models.worlds.compose`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 
 from exobench.core.transforms import matrix_to_quat_wxyz
 from exobench.models.exo_spec import ExoSpec
+from exobench.models.vision_look import WorldLook, apply_look
 from exobench.models.worlds import BuiltWorld, CompiledScene, compose
 
 from ..sensors.adapter import Mount
@@ -46,16 +48,20 @@ def attached_sites(rig: Sequence) -> tuple[tuple[str, str | Mount | tuple], ...]
 
 def compose_rig(
     world: BuiltWorld, exo: ExoSpec, sites: Sequence[tuple[str, str]] = (), *, chest_rig: bool = False,
-    ped_heights_m: Sequence[float] = (),
+    ped_heights_m: Sequence[float] = (), look: WorldLook | None = None, look_seed: int = 0,
 ) -> CompiledScene:  # fmt: skip
-    """The world with the exoskeleton, ``sites`` (site name, camera id), the chest rig and pedestrians."""
-    if not sites and not chest_rig and not ped_heights_m:
+    """The world with the exoskeleton, ``sites`` (site name, camera id), the chest rig, pedestrians
+    and ``look`` (its textures drawn from ``look_seed``, the world's seed)."""
+    plain = look is None or look.is_default
+    if not sites and not chest_rig and not ped_heights_m and plain:
         return compose(world, exo)
     import mujoco
 
     from exobench.models.exo import R_OPTICAL_MJCAMERA, add_exo
 
     spec = world.spec.copy()
+    if not plain:
+        apply_look(spec, look, look_seed)  # type: ignore[arg-type]
     add_exo(spec, exo)
     start = world.truth.params.get("start_w")
     if start is not None:

@@ -7,11 +7,13 @@ covered by each group of the recording's watched geoms (pedestrians). With
 (``SensorOutput.frame_truth``; :mod:`.segmentation`). The geom ids are rendered only for these
 two consumers (watched geoms, segmentation truth) or when the config asks (``segmentation``).
 Chunked: ``take`` hands over the frames captured so far (and their segmentation truth);
-``finish`` then the rest and the whole truth.
+``finish`` then the rest and the whole truth. With ``RgbdConfig.exposure_s`` the colour image is
+blurred by the camera's motion (:mod:`.blur`; the truth keeps the sharp pose at mid-exposure).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -19,6 +21,7 @@ import numpy as np
 
 from ..adapter import BaseAdapter, MountedSensor, RecordContext, SensorOutput
 from ..common import sample_times
+from .blur import blur_flow, camera_twist, motion_blur
 from .model import RgbdCamera
 from .segmentation import SegmentationLabeler
 
@@ -40,6 +43,8 @@ class RgbdAdapter(BaseAdapter):
         self.camera = RgbdCamera(sensor.sensor_id, c, ctx.model, ctx.seed, segmentation=wants_ids)
         self.labeler = SegmentationLabeler(ctx.model, ctx.scene_truth) if sensor.config.segmentation_truth else None
         self.segmentation: list[Any] = []
+        # motion blur reads the camera's velocity: the recorder then sets qvel at its instants
+        self.needs_dynamics = c.exposure_s > 0.0
 
     def instants(self) -> np.ndarray:
         return self.t
@@ -49,6 +54,10 @@ class RgbdAdapter(BaseAdapter):
 
         mujoco.mj_camlight(model, data)
         frame, tr = self.camera.capture(model, data, t)
+        if frame is not None and self.config.exposure_s > 0.0:
+            v, w = camera_twist(model, data, self.camera.cam)
+            du, dv = blur_flow(tr["depth_m"], frame.K, v, w, self.config.exposure_s)
+            frame = dataclasses.replace(frame, rgb=motion_blur(frame.rgb, du, dv))
         k = self.k
         self.T[k] = tr["T_world_sensor"]
         for i, gs in enumerate(self.watch):
