@@ -70,9 +70,9 @@ class ImuSensor:
         dt = 1.0 / c.rate_hz
         rng = self.noise_rng
         s = c.noise_scale
-        # draw every stream for every sample, in a fixed order, whatever the settings
-        if c.heel_strike_scale > 0.0 and n:
+        if c.heel_strike_scale > 0.0 and n:  # before the noise: the same draws as without it
             acc = acc + self.impact_accel(t, q_true)
+        # draw every stream for every sample, in a fixed order, whatever the settings
         w_g, w_a = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
         b_g, b_a = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
         e_o = rng.standard_normal((n, 3))
@@ -100,7 +100,6 @@ class ImuSensor:
             ImuSample(float(t[k] + c.latency_s + c.time_offset_s), self.sensor_id, q[k].copy(), gyro_m[k].copy(), acc_m[k].copy())
             for k in np.flatnonzero(keep)
         ]
-
 
     def impact_accel(self, t: np.ndarray, q_wxyz: np.ndarray) -> np.ndarray:
         """The heel-strike transients at times ``t`` in the IMU frame (N, 3), the IMU's world
