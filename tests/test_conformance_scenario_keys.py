@@ -44,6 +44,7 @@ CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
     (None, "segmentation_truth"): {"extra_sensors": "rgbd_head"},  # it needs a camera
     (None, "max_turn_deg"): {"route": "loop", "max_distance_m": 3.0},  # a corner 2.5 m along the loop
     ("locomotion", "segmentation_truth"): {},  # which it has
+    (None, "texture_seed"): {"surfaces": "textured"},  # the seed of the textures that setting draws
 }
 
 

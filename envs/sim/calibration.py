@@ -25,7 +25,8 @@ from ..sensors.kinds import adapter_class
 
 def mount_of(exo: ExoSpec, sensor: MountedSensor) -> tuple[str, Any]:
     """(parent body, T_parent_sensor) of a rig sensor: its explicit mount, the camera it is
-    attached to, or the device's own mount of its id."""
+    attached to (an IMU there at ``T_camera_imu`` of its config's extrinsics), or the device's own
+    mount of its id."""
     if sensor.mount is not None:
         return sensor.mount.parent, sensor.mount.T_parent_sensor()
     device = {sid: (parent, T) for sid, _, parent, T in sensor_mounts(exo)}
@@ -34,7 +35,10 @@ def mount_of(exo: ExoSpec, sensor: MountedSensor) -> tuple[str, Any]:
         from exobench.core import UnknownNameError
 
         raise UnknownNameError("sensor mount", key, device)
-    return device[key]
+    parent, T = device[key]
+    if sensor.attached_to is not None and sensor.kind == "imu" and sensor.config.extrinsics != "identity":
+        return parent, T @ sensor.config.T_camera_imu()
+    return parent, T
 
 
 def build_calibration(exo: ExoSpec, rig: Sequence[MountedSensor]) -> Calibration:

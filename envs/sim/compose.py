@@ -2,11 +2,12 @@
 
 The device (:func:`exobench.models.exo.add_exo`) has a site per own sensor and a camera per RGB-D
 mount. :func:`compose_rig` adds what a rig needs beyond that: a site for each sensor attached to
-a camera (its IMU, at the optical frame) and for each sensor with an explicit mount, the chest camera's two-hinge rig (``chest_rig`` on the
+a camera (its IMU, at the optical frame, or where its ``ImuConfig.extrinsics`` put it) and for each sensor with an explicit mount, the chest camera's two-hinge rig (``chest_rig`` on the
 pelvis with ``chest_yaw`` (z) and ``chest_pitch`` (y, + looks down), carrying ``rgbd_chest``,
 same pose at zero angles) when asked, and one mocap body ``ped<k>`` per pedestrian (a capsule
-torso+legs and a sphere head, group 0, so cameras see them). Without any of these it is exactly
-:func:`exobench.models.worlds.compose`.
+torso+legs and a sphere head, group 0, so cameras see them), and a
+:class:`~exobench.models.vision_look.WorldLook` (textures, featureless surfaces, light level)
+when it is not the default. Without any of these it is exactly :func:`exobench.models.worlds.compose`.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import numpy as np
 
 from exobench.core.transforms import matrix_to_quat_wxyz
 from exobench.models.exo_spec import ExoSpec
+from exobench.models.vision_look import WorldLook, apply_look
 from exobench.models.worlds import BuiltWorld, CompiledScene, compose
 
 from ..sensors.adapter import Mount
@@ -25,28 +27,41 @@ PED_RADIUS_M = 0.2
 CHEST_CAMERA = "rgbd_chest"
 
 
-def attached_sites(rig: Sequence) -> tuple[tuple[str, str | Mount], ...]:
+def attached_sites(rig: Sequence) -> tuple[tuple[str, str | Mount | tuple], ...]:
     """(site, anchor) of every rig sensor that needs a site the device lacks: an IMU attached to a
-    camera (anchor: the camera id) and every sensor with an explicit mount (anchor: its :class:`Mount`)."""
-    return tuple(
-        (s.sensor_id, s.mount if s.mount is not None else s.attached_to)
-        for s in rig
-        if s.mount is not None or (s.attached_to is not None and s.kind == "imu")
-    )
+    camera (anchor: the camera id, or (camera id, T_camera_imu as nested tuples) when its
+    extrinsics are not the identity) and every sensor with an explicit mount (anchor: its :class:`Mount`).
+    Anchors are hashable: compiled scenes are cached by them."""
+    out: list[tuple[str, str | Mount | tuple]] = []
+    for s in rig:
+        if s.mount is not None:
+            out.append((s.sensor_id, s.mount))
+        elif s.attached_to is not None and s.kind == "imu":
+            ext = getattr(s.config, "extrinsics", "identity")
+            if ext == "identity":  # the anchor of before: the same cache keys and scenes
+                out.append((s.sensor_id, s.attached_to))
+            else:
+                T = s.config.T_camera_imu()
+                out.append((s.sensor_id, (s.attached_to, tuple(map(tuple, T.tolist())))))
+    return tuple(out)
 
 
 def compose_rig(
     world: BuiltWorld, exo: ExoSpec, sites: Sequence[tuple[str, str]] = (), *, chest_rig: bool = False,
-    ped_heights_m: Sequence[float] = (),
+    ped_heights_m: Sequence[float] = (), look: WorldLook | None = None, look_seed: int = 0,
 ) -> CompiledScene:  # fmt: skip
-    """The world with the exoskeleton, ``sites`` (site name, camera id), the chest rig and pedestrians."""
-    if not sites and not chest_rig and not ped_heights_m:
+    """The world with the exoskeleton, ``sites`` (site name, camera id), the chest rig, pedestrians
+    and ``look`` (its textures drawn from ``look_seed``, the world's seed)."""
+    plain = look is None or look.is_default
+    if not sites and not chest_rig and not ped_heights_m and plain:
         return compose(world, exo)
     import mujoco
 
     from exobench.models.exo import R_OPTICAL_MJCAMERA, add_exo
 
     spec = world.spec.copy()
+    if not plain:
+        apply_look(spec, look, look_seed)  # type: ignore[arg-type]
     add_exo(spec, exo)
     start = world.truth.params.get("start_w")
     if start is not None:
@@ -69,13 +84,17 @@ def compose_rig(
             spec.body(anchor.parent).add_site(name=site, pos=list(anchor.xyz_m), quat=list(anchor.quat_wxyz),
                                               size=[0.005, 0, 0], group=3)  # fmt: skip
             continue
-        camera = anchor
+        camera, T_ci = (anchor, None) if isinstance(anchor, str) else (anchor[0], np.array(anchor[1], dtype=float))
         parent, T = exo.rgbd_mount(camera)
         if camera == CHEST_CAMERA and rig_body is not None:
-            rig_body.add_site(name=site, pos=[0.0, 0.0, 0.0], quat=list(matrix_to_quat_wxyz(T[:3, :3])), size=[0.005, 0, 0], group=3)
+            T = T.copy()
+            T[:3, 3] = 0.0  # the rig body sits at the camera's position, axes parallel to the pelvis
+            body = rig_body
         else:
-            spec.body(parent).add_site(name=site, pos=list(T[:3, 3]), quat=list(matrix_to_quat_wxyz(T[:3, :3])),
-                                       size=[0.005, 0, 0], group=3)  # fmt: skip
+            body = spec.body(parent)
+        if T_ci is not None:
+            T = T @ T_ci
+        body.add_site(name=site, pos=list(T[:3, 3]), quat=list(matrix_to_quat_wxyz(T[:3, :3])), size=[0.005, 0, 0], group=3)
     for k, h in enumerate(ped_heights_m):
         pb = spec.worldbody.add_body(name=f"ped{k}", mocap=True, pos=[0.0, 0.0, -10.0])
         r = PED_RADIUS_M

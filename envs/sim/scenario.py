@@ -6,8 +6,8 @@ into a frozen dataclass whose fields are the table's rows, in order, with their 
 are validated on construction (``ConfigError(field, value, allowed)``; a parameter whose default
 is None also takes None; a free string parameter takes any string and is checked by the
 scenario). ``from_dict`` refuses unknown names (``UnknownNameError``) and converts strings;
-``as_dict`` gives the plain values (a scenario may leave out parameters at their neutral default,
-:data:`OMIT_WHEN_EMPTY`, so that records of scenarios without them are unchanged).
+``as_dict`` gives the plain values (a scenario leaves out the parameters of :data:`OMIT_AT_DEFAULT`
+at their neutral value, so that records of scenarios without them are unchanged).
 
 ``check_composition`` checks what can be known of an episode without building its world: the
 rig it records (presets added, ids unique, sensor configs valid) calibrated on the user's
@@ -26,7 +26,12 @@ from exobench.models.world_params import ParamSpec, check_param, from_dict_check
 
 from .rig import preset_names, with_segmentation_truth
 
-OMIT_WHEN_EMPTY = ("extra_sensors", "segmentation_truth")
+# parameter -> its neutral value, at which as_dict leaves it out: options added after records
+# existed (a rig's extra sensors, segmentation truth, what visual-inertial odometry meets)
+OMIT_AT_DEFAULT: dict[str, Any] = {
+    "extra_sensors": "", "segmentation_truth": False, "heel_strike_scale": 0.0, "imu_extrinsics": "identity",
+    "imu_time_offset_s": 0.0, "surfaces": "default", "light_level": 1.0, "texture_seed": 0, "exposure_s": 0.0,
+}  # fmt: skip
 
 
 def _is_free_string(spec: ParamSpec) -> bool:
@@ -68,8 +73,8 @@ def scenario_base(name: str, kind: str, params: dict[str, ParamSpec], base: type
 
     def as_dict(self: Any) -> dict[str, Any]:
         d = dataclasses.asdict(self)
-        for k in OMIT_WHEN_EMPTY:
-            if k in d and not d[k]:
+        for k, neutral in OMIT_AT_DEFAULT.items():
+            if k in d and d[k] == neutral and type(d[k]) is type(neutral):
                 del d[k]
         return d
 

@@ -16,7 +16,7 @@ from exobench.benchmarks.runner import MAX_SEEDS, plan_run
 from exobench.benchmarks.tracks import get_track, track_names
 from exobench.core.errors import ConfigError
 from exobench.envs.sim.rig import PRESETS
-from exobench.envs.sim.scenario import OMIT_WHEN_EMPTY
+from exobench.envs.sim.scenario import OMIT_AT_DEFAULT
 
 TRUE_SPELLINGS = ("true", "True", "TRUE", "1", "yes", "on", " true ")
 FALSE_SPELLINGS = ("false", "False", "0", "no", "off", "OFF")
@@ -83,7 +83,7 @@ def test_every_parameter_takes_each_allowed_value_from_the_command_line(track_na
             pytest.fail(f"{track_name}: --set {name}={text!r} refused: {e}")
         assert typed == expected and type(typed) is type(expected), (track_name, name, text, typed)
         for sc in scenarios:  # the typed value reaches every episode (or is left out at its neutral default)
-            left_out = name in OMIT_WHEN_EMPTY and not expected
+            left_out = name in OMIT_AT_DEFAULT and expected == OMIT_AT_DEFAULT[name]
             assert sc.get(name, expected) == expected if left_out else sc[name] == expected, (name, text, sc)
 
 

@@ -17,7 +17,10 @@ class ImuAdapter(BaseAdapter):
 
     def __init__(self, sensor: MountedSensor, ctx: RecordContext) -> None:
         super().__init__(sensor, ctx)
-        self.model = ImuSensor(sensor.sensor_id, sensor.config, ctx.model, ctx.seed)
+        strikes = ()
+        if sensor.config.heel_strike_scale > 0.0:
+            strikes = tuple((float(f.touchdown_s), f.side) for f in ctx.motion.footsteps)
+        self.model = ImuSensor(sensor.sensor_id, sensor.config, ctx.model, ctx.seed, strikes)
 
     def instants(self) -> np.ndarray:
         return sample_times(self.config.rate_hz, self.ctx.duration_s)
@@ -31,10 +34,13 @@ class ImuAdapter(BaseAdapter):
     @staticmethod
     def calibration_params(sensor: MountedSensor) -> dict[str, Any]:
         i = sensor.config
-        return {
+        out = {
             "rate_hz": i.rate_hz, "gyro_noise_density": i.noise_scale * i.gyro_noise_density,
             "gyro_random_walk": i.noise_scale * i.gyro_random_walk,
             "accel_noise_density": i.noise_scale * i.accel_noise_density,
             "accel_random_walk": i.noise_scale * i.accel_random_walk,
             "orientation_rms_deg": i.orientation_rms_deg, "latency_s": i.latency_s,
         }  # fmt: skip
+        if i.time_offset_s != 0.0:  # only then, so that calibrations of before are unchanged
+            out["time_offset_s"] = i.time_offset_s
+        return out

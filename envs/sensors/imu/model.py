@@ -6,9 +6,15 @@ The true angular velocity and specific force of the IMU site come from MuJoCo
 acceleration -gravity, so a resting IMU reads +9.81 m/s^2 up, like the accelerometer sensor).
 Noise follows kalibr: white noise ND / sqrt(dt) plus a bias random walk RW * sqrt(dt) per
 sample (initial bias 0 [A]); the orientation carries a small Gauss-Markov rotation error.
+With ``heel_strike_scale`` > 0 the accelerometer also carries the heel-strike transients of the
+motion's footsteps (:mod:`.impact`, world vertical, rotated into the IMU frame with the true
+orientation). Stamps are measurement time + ``latency_s`` + ``time_offset_s`` (the IMU clock's
+offset from the camera's).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -17,18 +23,23 @@ from exobench.core.transforms import quat_multiply
 
 from ..common import sensor_rngs
 from .config import ImuConfig
+from .impact import impact_accel_world
 
 
 class ImuSensor:
     """The trunk IMU. Call :meth:`observe` after :func:`imu_dynamics` at each measurement time."""
 
-    def __init__(self, sensor_id: str, config: ImuConfig, model: object, seed: int) -> None:
+    def __init__(self, sensor_id: str, config: ImuConfig, model: object, seed: int,
+                 strikes: Sequence[tuple[float, str]] = ()) -> None:  # fmt: skip
+        """``strikes``: (touchdown time, foot side) of every footstep, for the heel-strike transients."""
         import mujoco
 
         self.sensor_id, self.config = sensor_id, config
         self.site = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, sensor_id)
         if self.site < 0:
             raise KeyError(f"model has no site {sensor_id!r}")
+        self.body = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY, int(model.site_bodyid[self.site]))  # type: ignore[attr-defined]
+        self.strikes = tuple(strikes)
         self.noise_rng, self.drop_rng = sensor_rngs(seed, sensor_id)
         self._t: list[float] = []
         self._q: list[np.ndarray] = []
@@ -59,6 +70,8 @@ class ImuSensor:
         dt = 1.0 / c.rate_hz
         rng = self.noise_rng
         s = c.noise_scale
+        if c.heel_strike_scale > 0.0 and n:  # before the noise: the same draws as without it
+            acc = acc + self.impact_accel(t, q_true)
         # draw every stream for every sample, in a fixed order, whatever the settings
         w_g, w_a = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
         b_g, b_a = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
@@ -84,9 +97,25 @@ class ImuSensor:
         q *= np.where(q[:, :1] < 0, -1.0, 1.0)
         keep = self.drop_rng.random(n) >= c.dropout_prob
         return [
-            ImuSample(float(t[k] + c.latency_s), self.sensor_id, q[k].copy(), gyro_m[k].copy(), acc_m[k].copy())
+            ImuSample(float(t[k] + c.latency_s + c.time_offset_s), self.sensor_id, q[k].copy(), gyro_m[k].copy(), acc_m[k].copy())
             for k in np.flatnonzero(keep)
         ]
+
+    def impact_accel(self, t: np.ndarray, q_wxyz: np.ndarray) -> np.ndarray:
+        """The heel-strike transients at times ``t`` in the IMU frame (N, 3), the IMU's world
+        orientation ``q_wxyz`` (N, 4) at those times."""
+        a_w = impact_accel_world(t, self.strikes, self.body or "", self.config.heel_strike_scale)
+        return np.einsum("nji,nj->ni", _rotations(q_wxyz), a_w)
+
+
+def _rotations(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (N, 3, 3) of unit quaternions wxyz (N, 4)."""
+    w, x, y, z = (q / np.linalg.norm(q, axis=1)[:, None]).T
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
+    ], axis=1)  # fmt: skip
 
 
 def _walk(steps: np.ndarray) -> np.ndarray:

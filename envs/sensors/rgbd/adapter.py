@@ -7,11 +7,13 @@ covered by each group of the recording's watched geoms (pedestrians). With
 (``SensorOutput.frame_truth``; :mod:`.segmentation`). The geom ids are rendered only for these
 two consumers (watched geoms, segmentation truth) or when the config asks (``segmentation``).
 Chunked: ``take`` hands over the frames captured so far (and their segmentation truth);
-``finish`` then the rest and the whole truth.
+``finish`` then the rest and the whole truth. With ``RgbdConfig.exposure_s`` the colour image is
+blurred by the camera's motion (:mod:`.blur`; the truth keeps the sharp pose at mid-exposure).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
@@ -19,6 +21,7 @@ import numpy as np
 
 from ..adapter import BaseAdapter, MountedSensor, RecordContext, SensorOutput
 from ..common import sample_times
+from .blur import blur_flow, camera_twist, motion_blur
 from .model import RgbdCamera
 from .segmentation import SegmentationLabeler
 
@@ -40,6 +43,8 @@ class RgbdAdapter(BaseAdapter):
         self.camera = RgbdCamera(sensor.sensor_id, c, ctx.model, ctx.seed, segmentation=wants_ids)
         self.labeler = SegmentationLabeler(ctx.model, ctx.scene_truth) if sensor.config.segmentation_truth else None
         self.segmentation: list[Any] = []
+        # motion blur reads the camera's velocity: the recorder then sets qvel at its instants
+        self.needs_dynamics = c.exposure_s > 0.0
 
     def instants(self) -> np.ndarray:
         return self.t
@@ -49,6 +54,10 @@ class RgbdAdapter(BaseAdapter):
 
         mujoco.mj_camlight(model, data)
         frame, tr = self.camera.capture(model, data, t)
+        if frame is not None and self.config.exposure_s > 0.0:
+            v, w = camera_twist(model, data, self.camera.cam)
+            du, dv = blur_flow(tr["depth_m"], frame.K, v, w, self.config.exposure_s)
+            frame = dataclasses.replace(frame, rgb=motion_blur(frame.rgb, du, dv))
         k = self.k
         self.T[k] = tr["T_world_sensor"]
         for i, gs in enumerate(self.watch):
@@ -82,7 +91,9 @@ class RgbdAdapter(BaseAdapter):
 
     @staticmethod
     def calibration_extra(sensor: MountedSensor, rig: Sequence[MountedSensor]) -> dict[str, Any]:
-        """The first camera of a rig: ``camera``, its IMU (``camera_imu``, ``T_camera_imu``) and odometry."""
+        """The first camera of a rig: ``camera``, its IMU (``camera_imu``; ``T_camera_imu``, the IMU's
+        pose in the optical frame; ``timeshift_cam_imu_s``, t_imu = t_cam + shift, kalibr's
+        convention, only when not 0 so that calibrations of before are unchanged) and odometry."""
         if next(s for s in rig if s.kind == "rgbd") is not sensor:
             return {}
         cam = sensor.sensor_id
@@ -98,5 +109,7 @@ class RgbdAdapter(BaseAdapter):
                 "rate_hz": odom[0].config.rate_hz,
             }  # fmt: skip
         if imu:
-            out["T_camera_imu"] = np.eye(4).tolist()
+            out["T_camera_imu"] = imu[0].config.T_camera_imu().tolist()
+            if imu[0].config.time_offset_s != 0.0:
+                out["timeshift_cam_imu_s"] = float(imu[0].config.time_offset_s)
         return out

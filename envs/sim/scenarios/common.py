@@ -9,6 +9,7 @@ the offices 1.55-1.95 m: the wider range refuses nothing that was accepted).
 
 from __future__ import annotations
 
+from exobench.models.vision_look import SURFACES
 from exobench.models.world_params import ParamSpec
 
 from ..rig import PRESETS
@@ -18,6 +19,15 @@ COMMON_PARAMS: dict[str, ParamSpec] = {
     "user_mass_kg": ParamSpec(75.0, 40.0, 130.0, "kg", "user's body mass"),
     "imu_noise_scale": ParamSpec(1.0, 0.0, 20.0, "", "multiplier of the IMU noise densities and random walks (BMI055)",
                                  feeds=("imu.noise_scale",)),
+    "heel_strike_scale": ParamSpec(0.0, 0.0, 5.0, "", "heel-strike shock transients in the IMUs, times the published "
+                                   "walking peaks (1: Light et al. 1980, hard heels, 5 g tibia / 0.5 g skull; 0.5: their "
+                                   "resilient heels; 0: none; envs.sensors.imu.impact)", feeds=("imu.heel_strike_scale",)),
+    "surfaces": ParamSpec("default", None, None, "", "what cameras see on the surfaces: default (as built); textured "
+                          "(posters and notice boards on the walls, wood grain, patterned carpet, drawn from the world's "
+                          "seed); featureless (flat white walls and ceilings, flat grey floors: a tracker finds nothing "
+                          "on them); models.vision_look", choices=SURFACES),
+    "light_level": ParamSpec(1.0, 0.02, 2.0, "", "every light scaled by this (1: as built; 0.2-0.4: a dim room); "
+                             "models.vision_look"),
     "encoder_noise_rad": ParamSpec(1e-4, 0.0, 0.05, "rad", "joint encoder white noise, standard deviation",
                                    feeds=("encoders.noise_rad",)),
     "extra_sensors": ParamSpec("", None, None, "", "sensor presets added to the rig, comma-separated "

@@ -60,8 +60,11 @@ Frames (time-ordered; ties: IMU, contacts, odometry, camera):
   ``latency_s``, lost with probability ``frame_dropout``; ``<m>`` is ``head``, ``chest`` or
   ``thigh_r`` (:func:`sensor_ids`);
 - ``imu_<m>`` :class:`~exobench.core.ImuSample` at ``imu_rate_hz`` from a site at the camera's
-  optical frame (the D455's BMI055, docs/sensor-reference.md noise x ``imu_noise_scale``); its calibration mount
-  has the camera's pose and ``calibration.extra["T_camera_imu"]`` is the identity;
+  optical frame (the D455's BMI055, docs/sensor-reference.md noise x ``imu_noise_scale``), or with
+  ``imu_extrinsics="d455"`` where a D455's IMU sits; its calibration mount has that pose and
+  ``calibration.extra["T_camera_imu"]`` the IMU's pose in the optical frame; stamps shifted by
+  ``imu_time_offset_s`` (``calibration.extra["timeshift_cam_imu_s"]`` when not 0); heel-strike
+  transients with ``heel_strike_scale`` (docs/vio-realism.md);
 - ``contact_{l,r}_{heel,toe}`` insole pads (:mod:`exobench.envs.sensors.contact`), 100 Hz;
 - ``odom_<m>`` :class:`~exobench.core.OdometrySample` at each camera measurement time (also for
   lost frames): the true optical-frame pose degraded by
@@ -107,11 +110,13 @@ import numpy as np
 
 from exobench.core import ConfigError, Episode, EpisodeTruth
 from exobench.models.exo_spec import ExoSpec
+from exobench.models.vision_look import WorldLook
 from exobench.models.world_params import ParamSpec
 
 from ...motion import GaitError, Motion
 from ...sensors import ContactConfig, ImuConfig, RgbdConfig, sample_times, sensor_rngs
 from ...sensors.adapter import MountedSensor
+from ...sensors.imu.config import CAMERA_IMU_EXTRINSICS, MAX_TIME_OFFSET_S
 from ...sensors.odometry import OdometryConfig
 from ...terrain import Terrain
 from ..calibration import build_calibration
@@ -165,8 +170,21 @@ PARAMS: dict[str, ParamSpec] = {
     "min_depth_m": ParamSpec(0.4, 0.0, 5.0, "m", "no depth closer than this (D455: 0.4)", feeds=("rgbd.min_depth_m",)),
     "max_depth_m": ParamSpec(6.0, 0.5, 20.0, "m", "no depth farther than this (D455: about 6)", feeds=("rgbd.max_depth_m",)),
     "frame_dropout": ParamSpec(0.0, 0.0, 0.9, "", "probability an RGB-D frame is lost", feeds=("rgbd.dropout_prob",)),
+    "exposure_s": ParamSpec(0.0, 0.0, 0.1, "s", "colour exposure time: > 0 blurs the colour images with the camera's motion "
+                            "(at most one frame period; 0: sharp; envs.sensors.rgbd.blur)", feeds=("rgbd.exposure_s",)),
+    "surfaces": COMMON_PARAMS["surfaces"],
+    "texture_seed": ParamSpec(0, 0, 2**31 - 1, "", "seed of the course's textures (surfaces=textured)"),
+    "light_level": COMMON_PARAMS["light_level"],
     "imu_rate_hz": ParamSpec(200.0, 200.0, 400.0, "Hz", "camera IMU rate (BMI055 in the D455: 200-400)", feeds=("imu.rate_hz",)),
     "imu_noise_scale": COMMON_PARAMS["imu_noise_scale"],
+    "imu_extrinsics": ParamSpec("identity", None, None, "", "pose of the camera's IMU in its optical frame: identity "
+                                "(at the optical frame) or d455 (a D455's BMI055: 27.5 mm left, 3.1 mm up, 23.6 mm behind "
+                                "the colour camera, kalibr; docs/vio-realism.md)", choices=tuple(CAMERA_IMU_EXTRINSICS),
+                                feeds=("imu.extrinsics",)),
+    "imu_time_offset_s": ParamSpec(0.0, -MAX_TIME_OFFSET_S, MAX_TIME_OFFSET_S, "s", "camera IMU clock minus camera clock "
+                                   "(t_imu = t_cam + offset, kalibr's timeshift_cam_imu; a D455: 0.0025)",
+                                   feeds=("imu.time_offset_s",)),
+    "heel_strike_scale": COMMON_PARAMS["heel_strike_scale"],
     "odom_drift_pct": ParamSpec(1.0, 0.0, 20.0, "%", "odometry translation drift, percent of the distance travelled",
                                 feeds=("odometry.drift_pct",)),
     "odom_yaw_drift_deg_per_m": ParamSpec(0.5, 0.0, 20.0, "deg/m", "odometry heading drift per metre travelled",
@@ -261,9 +279,10 @@ def plan_locomotion(scenario: LocomotionScenario) -> tuple[Any, tuple, Motion, d
 
 @lru_cache(maxsize=8)
 def _compiled(key: tuple, exo: ExoSpec, pattern: str, sites: tuple[tuple[str, Any], ...], chest_rig: bool,
-              ped_heights: tuple[float, ...]) -> Any:  # fmt: skip
+              ped_heights: tuple[float, ...], look: WorldLook | None = None, texture_seed: int = 0) -> Any:  # fmt: skip
     world = _plan_cached(key, exo, pattern)[0]
-    return compose_rig(world, exo, sites, chest_rig=chest_rig, ped_heights_m=list(ped_heights))
+    return compose_rig(world, exo, sites, chest_rig=chest_rig, ped_heights_m=list(ped_heights), look=look,
+                       look_seed=texture_seed)  # fmt: skip
 
 
 def _rgbd_config(sc: LocomotionScenario) -> RgbdConfig:
@@ -333,7 +352,9 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
 
     peds = pedestrian_paths(sc.pedestrians, walker_xy, walker_heading, dur, ped_rng)
     chest = any(s.sensor_id == CHEST_CAMERA for s in rig)
-    scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds))
+    look = WorldLook(sc.surfaces, sc.light_level)
+    scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds),
+                      *((look, sc.texture_seed) if not look.is_default else ()))  # fmt: skip
     model = scene.model
     ped_hook = PedestrianHook(peds, Terrain(truth_scene))
     hooks = (_view_hook(sc, exo, motion, info, truth_scene, dur, seed), ped_hook)

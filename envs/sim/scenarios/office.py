@@ -39,6 +39,7 @@ from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
 from exobench.core.episode import EpisodeStream
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.office_params import FACADE_GLASSES, FACADES
+from exobench.models.vision_look import WorldLook
 from exobench.models.world_params import ParamSpec
 
 from ...motion import Motion, Route, plan_walk
@@ -129,6 +130,9 @@ PARAMS: dict[str, ParamSpec] = {
     "user_height_m": COMMON_PARAMS["user_height_m"],
     "user_mass_kg": COMMON_PARAMS["user_mass_kg"],
     "imu_noise_scale": COMMON_PARAMS["imu_noise_scale"],
+    "heel_strike_scale": COMMON_PARAMS["heel_strike_scale"],
+    "surfaces": COMMON_PARAMS["surfaces"],
+    "light_level": COMMON_PARAMS["light_level"],
     "encoder_noise_rad": COMMON_PARAMS["encoder_noise_rad"],
     "extra_sensors": COMMON_PARAMS["extra_sensors"],
     "segmentation_truth": COMMON_PARAMS["segmentation_truth"],
@@ -171,11 +175,12 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
 
 
 @lru_cache(maxsize=8)
-def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = ()) -> Any:
-    """The composed office world (``models.worlds.CompiledScene``), compiled once per key."""
+def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = (), look: WorldLook | None = None) -> Any:
+    """The composed office world (``models.worlds.CompiledScene``), compiled once per key; ``look``
+    (textures drawn from the office's seed, light level) when not the default."""
     from exobench.models.office import build_office
 
-    return compose_rig(build_office(params), exo, sites)  # type: ignore[arg-type]
+    return compose_rig(build_office(params), exo, sites, look=look, look_seed=params.seed)  # type: ignore[arg-type, attr-defined]
 
 
 def route_waypoints(waypoints: list[tuple[float, float]], max_distance_m: float) -> tuple[tuple[float, float], ...]:
@@ -203,7 +208,8 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
     from exobench.models.office import office_route
 
     exo = scenario.exo_spec()
-    scene = compiled_office(scenario.office_params(), exo, attached_sites(rig))
+    look = WorldLook(scenario.surfaces, scenario.light_level)
+    scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), *(() if look.is_default else (look,)))
     wps = route_waypoints(office_route(scene.truth, scenario.route), scenario.max_distance_m)
     pts = np.asarray(wps)
     length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
