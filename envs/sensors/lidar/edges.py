@@ -1,0 +1,132 @@
+"""Thin boxes around every edge of the BVH's static geoms: the rays Embree may miss a geom by.
+
+Embree casts in single precision: a ray that meets a box within its rounding (a few micrometres)
+of an edge of the face it enters may be missed by Embree and hit by MuJoCo, which then reports
+that box, perhaps metres before the surface Embree names (a beam grazing a mullion's corner, a
+chair seat's lower edge, or a pane's end where it abuts a mullion's side). Whatever the face and
+however the boxes touch, such a ray passes within that rounding of one of the box's edges before
+(or at) the hit Embree reports. :class:`EdgeTubes` holds, in a second Embree scene, a box of
+half-width ``TUBE_M`` (far above the rounding) around every edge of every static box and finite
+plane; the geoms whose tubes a ray crosses before its hit are the only ones Embree may have missed,
+and :meth:`StaticBvh.cast` judges each with MuJoCo's exact arithmetic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+TUBE_M = 1e-4  # half-width of an edge's tube: about 25 times float32's rounding at 100 m from the origin
+_UNIT = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
+# three orthonormal directions (none along a wall's axes): of any three, one is at least 54.7 deg
+# from any line (the squared cosines to a unit vector sum to 1)
+_PROBES = np.linalg.qr(np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0], [1.0, 1.0, -2.0]]).T)[0].T
+_TRIS = np.array(
+    [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+     [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], dtype=np.uint32,
+)  # fmt: skip
+
+
+def _tubes(
+    pos: np.ndarray, mat: np.ndarray, half: np.ndarray, finite: np.ndarray, far_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Corners (T, 8, 3) and owner (T,) of the tubes around the edges of the boxes of half sizes
+    ``half`` (G, 3); a plane is a box of no thickness, infinite along its sides not ``finite``
+    (G x 3): its edges along such a side reach ``far_m``, and it has none across it."""
+    corners, owner = [], []
+    for i in range(3):  # edges along the box's axis i, at the four (side j, side k) corners
+        j, k = [a for a in range(3) if a != i]
+        for sj in (-1.0, 1.0):
+            for sk in (-1.0, 1.0):
+                ok = finite[:, j] & finite[:, k]
+                # an edge at a plane's zero thickness exists twice (sides -1 and +1 coincide): once
+                ok &= (sj > 0) | (half[:, j] > 0)
+                ok &= (sk > 0) | (half[:, k] > 0)
+                g = np.flatnonzero(ok)
+                if len(g) == 0:
+                    continue
+                centre = np.zeros((len(g), 3))
+                centre[:, j], centre[:, k] = sj * half[g, j], sk * half[g, k]
+                ext = np.full((len(g), 3), TUBE_M)
+                ext[:, i] = np.where(finite[g, i], half[g, i] + TUBE_M, far_m)
+                local = centre[:, None, :] + _UNIT[None] * ext[:, None, :]  # (n, 8, 3)
+                R = mat[g].reshape(-1, 3, 3)
+                corners.append(np.einsum("gij,gvj->gvi", R, local) + pos[g, None, :])
+                owner.append(g)
+    if not corners:
+        return np.zeros((0, 8, 3)), np.zeros(0, dtype=np.int64)
+    return np.concatenate(corners), np.concatenate(owner).astype(np.int64)
+
+
+class EdgeTubes:
+    """The edge tubes of static boxes and planes (BVH geom order), in one Embree mesh."""
+
+    def __init__(self, pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, far_m: float) -> None:
+        import open3d as o3d
+
+        self.far_m = far_m  # the reach of a ray without a hit: beyond the whole scene
+        half = np.where(plane[:, None], np.column_stack([size[:, :2], np.zeros(len(size))]), size)
+        # a plane's side of size <= 0 is infinite: it has no edge across it
+        finite = ~plane[:, None] | np.column_stack([size[:, 0] > 0, size[:, 1] > 0, np.ones(len(size), dtype=bool)])
+        corners, self.owner = _tubes(pos, mat, half, finite, far_m)
+        self.scene = None
+        if len(self.owner):
+            tris = (_TRIS[None] + 8 * np.arange(len(self.owner), dtype=np.uint32)[:, None, None]).reshape(-1, 3)
+            self.scene = o3d.t.geometry.RaycastingScene()
+            self.scene.add_triangles(o3d.core.Tensor(corners.reshape(-1, 3).astype(np.float32)), o3d.core.Tensor(tris))
+
+    def crossed(self, o: np.ndarray, u: np.ndarray, reach: np.ndarray, nthreads: int) -> tuple[np.ndarray, np.ndarray]:
+        """(ray, geom) pairs, each once: the geoms whose edge tubes each ray (origin ``o``, unit
+        direction ``u``) meets within ``reach`` of its origin (inf: anywhere), or starts in.
+
+        Embree first tests each ray up to its reach alone (any tube, stopping at the first: rays
+        that meet none, nearly all of them, cost one cheap test) and probes each distinct origin
+        for a tube around it; only the rays flagged list their tubes.
+        """
+        import open3d as o3d
+
+        none = np.zeros(0, dtype=np.int64)
+        if self.scene is None or len(o) == 0:
+            return none, none
+        # the ray scaled to its reach (1 um and float32's rounding to spare): Embree's t = 1 there
+        span = np.where(np.isfinite(reach), reach * (1.0 + 1e-6) + 1e-6, self.far_m)
+        r = np.empty((len(o), 6), dtype=np.float32)
+        r[:, :3], r[:, 3:] = o, u * span[:, None]
+        flag = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
+        flag |= self._in_tube(o, nthreads)
+        rows = np.flatnonzero(flag)
+        if len(rows) == 0:
+            return none, none
+        r = np.empty((len(rows), 6), dtype=np.float32)
+        r[:, :3], r[:, 3:] = o[rows], u[rows]
+        li = self.scene.list_intersections(o3d.core.Tensor(r), nthreads=nthreads)
+        splits = li["ray_splits"].numpy().astype(np.int64)
+        ray = rows[np.repeat(np.arange(len(rows)), np.diff(splits))]
+        tube = li["primitive_ids"].numpy().astype(np.int64) // 12
+        t = li["t_hit"].numpy().astype(float)
+        # a tube met before the reach, or left an odd number of times (the ray starts in it)
+        nt = len(self.owner)
+        pair, at, count = np.unique(ray * nt + tube, return_inverse=True, return_counts=True)
+        first = np.full(len(pair), np.inf)
+        np.minimum.at(first, at, t)
+        p_ray = pair // nt
+        keep = (first <= span[p_ray]) | (count % 2 == 1)
+        ng = int(self.owner.max()) + 1
+        rg = np.unique(p_ray[keep] * ng + self.owner[pair[keep] % nt])
+        return rg // ng, rg % ng
+
+    def _in_tube(self, o: np.ndarray, nthreads: int) -> np.ndarray:
+        """Origins that may lie in a tube: a short probe from inside meets the tube's surface along
+        one of three orthogonal directions, each at least 54 deg from the tube's axis, within 3.5
+        half-widths (probes 10 long). Each run of equal origins (a primary window) is probed once."""
+        import open3d as o3d
+
+        run = np.append(True, np.any(o[1:] != o[:-1], axis=1)) if len(o) > 1 else np.ones(len(o), dtype=bool)
+        heads = o[run]
+        r = np.empty((3 * len(heads), 6), dtype=np.float32)
+        r[:, :3] = np.repeat(heads, 3, axis=0)
+        r[:, 3:] = np.tile(_PROBES * (10.0 * TUBE_M), (len(heads), 1))
+        hit = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
+        return hit.reshape(-1, 3).any(axis=1)[np.cumsum(run) - 1]
+
+
+__all__ = ["TUBE_M", "EdgeTubes"]
