@@ -333,3 +333,38 @@ def test_rays_grazing_box_edges_report_mujocos_geom():
         np.testing.assert_array_equal(dist, ref)
         np.testing.assert_array_equal(nrm, ref_n)
     assert np.count_nonzero(ref_g == g) > 0.3 * n  # most beams do meet the edge they aim at
+
+
+def test_rays_at_the_crease_of_interpenetrating_boxes_report_mujocos_geom():
+    """Columns sunk into a wall: where a column's side leaves the wall's face the two surfaces cross
+    away from either box's edges, and Embree (float32) may name the wall where MuJoCo hits the
+    column's side a micrometre before it. Beams aimed within rounding of those creases must get
+    MuJoCo's geom, distance and normal."""
+    spec = mujoco.MjSpec()
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    spec.worldbody.add_geom(name="wall", type=box, pos=[20.0, 4.0, 1.35], size=[0.06, 3.0, 1.35])
+    cols = [([19.95 - 0.01 * k, 2.0 + 0.8 * k, 1.35], [0.03 + 0.01 * k, 0.04, 1.35]) for k in range(5)]
+    for p, s in cols:
+        spec.worldbody.add_geom(type=box, pos=p, size=s)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    rng = np.random.default_rng(8)
+    n = 4000
+    k = rng.integers(0, len(cols), n)
+    p, s = np.array([cols[i][0] for i in k]), np.array([cols[i][1] for i in k])
+    aim = np.column_stack([np.full(n, 20.0 - 0.06), p[:, 1] + rng.choice([-1.0, 1.0], n) * s[:, 1], rng.uniform(0.1, 2.6, n)])
+    aim[:, :2] += rng.uniform(-3e-6, 3e-6, (n, 2))
+    o = np.column_stack([rng.uniform(12.0, 15.0, n), rng.uniform(0.0, 8.0, n), rng.uniform(0.3, 1.5, n)])
+    u = aim - o
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    ref, ref_g, ref_n = np.empty(n), np.zeros(n, dtype=np.int32), np.zeros((n, 3))
+    one = np.zeros(1, dtype=np.int32)
+    for i in range(n):
+        ref[i] = mujoco.mj_ray(model, data, o[i], u[i], None, 1, -1, one, ref_n[i])
+        ref_g[i] = one[0]
+    gid, dist, nrm = StaticBvh(model, data, np.arange(model.ngeom), far_m=100.0).cast(o, u, 1)
+    np.testing.assert_array_equal(gid, ref_g)
+    np.testing.assert_array_equal(dist, ref)
+    np.testing.assert_array_equal(nrm, ref_n)
+    assert 0.1 * n < np.count_nonzero(ref_g == 0) < 0.9 * n  # both the wall and the columns are hit

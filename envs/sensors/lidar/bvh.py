@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .edges import EdgeTubes
+from .edges import TUBE_M, EdgeTubes
 
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL (double precision)
 _PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
@@ -199,7 +199,7 @@ def _coplanar_partners(
     lo, hi, ok = np.stack(lo, 1).reshape(-1, 3), np.stack(hi, 1).reshape(-1, 3), np.stack(valid, 1).reshape(-1)
     geom_of = np.repeat(np.arange(g), 6)
     lists: tuple[list[list[int]], list[list[int]]] = ([[] for _ in range(6 * g)], [[] for _ in range(6 * g)])
-    tol = 1e-6
+    tol = TUBE_M  # faces this near one plane: float32 may order them either way (a candidate too many costs nothing)
     for f in np.flatnonzero(ok):
         dot = nw @ nw[f]
         touch = ok & np.all((lo <= hi[f] + tol) & (hi >= lo[f] - tol), axis=1) & (geom_of != geom_of[f])
@@ -240,9 +240,9 @@ class StaticBvh:
         self.scene = _scene(meshes)
         self.faces = _face_table(self.pos, self.mat, self.size)
         self.same_face, self.opposite_face = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
-        # each geom's world box, a little larger (the hit points of its faces, rounded)
-        self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - 1e-6
-        self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + 1e-6
+        # each geom's world box, a little larger (the hit points of nearly coplanar faces, rounded)
+        self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - TUBE_M
+        self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + TUBE_M
         self._loT, self._hiT = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
         self.edges = EdgeTubes(self.pos, self.mat, self.size, self.plane, far_m)
 

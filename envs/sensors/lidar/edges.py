@@ -57,6 +57,40 @@ def _tubes(
     return np.concatenate(corners), np.concatenate(owner).astype(np.int64)
 
 
+def _crossings(pos: np.ndarray, mat: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tubes (corners, owners (T, 2)) where two geoms' surfaces cross away from their edges: for
+    each pair that interpenetrates (a box sunk into another, a plane through a box), the edges of
+    their common box when they share their axes (the crossings lie on them), else the whole of
+    their common world bounds (grown by ``TUBE_M``). One tube names both geoms (Embree reports
+    one of two coincident triangles)."""
+    R = mat.reshape(-1, 3, 3)
+    ext = np.einsum("gij,gj->gi", np.abs(R), half)
+    lo, hi = pos - ext, pos + ext
+    inter = np.ones((len(pos), len(pos)), dtype=bool)
+    for c in range(3):  # strictly overlapping on every axis (touching boxes do not cross)
+        inter &= (lo[:, None, c] < hi[None, :, c] - 1e-9) & (hi[:, None, c] > lo[None, :, c] + 1e-9)
+    a, b = np.nonzero(np.triu(inter, 1))
+    corners, owner = [np.zeros((0, 8, 3))], [np.zeros((0, 2), dtype=np.int64)]
+    same = np.all(mat[a] == mat[b], axis=1)
+    sa, sb = a[same], b[same]
+    if len(sa):  # the common box in the first geom's frame, and its edges
+        d = np.einsum("gji,gj->gi", R[sa], pos[sb] - pos[sa])
+        c_lo, c_hi = np.maximum(-half[sa], d - half[sb]), np.minimum(half[sa], d + half[sb])
+        centre = pos[sa] + np.einsum("gij,gj->gi", R[sa], 0.5 * (c_lo + c_hi))
+        box_half = 0.5 * (c_hi - c_lo)
+        tc, to = _tubes(centre, mat[sa], box_half, np.ones((len(sa), 3), dtype=bool), 0.0)
+        corners.append(tc)
+        owner.append(np.column_stack([sa[to], sb[to]]))
+    ra, rb = a[~same], b[~same]
+    if len(ra):
+        zlo = np.maximum(lo[ra], lo[rb]) - TUBE_M
+        zhi = np.minimum(hi[ra], hi[rb]) + TUBE_M
+        zone = 0.5 * (zlo + zhi)[:, None, :] + _UNIT[None] * (0.5 * (zhi - zlo))[:, None, :]
+        corners.append(zone)
+        owner.append(np.column_stack([ra, rb]))
+    return np.concatenate(corners), np.concatenate(owner).astype(np.int64)
+
+
 class EdgeTubes:
     """The edge tubes of static boxes and planes (BVH geom order), in one Embree mesh."""
 
@@ -67,7 +101,11 @@ class EdgeTubes:
         half = np.where(plane[:, None], np.column_stack([size[:, :2], np.zeros(len(size))]), size)
         # a plane's side of size <= 0 is infinite: it has no edge across it
         finite = ~plane[:, None] | np.column_stack([size[:, 0] > 0, size[:, 1] > 0, np.ones(len(size), dtype=bool)])
-        corners, self.owner = _tubes(pos, mat, half, finite, far_m)
+        corners, own = _tubes(pos, mat, half, finite, far_m)
+        c2, o2 = _crossings(pos, mat, np.where(finite, half, far_m))
+        # each tube's geoms (a crossing's two; an edge's one, twice)
+        self.owner = np.concatenate([np.column_stack([own, own]), o2])
+        corners = np.concatenate([corners, c2])
         self.scene = None
         if len(self.owner):
             tris = (_TRIS[None] + 8 * np.arange(len(self.owner), dtype=np.uint32)[:, None, None]).reshape(-1, 3)
@@ -111,7 +149,8 @@ class EdgeTubes:
         p_ray = pair // nt
         keep = (first <= span[p_ray]) | (count % 2 == 1)
         ng = int(self.owner.max()) + 1
-        rg = np.unique(p_ray[keep] * ng + self.owner[pair[keep] % nt])
+        tk = pair[keep] % nt
+        rg = np.unique(np.concatenate([p_ray[keep] * ng + self.owner[tk, 0], p_ray[keep] * ng + self.owner[tk, 1]]))
         return rg // ng, rg % ng
 
     def _in_tube(self, o: np.ndarray, nthreads: int) -> np.ndarray:
@@ -120,7 +159,8 @@ class EdgeTubes:
         half-widths (probes 10 long). Each run of equal origins (a primary window) is probed once."""
         import open3d as o3d
 
-        run = np.append(True, np.any(o[1:] != o[:-1], axis=1)) if len(o) > 1 else np.ones(len(o), dtype=bool)
+        # (column by column: numpy reduces a 3-long last axis slowly)
+        run = np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
         heads = o[run]
         r = np.empty((3 * len(heads), 6), dtype=np.float32)
         r[:, :3] = np.repeat(heads, 3, axis=0)
