@@ -17,9 +17,9 @@ import numpy as np
 
 TUBE_M = 1e-4  # half-width of an edge's tube: about 25 times float32's rounding at 100 m from the origin
 _UNIT = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
-# three orthonormal directions (none along a wall's axes): of any three, one is at least 54.7 deg
-# from any line (the squared cosines to a unit vector sum to 1)
-_PROBES = np.linalg.qr(np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0], [1.0, 1.0, -2.0]]).T)[0].T
+# two orthonormal directions (neither along a wall's axes): of any two, one is at least 45 deg from
+# any line (their squared cosines to a unit vector sum to at most 1)
+_PROBES = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0]]) / np.sqrt([[3.0], [2.0]])
 _TRIS = np.array(
     [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
      [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], dtype=np.uint32,
@@ -57,12 +57,12 @@ def _tubes(
     return np.concatenate(corners), np.concatenate(owner).astype(np.int64)
 
 
-def _crossings(pos: np.ndarray, mat: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Tubes (corners, owners (T, 2)) where two geoms' surfaces cross away from their edges: for
-    each pair that interpenetrates (a box sunk into another, a plane through a box), the edges of
-    their common box when they share their axes (the crossings lie on them), else the whole of
-    their common world bounds (grown by ``TUBE_M``). One tube names both geoms (Embree reports
-    one of two coincident triangles)."""
+def _crossings(pos: np.ndarray, mat: np.ndarray, half: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Tubes (corners, owners (T, 2), then the zones' bounds) where two geoms' surfaces cross away
+    from their edges: for each pair that interpenetrates (a box sunk into another, a plane through
+    a box), the edges of their common box when they share their axes (the crossings lie on them),
+    else a zone, the whole of their common world bounds (grown by ``TUBE_M``). One tube names both
+    geoms (Embree reports one of two coincident triangles)."""
     R = mat.reshape(-1, 3, 3)
     ext = np.einsum("gij,gj->gi", np.abs(R), half)
     lo, hi = pos - ext, pos + ext
@@ -82,13 +82,12 @@ def _crossings(pos: np.ndarray, mat: np.ndarray, half: np.ndarray) -> tuple[np.n
         corners.append(tc)
         owner.append(np.column_stack([sa[to], sb[to]]))
     ra, rb = a[~same], b[~same]
+    zlo = np.maximum(lo[ra], lo[rb]) - TUBE_M
+    zhi = np.minimum(hi[ra], hi[rb]) + TUBE_M
     if len(ra):
-        zlo = np.maximum(lo[ra], lo[rb]) - TUBE_M
-        zhi = np.minimum(hi[ra], hi[rb]) + TUBE_M
-        zone = 0.5 * (zlo + zhi)[:, None, :] + _UNIT[None] * (0.5 * (zhi - zlo))[:, None, :]
-        corners.append(zone)
+        corners.append(0.5 * (zlo + zhi)[:, None, :] + _UNIT[None] * (0.5 * (zhi - zlo))[:, None, :])
         owner.append(np.column_stack([ra, rb]))
-    return np.concatenate(corners), np.concatenate(owner).astype(np.int64)
+    return np.concatenate(corners), np.concatenate(owner).astype(np.int64), zlo, zhi
 
 
 class EdgeTubes:
@@ -102,7 +101,7 @@ class EdgeTubes:
         # a plane's side of size <= 0 is infinite: it has no edge across it
         finite = ~plane[:, None] | np.column_stack([size[:, 0] > 0, size[:, 1] > 0, np.ones(len(size), dtype=bool)])
         corners, own = _tubes(pos, mat, half, finite, far_m)
-        c2, o2 = _crossings(pos, mat, np.where(finite, half, far_m))
+        c2, o2, self._zone_lo, self._zone_hi = _crossings(pos, mat, np.where(finite, half, far_m))
         # each tube's geoms (a crossing's two; an edge's one, twice)
         self.owner = np.concatenate([np.column_stack([own, own]), o2])
         corners = np.concatenate([corners, c2])
@@ -155,18 +154,26 @@ class EdgeTubes:
 
     def _in_tube(self, o: np.ndarray, nthreads: int) -> np.ndarray:
         """Origins that may lie in a tube: a short probe from inside meets the tube's surface along
-        one of three orthogonal directions, each at least 54 deg from the tube's axis, within 3.5
-        half-widths (probes 10 long). Each run of equal origins (a primary window) is probed once."""
+        one of two orthogonal directions, at least 45 deg from the tube's axis, within 4 half-widths
+        (probes 10 long); or in a crossing's zone (by its bounds). Each run of equal origins (a
+        primary window) is tested once."""
         import open3d as o3d
 
         # (column by column: numpy reduces a 3-long last axis slowly)
         run = np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
         heads = o[run]
-        r = np.empty((3 * len(heads), 6), dtype=np.float32)
-        r[:, :3] = np.repeat(heads, 3, axis=0)
+        k = len(_PROBES)
+        r = np.empty((k * len(heads), 6), dtype=np.float32)
+        r[:, :3] = np.repeat(heads, k, axis=0)
         r[:, 3:] = np.tile(_PROBES * (10.0 * TUBE_M), (len(heads), 1))
         hit = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
-        return hit.reshape(-1, 3).any(axis=1)[np.cumsum(run) - 1]
+        inside = hit.reshape(-1, k).any(axis=1)
+        for lo, hi in zip(self._zone_lo, self._zone_hi):  # zones are few (differently turned geoms that cross)
+            within = np.ones(len(heads), dtype=bool)
+            for c in range(3):
+                within &= (heads[:, c] >= lo[c]) & (heads[:, c] <= hi[c])
+            inside |= within
+        return inside[np.cumsum(run) - 1]
 
 
 __all__ = ["TUBE_M", "EdgeTubes"]
