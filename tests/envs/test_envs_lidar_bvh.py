@@ -368,23 +368,3 @@ def test_rays_at_the_crease_of_interpenetrating_boxes_report_mujocos_geom():
     np.testing.assert_array_equal(dist, ref)
     np.testing.assert_array_equal(nrm, ref_n)
     assert 0.1 * n < np.count_nonzero(ref_g == 0) < 0.9 * n  # both the wall and the columns are hit
-
-
-def test_a_sweep_cut_into_slices_per_thread_gives_the_same_frame(monkeypatch):
-    """The BVH cast of a sweep is cut into one slice per casting thread: the same frame as one call."""
-    model, data, truth, T0 = _scene(_worlds()["glazed office"])
-    one = LidarSensor("lidar_trunk", LidarConfig(cast_threads=1, return_mode="strongest"), model, 3)
-    three = LidarSensor("lidar_trunk", LidarConfig(cast_threads=3, return_mode="strongest"), model, 3)
-    sent = []
-    real = cast_module._split_cast
-
-    def spy(static, o, u, k, **kw):
-        sent.append((len(o), k))
-        return real(static, o, u, k, **kw)
-
-    monkeypatch.setattr(cast_module, "_split_cast", spy)
-    a = one.scan(model, data, T0, 0.0, truth)
-    b = three.scan(model, data, T0, 0.0, truth)
-    _assert_same_sweeps(a, b)
-    np.testing.assert_array_equal(a[0].intensity, b[0].intensity)
-    assert any(n >= 3 * cast_module._SPLIT_RAYS and k == 3 for n, k in sent)  # the slices were cast
