@@ -123,8 +123,8 @@ class RayCaster:
         else:
             # static boxes and planes by Embree, the rest (moving, curved) by MuJoCo: the nearer hit
             k = self._n_threads(model)
-            gid, dist, nrm = _split_cast(parts.static, o_ray, dirs_w, k, cutoff=max_r, rank=parts.rank,
-                                         skip=parts.own if np.any(parts.own) else None)
+            gid, dist, nrm = parts.static.cast(o_ray, dirs_w, k, cutoff=max_r, rank=parts.rank,
+                                               skip=parts.own if np.any(parts.own) else None)
             if parts.rest is not None:
                 # only the rays that may meet a moving or curved geom before the static hit
                 need = np.flatnonzero(Proxies(model, data, parts.rest_geoms).may_hit_before(o_ray, dirs_w, dist, k))
@@ -223,7 +223,7 @@ class RayCaster:
                 proxies.append(Proxies(model, data, parts.others))
             o = np.ascontiguousarray(o, dtype=float)
             d = np.ascontiguousarray(d, dtype=float)
-            gid, r, nrm = _split_cast(parts.static, o, d, k, inside=True)
+            gid, r, nrm = parts.static.cast(o, d, k, inside=True)
             gid = gid.astype(np.int64)
             # the few rays that may meet a moving or curved geom first: exactly as the reference
             near = np.flatnonzero(proxies[0].may_hit_before(o, d, r, k))
@@ -305,23 +305,6 @@ def _available_cpus() -> int:
     except AttributeError:  # not on Linux
         k = os.cpu_count() or 1
     return max(1, min(k, 8))
-
-
-_SPLIT_RAYS = 4096
-"""A BVH cast of at least this many rays per thread is cut into one slice per casting thread."""
-
-
-def _split_cast(static: StaticBvh, o: np.ndarray, u: np.ndarray, k: int, **kw: object) -> tuple[np.ndarray, ...]:
-    """``static.cast`` of the rays cut into ``k`` slices cast at once (its numpy arithmetic releases
-    the GIL; every ray's hit is its own, so the slices give the same hits as one call)."""
-    n = len(o)
-    if k <= 1 or n < k * _SPLIT_RAYS:
-        return static.cast(o, u, k, **kw)  # type: ignore[arg-type]
-    cuts = _slices(0, n, k)
-    futures = [_pool().submit(static.cast, o[a:b], u[a:b], 1, **kw) for a, b in cuts[1:]]
-    out = [static.cast(o[: cuts[0][1]], u[: cuts[0][1]], 1, **kw)]  # type: ignore[arg-type]
-    out += [f.result() for f in futures]
-    return tuple(np.concatenate(x) for x in zip(*out))
 
 
 def _slices(start: int, end: int, k: int) -> list[tuple[int, int]]:
