@@ -17,8 +17,8 @@ import numpy as np
 
 TUBE_M = 1e-4  # half-width of an edge's tube: about 25 times float32's rounding at 100 m from the origin
 _UNIT = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
-# two orthonormal directions (neither along a wall's axes): of any two, one is at least 45 deg from
-# any line (their squared cosines to a unit vector sum to at most 1)
+# two orthonormal directions: of any two, one is at least 45 deg from any line (their squared cosines
+# to a unit vector sum to at most 1); the first alone is 54.7 deg from each world axis
 _PROBES = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0]]) / np.sqrt([[3.0], [2.0]])
 _TRIS = np.array(
     [[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
@@ -104,6 +104,8 @@ class EdgeTubes:
         c2, o2, self._zone_lo, self._zone_hi = _crossings(pos, mat, np.where(finite, half, far_m))
         # each tube's geoms (a crossing's two; an edge's one, twice)
         self.owner = np.concatenate([np.column_stack([own, own]), o2])
+        # tubes along the world axes (every geom's axes are: a building's walls) need one probe
+        self._probes = _PROBES[:1] if np.all(np.isin(mat, (-1.0, 0.0, 1.0))) else _PROBES
         corners = np.concatenate([corners, c2])
         self.scene = None
         if len(self.owner):
@@ -155,17 +157,18 @@ class EdgeTubes:
     def _in_tube(self, o: np.ndarray, nthreads: int) -> np.ndarray:
         """Origins that may lie in a tube: a short probe from inside meets the tube's surface along
         one of two orthogonal directions, at least 45 deg from the tube's axis, within 4 half-widths
-        (probes 10 long); or in a crossing's zone (by its bounds). Each run of equal origins (a
-        primary window) is tested once."""
+        (probes 10 long; where every tube lies along a world axis, the first alone, 54.7 deg from
+        each); or in a crossing's zone (by its bounds). Each run of equal origins (a primary
+        window) is tested once."""
         import open3d as o3d
 
         # (column by column: numpy reduces a 3-long last axis slowly)
         run = np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
         heads = o[run]
-        k = len(_PROBES)
+        k = len(self._probes)
         r = np.empty((k * len(heads), 6), dtype=np.float32)
         r[:, :3] = np.repeat(heads, k, axis=0)
-        r[:, 3:] = np.tile(_PROBES * (10.0 * TUBE_M), (len(heads), 1))
+        r[:, 3:] = np.tile(self._probes * (10.0 * TUBE_M), (len(heads), 1))
         hit = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
         inside = hit.reshape(-1, k).any(axis=1)
         for lo, hi in zip(self._zone_lo, self._zone_hi):  # zones are few (differently turned geoms that cross)
