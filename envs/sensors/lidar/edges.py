@@ -7,8 +7,9 @@ chair seat's lower edge, or a pane's end where it abuts a mullion's side). Whate
 however the boxes touch, such a ray passes within that rounding of one of the box's edges before
 (or at) the hit Embree reports. :class:`EdgeTubes` holds, in a second Embree scene, a box of
 half-width ``TUBE_M`` (far above the rounding) around every edge of every static box and finite
-plane; the geoms whose tubes a ray crosses before its hit are the only ones Embree may have missed,
-and :meth:`StaticBvh.cast` judges each with MuJoCo's exact arithmetic.
+plane, and around the creases where two of them interpenetrate (there two surfaces meet away from
+either's edges); the geoms whose tubes a ray crosses before its hit are the only ones Embree may
+have missed, and :meth:`StaticBvh.cast` judges each with MuJoCo's exact arithmetic.
 """
 
 from __future__ import annotations
