@@ -17,7 +17,7 @@ import pytest
 from exobench.core import ConfigError
 from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
 from exobench.envs.sensors.lidar import cast as cast_module
-from exobench.envs.sensors.lidar.bvh import _face_table, _in_any_box, exact_hits, face_hits
+from exobench.envs.sensors.lidar.bvh import StaticBvh, _face_table, _in_any_box, exact_hits, face_hits
 from exobench.envs.sensors.lidar.optics import cast_rays
 from exobench.envs.sim.pose import site_pose
 
@@ -282,3 +282,89 @@ def test_face_hits_is_not_sure_of_a_neighbouring_face_near_an_edge():
                 np.testing.assert_array_equal(x[sure & close], ref[sure & close])
                 tested += int(close.sum())
     assert tested > 0.3 * 6 * 4 * 300
+
+
+def test_rays_grazing_box_edges_report_mujocos_geom():
+    """Beams aimed within float32 rounding of box edges, 16-22 m from the origin as in the ring's
+    building: mullions (one at a pane's end, the pane abutting its side), a chair seat's lower edge
+    and a finite plane's rim, in front of a wall. Embree may miss the box whose edge a beam grazes
+    (the ring-windows-float walk's sweeps 345, 479 and 588) where MuJoCo hits it, metres before the
+    wall; the BVH caster must report MuJoCo's geom, distance and normal for every beam."""
+    spec = mujoco.MjSpec()
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    spec.worldbody.add_geom(name="wall", type=box, pos=[22.14, 3.92, 1.35], size=[0.06, 6.0, 1.35])
+    for k in range(6):
+        spec.worldbody.add_geom(type=box, pos=[16.2 + 0.9 * k, 4.0 + 0.5 * k, 1.35], size=[0.025, 0.025 + 0.1 * (k % 3), 1.35])
+    # a pane ending exactly at the last mullion's side (x = 21.83292667), as the ring's windows do
+    spec.worldbody.add_geom(name="mullion", type=box, pos=[21.85792667, 7.9, 1.35], size=[0.025, 0.025, 1.35])
+    spec.worldbody.add_geom(name="pane", type=box, pos=[21.34439, 7.9, 1.35], size=[0.48853667, 0.005, 1.35])
+    spec.worldbody.add_geom(name="seat", type=box, pos=[19.69424789, 2.86649411, 0.39], size=[0.23, 0.23, 0.03])
+    spec.worldbody.add_geom(name="sign", type=mujoco.mjtGeom.mjGEOM_PLANE, pos=[18.5, 1.0, 1.2], size=[0.3, 0.2, 0.1],
+                            quat=[0.7071067811865476, 0.0, 0.7071067811865476, 0.0])  # fmt: skip
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    rng = np.random.default_rng(5)
+    n = 6000
+    g = rng.integers(1, model.ngeom, n)
+    R = data.geom_xmat[g].reshape(-1, 3, 3)
+    half = model.geom_size[g].copy()
+    half[model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE, 2] = 0.0
+    # a point on one of the geom's edges (two local coordinates at +-half, the third anywhere), jittered
+    local = rng.uniform(-0.95, 0.95, (n, 3)) * half
+    axis = rng.integers(0, 3, n)
+    for a in range(3):
+        on = axis != a
+        local[on, a] = rng.choice([-1.0, 1.0], int(on.sum())) * half[on, a]
+    local += rng.uniform(-2e-6, 2e-6, (n, 3))
+    p = np.einsum("nij,nj->ni", R, local) + data.geom_xpos[g]
+    o = np.column_stack([rng.uniform(10.0, 14.0, n), rng.uniform(5.0, 8.0, n), rng.uniform(0.3, 1.5, n)])
+    u = p - o
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    ref, ref_g, ref_n = np.empty(n), np.zeros(n, dtype=np.int32), np.zeros((n, 3))
+    one = np.zeros(1, dtype=np.int32)
+    for i in range(n):
+        ref[i] = mujoco.mj_ray(model, data, o[i], u[i], None, 1, -1, one, ref_n[i])
+        ref_g[i] = one[0]
+    bvh = StaticBvh(model, data, np.arange(model.ngeom), far_m=100.0)
+    for nthreads in (1, 2):
+        gid, dist, nrm = bvh.cast(o, u, nthreads)
+        np.testing.assert_array_equal(gid, ref_g)
+        np.testing.assert_array_equal(dist, ref)
+        np.testing.assert_array_equal(nrm, ref_n)
+    assert np.count_nonzero(ref_g == g) > 0.3 * n  # most beams do meet the edge they aim at
+
+
+def test_rays_at_the_crease_of_interpenetrating_boxes_report_mujocos_geom():
+    """Columns sunk into a wall: where a column's side leaves the wall's face the two surfaces cross
+    away from either box's edges, and Embree (float32) may name the wall where MuJoCo hits the
+    column's side a micrometre before it. Beams aimed within rounding of those creases must get
+    MuJoCo's geom, distance and normal."""
+    spec = mujoco.MjSpec()
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    spec.worldbody.add_geom(name="wall", type=box, pos=[20.0, 4.0, 1.35], size=[0.06, 3.0, 1.35])
+    cols = [([19.95 - 0.01 * k, 2.0 + 0.8 * k, 1.35], [0.03 + 0.01 * k, 0.04, 1.35]) for k in range(5)]
+    for p, s in cols:
+        spec.worldbody.add_geom(type=box, pos=p, size=s)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    rng = np.random.default_rng(8)
+    n = 4000
+    k = rng.integers(0, len(cols), n)
+    p, s = np.array([cols[i][0] for i in k]), np.array([cols[i][1] for i in k])
+    aim = np.column_stack([np.full(n, 20.0 - 0.06), p[:, 1] + rng.choice([-1.0, 1.0], n) * s[:, 1], rng.uniform(0.1, 2.6, n)])
+    aim[:, :2] += rng.uniform(-3e-6, 3e-6, (n, 2))
+    o = np.column_stack([rng.uniform(12.0, 15.0, n), rng.uniform(0.0, 8.0, n), rng.uniform(0.3, 1.5, n)])
+    u = aim - o
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    ref, ref_g, ref_n = np.empty(n), np.zeros(n, dtype=np.int32), np.zeros((n, 3))
+    one = np.zeros(1, dtype=np.int32)
+    for i in range(n):
+        ref[i] = mujoco.mj_ray(model, data, o[i], u[i], None, 1, -1, one, ref_n[i])
+        ref_g[i] = one[0]
+    gid, dist, nrm = StaticBvh(model, data, np.arange(model.ngeom), far_m=100.0).cast(o, u, 1)
+    np.testing.assert_array_equal(gid, ref_g)
+    np.testing.assert_array_equal(dist, ref)
+    np.testing.assert_array_equal(nrm, ref_n)
+    assert 0.1 * n < np.count_nonzero(ref_g == 0) < 0.9 * n  # both the wall and the columns are hit

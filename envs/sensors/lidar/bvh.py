@@ -12,7 +12,10 @@ name another geom only where two surfaces lie within its rounding (~1e-6 of the 
 other: a beam grazing a box's silhouette edge, coplanar faces meeting at a seam, or two faces
 closer than a few micrometres. When the exact recomputation rejects Embree's geom (a plane seen
 from behind, which MuJoCo does not hit, or an edge Embree's rounding caught), the ray's every
-Embree intersection is listed and the nearest one the exact test accepts is taken.
+Embree intersection is listed and the nearest one the exact test accepts is taken. Embree can
+also miss a box whose edge a ray grazes where MuJoCo hits it (a mullion's corner, a pane's end
+against a mullion's side), metres before the surface it names: the geoms whose edges a ray passes
+near before its hit (:mod:`~exobench.envs.sensors.lidar.edges`) are judged exactly too.
 
 Curved static geoms (spheres, cylinders, capsules, ellipsoids: a tessellation would change their
 distances by its sag) and every moving geom (the exoskeleton, pedestrians) are left to MuJoCo.
@@ -24,6 +27,8 @@ them before the static hit.
 from __future__ import annotations
 
 import numpy as np
+
+from .edges import TUBE_M, EdgeTubes
 
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL (double precision)
 _PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
@@ -194,7 +199,7 @@ def _coplanar_partners(
     lo, hi, ok = np.stack(lo, 1).reshape(-1, 3), np.stack(hi, 1).reshape(-1, 3), np.stack(valid, 1).reshape(-1)
     geom_of = np.repeat(np.arange(g), 6)
     lists: tuple[list[list[int]], list[list[int]]] = ([[] for _ in range(6 * g)], [[] for _ in range(6 * g)])
-    tol = 1e-6
+    tol = TUBE_M  # faces this near one plane: float32 may order them either way (a candidate too many costs nothing)
     for f in np.flatnonzero(ok):
         dot = nw @ nw[f]
         touch = ok & np.all((lo <= hi[f] + tol) & (hi >= lo[f] - tol), axis=1) & (geom_of != geom_of[f])
@@ -235,10 +240,11 @@ class StaticBvh:
         self.scene = _scene(meshes)
         self.faces = _face_table(self.pos, self.mat, self.size)
         self.same_face, self.opposite_face = _coplanar_partners(self.pos, self.mat, self.size, self.plane, far_m)
-        # each geom's world box, a little larger (the hit points of its faces, rounded)
-        self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - 1e-6
-        self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + 1e-6
+        # each geom's world box, a little larger (the hit points of nearly coplanar faces, rounded)
+        self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - TUBE_M
+        self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + TUBE_M
         self._loT, self._hiT = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
+        self.edges = EdgeTubes(self.pos, self.mat, self.size, self.plane, far_m)
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
@@ -287,12 +293,13 @@ class StaticBvh:
         if skip is not None:
             x = np.where(skip[kk], -1.0, x)
         good = x >= 0
-        self._seams(rows, kk, x, nv, face, good, o, u, cutoff, self.geom if rank is None else np.asarray(rank)[self.geom],
-                    inside, skip)
+        rk = self.geom if rank is None else np.asarray(rank)[self.geom]
+        self._seams(rows, kk, x, nv, face, good, o, u, cutoff, rk, inside, skip)
         gid[rows[good]], dist[rows[good]], nrm[rows[good]] = kk[good], x[good], nv[good]
         redo = rows[~good]
         if len(redo):
-            self._listed(rays[redo], redo, o, u, cutoff, gid, dist, nrm, skip)
+            self._listed(rays[redo], redo, o, u, cutoff, rk, gid, dist, nrm, skip)
+        self._grazed(o, u, nthreads, cutoff, rk, skip, gid, dist, nrm)
         out = np.where(gid >= 0, self.geom[np.maximum(gid, 0)], -1).astype(np.int32)
         return out, dist, nrm
 
@@ -390,8 +397,33 @@ class StaticBvh:
             out[test] = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]) > cutoff + self.rbound[k[test]]
         return out
 
+    def _grazed(self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None, rk: np.ndarray,
+                skip: np.ndarray | None, gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray) -> None:  # fmt: skip
+        """Geoms the rays pass within Embree's rounding of an edge of, before their hit (``gid,
+        dist, nrm``, BVH geoms, updated in place): MuJoCo's exact hit on each, the nearest kept, of
+        equal ones the first in ``rk`` (see :mod:`~exobench.envs.sensors.lidar.edges`)."""
+        h, q = self.edges.crossed(o, u, np.where(dist >= 0.0, dist, np.inf), nthreads)
+        keep = q != gid[h]
+        if skip is not None:
+            keep &= ~skip[q]
+        h, q = h[keep], q[keep]
+        if len(h) == 0:
+            return
+        x2, n2, _ = exact_hits(self.pos[q], self.mat[q], self.size[q], self.plane[q], o[h], u[h])
+        if cutoff is not None:
+            x2 = np.where(self._culled(q, o[h], cutoff), -1.0, x2)
+        now, g_now = dist[h], gid[h]
+        better = (x2 >= 0.0) & ((now < 0.0) | (x2 < now) | ((x2 == now) & (rk[q] < rk[np.maximum(g_now, 0)])))
+        h, q, x2, n2 = h[better], q[better], x2[better], n2[better]
+        if len(h) == 0:
+            return
+        order = np.lexsort((rk[q], x2, h))
+        win = order[np.append(True, h[order][1:] != h[order][:-1])]
+        gid[h[win]], dist[h[win]], nrm[h[win]] = q[win], x2[win], n2[win]
+
     def _listed(self, rays: object, redo: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None,
-                gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray, skip: np.ndarray | None) -> None:  # fmt: skip
+                rk: np.ndarray, gid: np.ndarray, dist: np.ndarray, nrm: np.ndarray,
+                skip: np.ndarray | None) -> None:  # fmt: skip
         """The nearest exact hit among every Embree intersection of the rays ``redo``."""
         import open3d as o3d
 
@@ -405,8 +437,8 @@ class StaticBvh:
         if skip is not None:
             x = np.where(skip[k], -1.0, x)
         ok = np.flatnonzero(x >= 0)
-        # nearest accepted per ray; of equal distances the lower geom, as MuJoCo's loop keeps the first
-        order = ok[np.lexsort((k[ok], x[ok], which[ok]))]
+        # nearest accepted per ray; of equal distances the first visited, as MuJoCo's loop keeps the first
+        order = ok[np.lexsort((rk[k[ok]], x[ok], which[ok]))]
         first = order[np.append(True, which[order][1:] != which[order][:-1])] if len(order) else order
         r = which[first]
         gid[r], dist[r], nrm[r] = k[first], x[first], nv[first]

@@ -1,7 +1,8 @@
-"""Casting a LiDAR sweep's rays: all by ``mj_multiRay`` (``LidarConfig.caster = "mujoco"``, the
-default and the reference) or by the BVH caster (``"bvh"``: static boxes and planes by Embree with
-MuJoCo's exact hits, :mod:`exobench.envs.sensors.lidar.bvh`, the other geoms by ``mj_multiRay``
-below, the nearer hit; not yet the default: over a whole glazed loop 6 of 1734 sweeps differ). ``mj_multiRay``: batched, zoned, near-first, threaded.
+"""Casting a LiDAR sweep's rays: by the BVH caster (``LidarConfig.caster = "bvh"``, the default:
+static boxes and planes by Embree with MuJoCo's exact hits, :mod:`exobench.envs.sensors.lidar.bvh`,
+the other geoms by ``mj_multiRay`` below, the nearer hit; the same frames as the reference over whole
+glazed loops) or all by ``mj_multiRay`` (``"mujoco"``, the reference). ``mj_multiRay``: batched,
+zoned, near-first, threaded.
 
 ``mj_multiRay`` casts many rays from one point and costs about 0.1 ms per call in a furnished
 scene, so the firings of each ``cast_period_s`` window are cast from one origin (the window's

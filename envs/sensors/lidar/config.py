@@ -70,7 +70,7 @@ class LidarConfig:
             drops the farther ones before tracing), and those without a hit that near again
             against all: the same hits, faster where most returns are near (offices) [A: 8 m];
             0 = one pass.
-        caster: ``"mujoco"`` (the default) or ``"bvh"``. ``"bvh"``: static boxes and planes by Embree (a BVH: the cost does not grow with
+        caster: ``"bvh"`` (the default) or ``"mujoco"``. ``"bvh"``: static boxes and planes by Embree (a BVH: the cost does not grow with
             the building), hits recomputed with MuJoCo's arithmetic, moving and curved geoms by
             MuJoCo, the nearer hit; secondary rays in batches (:mod:`~exobench.envs.sensors.lidar.bvh`);
             ``"mujoco"``: every ray by ``mj_multiRay`` / ``mj_ray`` (the reference). A scene the
@@ -116,7 +116,7 @@ class LidarConfig:
     cast_threads: int = 0
     cast_near_m: float = 8.0
     zoned_cast: bool = True
-    caster: str = "mujoco"  # "bvh" is not yet bit-identical over whole walks (6 of 1734 sweeps differ on ring-windows-float)
+    caster: str = "bvh"
     materials: tuple[LidarMaterial, ...] = ()
     return_mode: str = "sampled"
     glass_bow_mm_per_m: float = 0.0
