@@ -3,6 +3,7 @@
 - :mod:`.imu`: IMU preintegration and bias handling on gtsam (eq. 7, 9).
 - :mod:`.factors`: the inverse-depth reprojection factor (eq. 8) and the host and projection
   depth factors (eq. 11-14) weighted by the stereo depth noise model.
+- :mod:`.tracker`: the KLT front end (OpenCV) and keyframe choice by parallax.
 
 The sliding-window estimator, the ``vio`` track and the pipeline registration are not here yet.
 This package never imports the simulator (tests/test_import_rule.py).
@@ -17,16 +18,21 @@ from .factors import (
     reprojection_factor,
 )
 from .imu import GRAVITY_MPS2, ImuNoise, ImuPreintegrator, combined_factor
+from .tracker import FeatureTracker, TrackedFrame, TrackerConfig, normalised
 
 __all__ = [
     "GRAVITY_MPS2",
     "DepthNoise",
     "Extrinsics",
+    "FeatureTracker",
     "ImuNoise",
     "ImuPreintegrator",
+    "TrackedFrame",
+    "TrackerConfig",
     "combined_factor",
     "host_depth_factor",
     "landmark_in_camera",
+    "normalised",
     "projection_depth_factor",
     "reprojection_factor",
 ]
