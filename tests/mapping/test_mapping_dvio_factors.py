@@ -87,7 +87,7 @@ def test_moving_the_covisible_camera_along_and_across_its_axis():
 
 
 def test_depth_factors_are_weighted_by_the_stereo_noise_model():
-    # SENSORS.md: about 8 mm at 2 m and 32 mm at 4 m for the D455 at 848x480.
+    # docs/sensor-reference.md: about 8 mm at 2 m and 32 mm at 4 m for the D455 at 848x480.
     assert NOISE.sigma_m(2.0) == pytest.approx(0.0079, abs=2e-4)
     assert NOISE.sigma_m(4.0) == pytest.approx(0.0318, abs=5e-4)
     _, proj, host = _factors(d_i=D_I + 0.01, d_j=D_J + 0.01)

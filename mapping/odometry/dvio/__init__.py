@@ -4,6 +4,7 @@
 - :mod:`.factors`: the inverse-depth reprojection factor (eq. 8) and the host and projection
   depth factors (eq. 11-14) weighted by the stereo depth noise model.
 - :mod:`.tracker`: the KLT front end (OpenCV) and keyframe choice by parallax.
+- :mod:`.init`: the depth-enhanced SfM initialisation (eq. 1-5) and visual-inertial alignment.
 
 The sliding-window estimator, the ``vio`` track and the pipeline registration are not here yet.
 This package never imports the simulator (tests/test_import_rule.py).
@@ -18,6 +19,7 @@ from .factors import (
     reprojection_factor,
 )
 from .imu import GRAVITY_MPS2, ImuNoise, ImuPreintegrator, combined_factor
+from .init import InitResult, KeyframeObs, align_visual_inertial, depth_sfm, initialise
 from .tracker import FeatureTracker, TrackedFrame, TrackerConfig, normalised
 
 __all__ = [
@@ -27,10 +29,15 @@ __all__ = [
     "FeatureTracker",
     "ImuNoise",
     "ImuPreintegrator",
+    "InitResult",
+    "KeyframeObs",
     "TrackedFrame",
     "TrackerConfig",
+    "align_visual_inertial",
     "combined_factor",
+    "depth_sfm",
     "host_depth_factor",
+    "initialise",
     "landmark_in_camera",
     "normalised",
     "projection_depth_factor",

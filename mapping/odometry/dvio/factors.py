@@ -14,7 +14,7 @@ and the residuals are
 - :func:`projection_depth_factor`, eq. (12): ``P_cj[2] - d_j`` (metres);
 - :func:`host_depth_factor`, eq. (11): ``1 / xi - d_i`` (metres).
 
-Both depth factors are weighted by the depth noise of a stereo depth camera (SENSORS.md "RGB-D",
+Both depth factors are weighted by the depth noise of a stereo depth camera (docs/sensor-reference.md "RGB-D",
 the RMS error of a disparity error of ``subpixel`` pixels): ``sigma(z) = z^2 s / (f B)``,
 evaluated at the measured depth (:class:`DepthNoise`); all factors take a robust kernel (the
 ``rho`` of eq. 10, 13, 14; VINS-Mono's estimator uses a Cauchy loss of scale 1 on whitened units).
@@ -51,7 +51,7 @@ KERNELS = ("none", "huber", "cauchy")
 
 @dataclass(frozen=True)
 class DepthNoise:
-    """Depth noise of a stereo depth camera (SENSORS.md, D455 at 848x480 defaults).
+    """Depth noise of a stereo depth camera (docs/sensor-reference.md, D455 at 848x480 defaults).
 
     Attributes:
         focal_px: focal length of the depth image, px.

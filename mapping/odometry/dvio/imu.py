@@ -5,7 +5,7 @@ gtsam's ``PreintegratedCombinedMeasurements`` (``deltaPij``, ``deltaVij``, ``del
 combined variant carries the bias random walk, i.e. the last two rows of eq. (7), in the factor
 itself (``CombinedImuFactor``), so the window needs no separate bias-between factors.
 
-Noise comes from the calibration's IMU mount (kalibr conventions, SENSORS.md "IMU"): continuous
+Noise comes from the calibration's IMU mount (kalibr conventions, docs/sensor-reference.md "IMU"): continuous
 noise densities (per sqrt(Hz)) and random walks, which gtsam takes as continuous-time covariances
 (density squared) and discretises with the sample interval itself.
 
