@@ -154,3 +154,15 @@ def test_a_window_recovers_the_inverse_depth_from_a_wrong_start():
     graph.add(gtsam.PriorFactorPose3(PJ, T_GJ, gtsam.noiseModel.Isotropic.Sigma(6, 1e-6)))
     result = gtsam.LevenbergMarquardtOptimizer(graph, _values(xi=0.2)).optimize()
     assert 1.0 / result.atVector(XI)[0] == pytest.approx(D_I, abs=1e-6)
+
+
+def test_a_landmark_behind_the_camera_or_a_negative_inverse_depth_stays_finite():
+    behind = _values(xi=-0.5)  # the optimiser stepped xi through zero
+    back = _T((0.45 + np.pi, -0.05, 0.1), T_GJ.translation())  # camera j turned away
+    for values in (behind, _values(T_j=back)):
+        for f in _factors(kernel="cauchy"):
+            err = f.unwhitenedError(values)
+            A, b = f.linearize(values).jacobian()
+            assert np.all(np.isfinite(err)) and np.all(np.isfinite(A)) and np.all(np.isfinite(b))
+    _, _, host = _factors()
+    assert host.unwhitenedError(behind)[0] == pytest.approx(1e3 - D_I)

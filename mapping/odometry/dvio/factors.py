@@ -48,6 +48,13 @@ __all__ = [
 
 KERNELS = ("none", "huber", "cauchy")
 
+# Smallest depth (m) and inverse depth (1/m) the residuals divide by. An iterate can put a
+# landmark behind a camera or drive xi through zero; the residual is then evaluated at the bound
+# (large, finite, with a zero derivative past it) so the optimiser backs off instead of failing
+# on inf or NaN.
+_MIN_Z_M = 1e-3
+_MIN_XI = 1e-3
+
 
 @dataclass(frozen=True)
 class DepthNoise:
@@ -145,11 +152,12 @@ def _visual(key_i: int, key_j: int, key_xi: int, u_i: np.ndarray, ext: Extrinsic
     u_i = np.asarray(u_i, dtype=float).reshape(2).copy()
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians) -> np.ndarray:
-        xi = float(values.atVector(key_xi)[0])
+        xi = max(float(values.atVector(key_xi)[0]), _MIN_XI)
         P, J_i, J_j, J_xi = landmark_in_camera(values.atPose3(key_i), values.atPose3(key_j), xi, u_i, ext)
         r, dr_dP = residual(P)
         if H is not None:
-            H[0], H[1], H[2] = dr_dP @ J_i, dr_dP @ J_j, dr_dP @ J_xi
+            H[0], H[1] = dr_dP @ J_i, dr_dP @ J_j
+            H[2] = dr_dP @ J_xi if float(values.atVector(key_xi)[0]) > _MIN_XI else np.zeros((len(r), 1))
         return r
 
     return gtsam.CustomFactor(model, gtsam.KeyVector([key_i, key_j, key_xi]), error)
@@ -169,8 +177,9 @@ def reprojection_factor(key_i: int, key_j: int, key_xi: int, u_i: np.ndarray, u_
     u_j = np.asarray(u_j, dtype=float).reshape(2).copy()
 
     def residual(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        z = P[2]
-        J = np.array([[1.0 / z, 0.0, -P[0] / z**2], [0.0, 1.0 / z, -P[1] / z**2]])
+        z = max(P[2], _MIN_Z_M)
+        dz = P[2] > _MIN_Z_M
+        J = np.array([[1.0 / z, 0.0, -P[0] / z**2 * dz], [0.0, 1.0 / z, -P[1] / z**2 * dz]])
         return P[:2] / z - u_j, J
 
     model = robust(gtsam.noiseModel.Isotropic.Sigma(2, sigma), kernel, kernel_k)
@@ -201,9 +210,10 @@ def host_depth_factor(key_xi: int, depth_i_m: float, noise: DepthNoise, kernel: 
     d = float(depth_i_m)
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, H: Jacobians) -> np.ndarray:
-        xi = float(values.atVector(key_xi)[0])
+        raw = float(values.atVector(key_xi)[0])
+        xi = max(raw, _MIN_XI)
         if H is not None:
-            H[0] = np.array([[-1.0 / xi**2]])
+            H[0] = np.array([[-1.0 / xi**2 if raw > _MIN_XI else 0.0]])
         return np.array([1.0 / xi - d])
 
     model = robust(gtsam.noiseModel.Isotropic.Sigma(1, noise.sigma_m(d)), kernel, kernel_k)
