@@ -1,0 +1,45 @@
+"""Building blocks of D-VIO, the RGB-D-inertial odometry of seeds/002 section II-C (issue 27).
+
+- :mod:`.imu`: IMU preintegration and bias handling on gtsam (eq. 7, 9).
+- :mod:`.factors`: the inverse-depth reprojection factor (eq. 8) and the host and projection
+  depth factors (eq. 11-14) weighted by the stereo depth noise model.
+- :mod:`.tracker`: the KLT front end (OpenCV) and keyframe choice by parallax.
+- :mod:`.init`: the depth-enhanced SfM initialisation (eq. 1-5) and visual-inertial alignment.
+
+The sliding-window estimator, the ``vio`` track and the pipeline registration are not here yet.
+This package never imports the simulator (tests/test_import_rule.py).
+"""
+
+from .factors import (
+    DepthNoise,
+    Extrinsics,
+    host_depth_factor,
+    landmark_in_camera,
+    projection_depth_factor,
+    reprojection_factor,
+)
+from .imu import GRAVITY_MPS2, ImuNoise, ImuPreintegrator, combined_factor
+from .init import InitResult, KeyframeObs, align_visual_inertial, depth_sfm, initialise
+from .tracker import FeatureTracker, TrackedFrame, TrackerConfig, normalised
+
+__all__ = [
+    "GRAVITY_MPS2",
+    "DepthNoise",
+    "Extrinsics",
+    "FeatureTracker",
+    "ImuNoise",
+    "ImuPreintegrator",
+    "InitResult",
+    "KeyframeObs",
+    "TrackedFrame",
+    "TrackerConfig",
+    "align_visual_inertial",
+    "combined_factor",
+    "depth_sfm",
+    "host_depth_factor",
+    "initialise",
+    "landmark_in_camera",
+    "normalised",
+    "projection_depth_factor",
+    "reprojection_factor",
+]
