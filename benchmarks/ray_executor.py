@@ -39,6 +39,7 @@ from exobench.core.errors import ConfigError, ExobenchError
 from .pool import LOST_REASON, Death, lost_reason
 
 CONNECT_TIMEOUT_S = 5.0
+LOST_GRACE_S = 30.0  # how long a failing Ray call waits for the health check before it is called a lost cluster
 LOCAL_OBJECT_STORE_BYTES = 200 * 2**20  # episodes return records and small figures, not frames
 OOM_REASON = "the worker process running the episode was killed twice by Ray's memory monitor, likely out of memory"
 
@@ -219,7 +220,8 @@ def run_actors(
                     results.append(ray.get(ref))
                     idle.append(actor)
                 except (rx.ActorDiedError, rx.ActorUnavailableError, rx.WorkerCrashedError, rx.OutOfMemoryError) as e:
-                    ray.kill(actor, no_restart=True)
+                    with contextlib.suppress(Exception):  # with the node gone, killing it raises too
+                        ray.kill(actor, no_restart=True)
                     if not _cluster_alive():
                         lost = ClusterLostError(_lost_text(e))
                         continue
@@ -236,6 +238,14 @@ def run_actors(
                 finish(*result)
             if lost is not None:
                 raise lost
+    except ClusterLostError:
+        raise
+    except (rx.RayError, ConnectionError) as e:
+        # a Ray call (wait, remote, a new actor) that fails as the node goes: the cluster is lost
+        # once Ray's health check says so; a task's own error (RayTaskError) is the harness's
+        if isinstance(e, rx.RayTaskError) or not _cluster_gone_within(LOST_GRACE_S):
+            raise
+        raise ClusterLostError(_lost_text(e)) from None
     finally:
         for actor in [a for a, _, _ in running.values()] + idle:
             try:
@@ -263,6 +273,17 @@ def _cluster_alive() -> bool:
         return any(n.get("Alive") for n in ray.nodes())
     except Exception:
         return False
+
+
+def _cluster_gone_within(grace_s: float) -> bool:
+    """Whether no node answers within ``grace_s`` (Ray's health check takes a few periods to
+    declare a killed node dead: 15 s with its defaults)."""
+    deadline = time.monotonic() + grace_s
+    while _cluster_alive():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.5)
+    return True
 
 
 def _lost_text(err: Exception) -> str:

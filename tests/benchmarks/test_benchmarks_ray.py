@@ -138,6 +138,27 @@ def test_a_cluster_found_gone_while_waiting_stops_the_run_without_waiting_for_it
     assert time.monotonic() - t0 < 15  # not the 20 s of the episode (nor forever: no node would run it)
 
 
+def test_a_ray_call_that_fails_as_the_node_goes_is_a_lost_cluster_with_what_finished_kept(executor, monkeypatch):
+    """The raylet killed between two episodes: the next ``ray.wait`` (or a kill, or a new actor)
+    raises a system error rather than an episode's death; once no node answers, that is a lost
+    cluster (resumable), not a crash of the run."""
+    import ray
+    from ray import exceptions as rx
+
+    real_wait, got = ray.wait, {}
+
+    def wait_then_fail(*args, **kwargs):
+        if got:  # the first episode is finished and handed over; the node goes now
+            monkeypatch.setattr(ray_executor, "_cluster_alive", lambda: False)
+            raise rx.RaySystemError("raylet connection lost")
+        return real_wait(*args, **kwargs)
+
+    monkeypatch.setattr(ray, "wait", wait_then_fail)
+    with pytest.raises(ClusterLostError, match="raylet connection lost"):
+        run_actors(["0", "0.5"], 1, _slow, got.__setitem__, lambda j, why: (j, "lost"))
+    assert got == {"0": "done"}
+
+
 def test_an_unreachable_address_is_refused_at_once_before_anything_is_written(tmp_path, capsys):
     with socket.socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
@@ -217,7 +238,7 @@ def test_a_cluster_lost_mid_run_keeps_what_finished_and_resume_completes_it_on_t
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(HERE), str(HERE.parent), os.environ.get("PYTHONPATH")])),
                RAY_health_check_period_ms="500", RAY_health_check_failure_threshold="2")  # the dead node found in ~1 s, not ~15
     child = subprocess.Popen([sys.executable, str(HERE / "ray_lost_child.py"), str(out)], env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)  # fmt: skip
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     seen: dict[int, str] = {}
     try:
         deadline = time.monotonic() + 120
@@ -228,7 +249,7 @@ def test_a_cluster_lost_mid_run_keeps_what_finished_and_resume_completes_it_on_t
         assert raylets, "the child's Ray has no raylet"
         for p in raylets:
             os.kill(p, signal.SIGKILL)  # the only node of the child's cluster is gone
-        stdout, _ = child.communicate(timeout=120)
+        stdout, stderr = child.communicate(timeout=120)
     finally:
         seen.update(_descendants(child.pid))
         for p, name in seen.items():  # leave none of the child's Ray behind (a pid taken since by another is spared)
@@ -237,7 +258,7 @@ def test_a_cluster_lost_mid_run_keeps_what_finished_and_resume_completes_it_on_t
                     os.kill(p, signal.SIGKILL)
         child.kill()
         child.wait()
-    assert child.returncode == 3 and "LOST: the Ray cluster was lost" in stdout, stdout
+    assert child.returncode == 3 and "LOST: the Ray cluster was lost" in stdout, stdout + stderr[-3000:]
     kept = [json.loads(x) for x in (out / RESULTS_FILE).read_text().splitlines()]
     assert kept and not any(r["metrics"]["failed"] for r in kept)  # no unfinished episode recorded as failed
     plan = _plan(reg, pipelines=["fake"])  # the same plan as the child's (SlowTrack is a FakeTrack)
