@@ -240,9 +240,10 @@ def run_actors(
                 raise lost
     except ClusterLostError:
         raise
-    except (rx.RayError, ConnectionError) as e:
-        # a Ray call (wait, remote, a new actor) that fails as the node goes: the cluster is lost
-        # once Ray's health check says so; a task's own error (RayTaskError) is the harness's
+    except Exception as e:
+        # a Ray call (wait, get, remote, a new actor) that fails as the node goes, with whatever
+        # error Ray's client gives then: the cluster is lost once Ray's health check says so; a
+        # task's own error (RayTaskError) is the harness's, raised as it is
         if isinstance(e, rx.RayTaskError) or not _cluster_gone_within(LOST_GRACE_S):
             raise
         raise ClusterLostError(_lost_text(e)) from None
