@@ -12,16 +12,21 @@
   reason (:func:`lost_reason`): a worker killed by SIGKILL (what the kernel's out-of-memory
   killer sends) is said to be likely out of memory, with its peak resident memory as last seen
   (the parent reads each worker's ``VmHWM`` in ``/proc`` about every :data:`WATCH_INTERVAL_S`).
+- Each worker's OpenMP and BLAS thread pools get the machine's CPUs over the number of workers
+  (:func:`worker_threads_env`; a variable the user set is kept), as Ray does for its workers:
+  with every worker keeping a pool as wide as the machine, two workers on two cores ran the
+  stairs paper suite 1.15x as fast as one (9.5 / 8.3 s); with one thread each, 1.75x.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -81,6 +86,23 @@ def _init_worker(parent_pid: int) -> None:
     threading.Thread(target=_watch_parent, args=(parent_pid,), daemon=True, name="exobench-parent-watch").start()
 
 
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextlib.contextmanager
+def worker_threads_env(workers: int) -> Iterator[None]:
+    """While workers are spawned (they read it as they load OpenMP and BLAS), the thread-pool
+    variables the user has not set say ``cpu_count // workers`` (at least 1)."""
+    threads = str(max(1, (os.cpu_count() or 1) // max(1, workers)))
+    unset = [v for v in THREAD_VARS if v not in os.environ]
+    os.environ.update(dict.fromkeys(unset, threads))
+    try:
+        yield
+    finally:
+        for v in unset:
+            os.environ.pop(v, None)
+
+
 def make_pool(workers: int) -> ProcessPoolExecutor:
     """A spawned pool of ``workers`` processes that choose the GL platform and watch the parent."""
     ctx = multiprocessing.get_context("spawn")
@@ -122,7 +144,8 @@ def _run_batch(
     procs: dict[int, Any] = {}  # pid -> multiprocessing.Process, kept after the pool drops them
     peaks: dict[int, int] = {}
     try:
-        futures = [pool.submit(work, job) for job in jobs]
+        with worker_threads_env(workers):  # a spawning pool starts its processes as jobs come
+            futures = [pool.submit(work, job) for job in jobs]
         procs.update(getattr(pool, "_processes", None) or {})
         pending, broken = set(futures), False
         while pending:
