@@ -249,10 +249,8 @@ def run_actors(
         raise ClusterLostError(_lost_text(e)) from None
     finally:
         for actor in [a for a, _, _ in running.values()] + idle:
-            try:
+            with contextlib.suppress(Exception):  # the cluster is gone: nothing left to end
                 ray.kill(actor, no_restart=True)
-            except Exception:  # the cluster is gone: nothing left to end
-                pass
 
 
 def _death_reason(err: Exception) -> str:

@@ -284,6 +284,17 @@ def test_face_hits_is_not_sure_of_a_neighbouring_face_near_an_edge():
     assert tested > 0.3 * 6 * 4 * 300
 
 
+def _mj_ray_each(model, data, o, u):
+    """MuJoCo's own hit of each ray, one mj_ray per ray: (distances, geom ids, normals)."""
+    n = len(o)
+    ref, ref_g, ref_n = np.empty(n), np.zeros(n, dtype=np.int32), np.zeros((n, 3))
+    one = np.zeros(1, dtype=np.int32)
+    for i in range(n):
+        ref[i] = mujoco.mj_ray(model, data, o[i], u[i], None, 1, -1, one, ref_n[i])
+        ref_g[i] = one[0]
+    return ref, ref_g, ref_n
+
+
 def test_rays_grazing_box_edges_report_mujocos_geom():
     """Beams aimed within float32 rounding of box edges, 16-22 m from the origin as in the ring's
     building: mullions (one at a pane's end, the pane abutting its side), a chair seat's lower edge
@@ -321,11 +332,7 @@ def test_rays_grazing_box_edges_report_mujocos_geom():
     o = np.column_stack([rng.uniform(10.0, 14.0, n), rng.uniform(5.0, 8.0, n), rng.uniform(0.3, 1.5, n)])
     u = p - o
     u /= np.linalg.norm(u, axis=1)[:, None]
-    ref, ref_g, ref_n = np.empty(n), np.zeros(n, dtype=np.int32), np.zeros((n, 3))
-    one = np.zeros(1, dtype=np.int32)
-    for i in range(n):
-        ref[i] = mujoco.mj_ray(model, data, o[i], u[i], None, 1, -1, one, ref_n[i])
-        ref_g[i] = one[0]
+    ref, ref_g, ref_n = _mj_ray_each(model, data, o, u)
     bvh = StaticBvh(model, data, np.arange(model.ngeom), far_m=100.0)
     for nthreads in (1, 2):
         gid, dist, nrm = bvh.cast(o, u, nthreads)
@@ -358,11 +365,7 @@ def test_rays_at_the_crease_of_interpenetrating_boxes_report_mujocos_geom():
     o = np.column_stack([rng.uniform(12.0, 15.0, n), rng.uniform(0.0, 8.0, n), rng.uniform(0.3, 1.5, n)])
     u = aim - o
     u /= np.linalg.norm(u, axis=1)[:, None]
-    ref, ref_g, ref_n = np.empty(n), np.zeros(n, dtype=np.int32), np.zeros((n, 3))
-    one = np.zeros(1, dtype=np.int32)
-    for i in range(n):
-        ref[i] = mujoco.mj_ray(model, data, o[i], u[i], None, 1, -1, one, ref_n[i])
-        ref_g[i] = one[0]
+    ref, ref_g, ref_n = _mj_ray_each(model, data, o, u)
     gid, dist, nrm = StaticBvh(model, data, np.arange(model.ngeom), far_m=100.0).cast(o, u, 1)
     np.testing.assert_array_equal(gid, ref_g)
     np.testing.assert_array_equal(dist, ref)

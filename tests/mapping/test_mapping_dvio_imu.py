@@ -5,20 +5,11 @@ import numpy as np
 import pytest
 
 from exobench.core.errors import ConfigError
+from exobench.core.transforms import rot_x, rot_z
 from exobench.mapping.odometry.dvio.imu import GRAVITY_MPS2, ImuNoise, ImuPreintegrator
 
 G = np.array([0.0, 0.0, -GRAVITY_MPS2])
 R_H, W_H, VZ, AZ, OMZ, ROLL = 1.5, 1.2, 0.3, 0.05, 7.0, 0.3  # helix radius, yaw rate, climb, bob
-
-
-def _rz(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-
-
-def _rx(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
 
 
 def truth(t):
@@ -28,8 +19,8 @@ def truth(t):
     v = np.array([-R_H * W_H * np.sin(W_H * t), R_H * W_H * np.cos(W_H * t), VZ + AZ * OMZ * np.cos(OMZ * t)])
     a = np.array([-R_H * W_H**2 * np.cos(W_H * t), -R_H * W_H**2 * np.sin(W_H * t),
                   -AZ * OMZ**2 * np.sin(OMZ * t)])
-    R = _rz(W_H * t) @ _rx(ROLL)  # yaw at W_H about world z, then a fixed roll
-    w_body = _rx(ROLL).T @ np.array([0.0, 0.0, W_H])
+    R = rot_z(W_H * t) @ rot_x(ROLL)  # yaw at W_H about world z, then a fixed roll
+    w_body = rot_x(ROLL).T @ np.array([0.0, 0.0, W_H])
     return p, v, a, R, w_body
 
 

@@ -4,6 +4,7 @@ synthetic sequence: a camera looking out of a helix at a textured cylinder wall.
 import numpy as np
 import pytest
 
+from exobench.core.transforms import rot_x, rot_z
 from exobench.mapping.odometry.dvio.factors import DepthNoise, Extrinsics
 from exobench.mapping.odometry.dvio.imu import GRAVITY_MPS2, ImuNoise, ImuPreintegrator
 from exobench.mapping.odometry.dvio.init import KeyframeObs, depth_sfm, initialise
@@ -16,21 +17,11 @@ NOISE = DepthNoise()
 EXT = Extrinsics(np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]), np.array([0.02, -0.005, -0.011]))
 
 
-def _rz(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-
-
-def _rx(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
 def truth(t):
     p = np.array([RH * np.cos(WH * t), RH * np.sin(WH * t), VZ * t + AZ * np.sin(OMZ * t)])
     v = np.array([-RH * WH * np.sin(WH * t), RH * WH * np.cos(WH * t), VZ + AZ * OMZ * np.cos(OMZ * t)])
     a = np.array([-RH * WH**2 * np.cos(WH * t), -RH * WH**2 * np.sin(WH * t), -AZ * OMZ**2 * np.sin(OMZ * t)])
-    return p, v, a, _rz(WH * t) @ _rx(ROLL), _rx(ROLL).T @ np.array([0.0, 0.0, WH])
+    return p, v, a, rot_z(WH * t) @ rot_x(ROLL), rot_x(ROLL).T @ np.array([0.0, 0.0, WH])
 
 
 def _wall(rng, n=3000, r_min=2.2, r_max=6.0):
