@@ -24,7 +24,7 @@ import numpy as np
 
 from exobench.core.errors import ConfigError, check_int, check_range
 
-__all__ = ["BowVector", "KeyframeDatabase", "OrbConfig", "PlaceCandidate", "Vocabulary", "VocabularyConfig",
+__all__ = ["BowVector", "KeyframeDatabase", "OrbConfig", "PlaceCandidate", "Vocabulary", "VocabularyConfig", "to_grey",
            "l1_score", "orb_features"]
 
 BowVector = dict[int, float]
@@ -57,7 +57,8 @@ class OrbConfig:
         check_int("orb.edge_threshold_px", self.edge_threshold_px, 3, 100)
 
 
-def _grey(image: np.ndarray) -> np.ndarray:
+def to_grey(image: np.ndarray) -> np.ndarray:
+    """The uint8 grey image of a uint8 grey or RGB image (ConfigError for other dtypes)."""
     img = np.asarray(image)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
@@ -73,7 +74,7 @@ def orb_features(image: np.ndarray, config: OrbConfig | None = None) -> tuple[np
     orb = cv2.ORB_create(nfeatures=cfg.n_features, scaleFactor=cfg.scale_factor, nlevels=cfg.n_levels,
                          edgeThreshold=cfg.edge_threshold_px, patchSize=cfg.edge_threshold_px,
                          fastThreshold=cfg.fast_threshold)
-    kps, desc = orb.detectAndCompute(_grey(image), None)
+    kps, desc = orb.detectAndCompute(to_grey(image), None)
     if desc is None or not kps:
         return np.zeros((0, 2)), np.zeros((0, 32), dtype=np.uint8)
     return np.array([k.pt for k in kps], dtype=float), desc
