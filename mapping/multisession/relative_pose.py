@@ -34,7 +34,8 @@ from exobench.core.errors import ConfigError, check_int, check_range
 
 from .place_recognition import to_grey
 
-__all__ = ["PnpConfig", "RelativePose", "best_candidate", "pnp_covariance", "relative_pose", "sift_features"]
+__all__ = ["PnpConfig", "RelativePose", "best_candidate", "depth_at", "pnp_covariance", "relative_pose",
+           "sift_features"]
 
 
 @dataclass(frozen=True)
@@ -144,6 +145,27 @@ def _match(desc_p: np.ndarray, desc_q: np.ndarray, ratio: float) -> list[tuple[i
             if m.distance < ratio * n.distance]
 
 
+def depth_at(depth: np.ndarray, uv: np.ndarray, max_spread: float = 0.02) -> np.ndarray:
+    """Depth (m) at sub-pixel keypoints ``uv`` (n, 2): bilinear between the four pixels around
+    each when they agree within ``max_spread`` of their mean (a smooth surface: the nearest
+    pixel alone would put a slanted wall's point up to half a pixel's depth change off), else
+    the nearest pixel (an edge, where blending would invent a point between two surfaces)."""
+    d = np.asarray(depth, dtype=float)
+    h, w = d.shape
+    u = np.clip(uv[:, 0], 0, w - 1)
+    v = np.clip(uv[:, 1], 0, h - 1)
+    u0 = np.clip(np.floor(u).astype(int), 0, w - 2)
+    v0 = np.clip(np.floor(v).astype(int), 0, h - 2)
+    fu, fv = u - u0, v - v0
+    quad = np.stack([d[v0, u0], d[v0, u0 + 1], d[v0 + 1, u0], d[v0 + 1, u0 + 1]], axis=1)
+    bilinear = (quad[:, 0] * (1 - fu) * (1 - fv) + quad[:, 1] * fu * (1 - fv)
+                + quad[:, 2] * (1 - fu) * fv + quad[:, 3] * fu * fv)
+    nearest = d[np.rint(v).astype(int), np.rint(u).astype(int)]
+    with np.errstate(invalid="ignore"):
+        smooth = np.all(np.isfinite(quad), axis=1) & (np.ptp(quad, axis=1) <= max_spread * np.abs(quad.mean(axis=1)))
+    return np.where(smooth, bilinear, nearest)
+
+
 def relative_pose(features_p: tuple[np.ndarray, np.ndarray], depth_p: np.ndarray,
                   features_q: tuple[np.ndarray, np.ndarray], K: np.ndarray,
                   config: PnpConfig | None = None) -> RelativePose | None:
@@ -158,11 +180,7 @@ def relative_pose(features_p: tuple[np.ndarray, np.ndarray], depth_p: np.ndarray
     if len(pairs) < cfg.min_inliers:
         return None
     ip, iq = np.array(pairs).T
-    px = np.rint(uv_p[ip]).astype(int)
-    h, w = depth_p.shape
-    px[:, 0] = np.clip(px[:, 0], 0, w - 1)
-    px[:, 1] = np.clip(px[:, 1], 0, h - 1)
-    z = depth_p[px[:, 1], px[:, 0]].astype(float)
+    z = depth_at(depth_p, uv_p[ip])
     ok = np.isfinite(z) & (z >= cfg.min_depth_m) & (z <= cfg.max_depth_m)
     if ok.sum() < cfg.min_inliers:
         return None

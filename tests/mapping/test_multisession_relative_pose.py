@@ -14,6 +14,7 @@ from exobench.mapping.multisession.relative_pose import (
     PnpConfig,
     RelativePose,
     best_candidate,
+    depth_at,
     pnp_covariance,
     relative_pose,
     sift_features,
@@ -95,3 +96,13 @@ def test_bad_config_named():
         PnpConfig(ratio=1.5)
     with pytest.raises(ConfigError, match="pnp.min_inliers"):
         PnpConfig(min_inliers=3)
+
+
+def test_depth_at_interpolates_smooth_surfaces_not_edges():
+    u = np.arange(20.0)
+    plane = np.tile(2.0 + 0.01 * u, (10, 1))  # a wall slanting away to the right
+    assert depth_at(plane, np.array([[10.4, 5.0]]))[0] == pytest.approx(2.104)
+    step = plane.copy()
+    step[:, 11:] = 4.0  # an edge between pixels 10 and 11: no blended depth in between
+    assert depth_at(step, np.array([[10.4, 5.0]]))[0] == pytest.approx(2.10)
+    assert depth_at(step, np.array([[10.6, 5.0]]))[0] == pytest.approx(4.0)
