@@ -10,4 +10,6 @@
   inter-session edges and intra-session loops.
 - :mod:`.merge`: per-session keyframe pose graphs merged by Levenberg-Marquardt with a Cauchy
   loss, session 1 anchoring; a session joined to no other stays its own map (eq. 1).
+- :mod:`.change`: change detection between the prior map and a new session, ``kind`` octree
+  (OctoMap differencing at 5 cm: removed and added octrees, eq. 2-3) or dufomap (DUFOMap).
 """
