@@ -16,7 +16,9 @@ the group holding session 1 is optimised as one map; any session (or group) join
 edge stays its own map in its own frame and is reported in
 :attr:`MergeResult.separate_sessions`, never forced into place. Each map is optimised by
 Levenberg-Marquardt with a Cauchy loss on the loop and inter-session edges (the edges a place
-recogniser proposes, which may be wrong); odometry edges stay Gaussian.
+recogniser proposes, which may be wrong); odometry edges stay Gaussian. The Cauchy kernel is
+annealed (:attr:`MergeConfig.cauchy_annealing`): LM runs with a wide kernel first, then with the
+configured one.
 """
 
 from __future__ import annotations
@@ -98,6 +100,12 @@ class MergeConfig:
         cauchy_scale: Cauchy kernel scale ``c`` in whitened units (weight ``1 / (1 + (r/c)^2)``);
             2.0 keeps weight 0.4 for an inlier at 1 sigma in all six dimensions
             (``r = sqrt(6)``) and cuts a 10-sigma outlier to 0.007. None: Gaussian edges.
+        cauchy_annealing: factors of ``cauchy_scale`` of successive LM runs, each from the last
+            one's solution, ending at 1. PnP covariances are a few mm: from an initial guess
+            that drift or a wrong first edge puts 0.1 m off, every true edge starts as a
+            20-sigma outlier and a single Cauchy run stops there; a wide kernel first lets the
+            true edges pull the graph in before the narrow one rejects the outliers
+            (docs/multisession.md).
         max_iterations / relative_error_tol: Levenberg-Marquardt stopping rule.
     """
 
@@ -107,6 +115,7 @@ class MergeConfig:
     loop_sigma_m: float = 0.05
     prior_sigma: float = 1e-6
     cauchy_scale: float | None = 2.0
+    cauchy_annealing: tuple[float, ...] = (100.0, 10.0, 1.0)
     max_iterations: int = 100
     relative_error_tol: float = 1e-8
 
@@ -115,6 +124,9 @@ class MergeConfig:
             check_range(f"merge.{name}", getattr(self, name), 0.0, None, low_open=True)
         if self.cauchy_scale is not None:
             check_range("merge.cauchy_scale", self.cauchy_scale, 0.0, None, low_open=True)
+        factors = tuple(self.cauchy_annealing)
+        if not factors or any(not (isinstance(f, (int, float)) and f > 0) for f in factors) or factors[-1] != 1:
+            raise ConfigError("merge.cauchy_annealing", self.cauchy_annealing, "positive factors ending with 1")
         check_int("merge.max_iterations", self.max_iterations, 1, 100_000)
         check_range("merge.relative_error_tol", self.relative_error_tol, 0.0, 1.0, low_open=True)
 
@@ -202,10 +214,10 @@ def _initial_frames(group: list[int], graphs: dict[int, SessionGraph], edges: li
 
 def _optimise(group: list[int], graphs: dict[int, SessionGraph], edges: list[PoseEdge], cfg: MergeConfig) -> MergedMap:
     T_m_s = _initial_frames(group, graphs, edges)
-    graph = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
+    fixed = gtsam.NonlinearFactorGraph()  # prior and odometry: the same at every stage
     anchor = graphs[group[0]]
-    graph.add(gtsam.PriorFactorPose3(_key((anchor.session, 0)), gtsam.Pose3(anchor.T_s_b[0]),
+    fixed.add(gtsam.PriorFactorPose3(_key((anchor.session, 0)), gtsam.Pose3(anchor.T_s_b[0]),
                                      gtsam.noiseModel.Isotropic.Sigma(6, cfg.prior_sigma)))
     odom = _noise(None, cfg.odom_sigma_rad, cfg.odom_sigma_m, None)
     for s in group:
@@ -213,16 +225,20 @@ def _optimise(group: list[int], graphs: dict[int, SessionGraph], edges: list[Pos
         for i, T in enumerate(g.T_s_b):
             values.insert(_key((s, i)), gtsam.Pose3(T_m_s[s] @ T))
             if i:
-                graph.add(gtsam.BetweenFactorPose3(_key((s, i - 1)), _key((s, i)),
+                fixed.add(gtsam.BetweenFactorPose3(_key((s, i - 1)), _key((s, i)),
                                                    gtsam.Pose3(np.linalg.inv(g.T_s_b[i - 1]) @ T), odom))
-    for e in [*(loop for s in group for loop in graphs[s].loops), *edges]:
-        graph.add(gtsam.BetweenFactorPose3(_key(e.a), _key(e.b), gtsam.Pose3(np.asarray(e.T_a_b, dtype=float)),
-                                           _noise(e.covariance, cfg.loop_sigma_rad, cfg.loop_sigma_m, cfg.cauchy_scale)))
+    loops = [*(loop for s in group for loop in graphs[s].loops), *edges]
     params = gtsam.LevenbergMarquardtParams()
     params.setMaxIterations(cfg.max_iterations)
     params.setRelativeErrorTol(cfg.relative_error_tol)
-    result = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
-    poses = {(s, i): result.atPose3(_key((s, i))).matrix() for s in group for i in range(len(graphs[s]))}
+    scales = [None] if cfg.cauchy_scale is None else [cfg.cauchy_scale * f for f in cfg.cauchy_annealing]
+    for scale in scales:
+        graph = gtsam.NonlinearFactorGraph(fixed)
+        for e in loops:
+            graph.add(gtsam.BetweenFactorPose3(_key(e.a), _key(e.b), gtsam.Pose3(np.asarray(e.T_a_b, dtype=float)),
+                                               _noise(e.covariance, cfg.loop_sigma_rad, cfg.loop_sigma_m, scale)))
+        values = gtsam.LevenbergMarquardtOptimizer(graph, values, params).optimize()
+    poses = {(s, i): values.atPose3(_key((s, i))).matrix() for s in group for i in range(len(graphs[s]))}
     frames = {s: poses[(s, 0)] @ np.linalg.inv(graphs[s].T_s_b[0]) for s in group}
     return MergedMap(group[0], tuple(group), poses, frames, len(edges))
 

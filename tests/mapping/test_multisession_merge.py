@@ -11,7 +11,7 @@ from textured_room import K, TexturedRoom
 
 from exobench.core.errors import ConfigError, FolderError
 from exobench.mapping.multisession.keyframes import KeyframeStore
-from exobench.mapping.multisession.matching import MatchConfig, PlaceMatcher
+from exobench.mapping.multisession.matching import MatchConfig, PlaceMatcher, same_session_apart
 from exobench.mapping.multisession.merge import MergeConfig, PoseEdge, SessionGraph, merge_sessions
 
 # camera 0.1 m ahead of the base and 0.3 m up, looking along the base's x (OpenCV axes)
@@ -81,6 +81,32 @@ def test_known_offset_recovered_and_non_overlapping_session_kept_apart(tmp_path)
         assert _errors(alone.T_m_b[(2, i)], np.linalg.inv(T_w_sc) @ T)[0] < 1e-6
 
 
+def test_intra_session_loop_found_and_closed(tmp_path):
+    """A session walks a circle and comes back near its start (0.1 m, 5 degrees off): the
+    matcher proposes the loop to keyframe 0 (keyframes 11 before it are too recent), with the
+    true relative pose; as a loop edge it pulls the drifted odometry back."""
+    room = TexturedRoom(seed=13)
+    T_w_b = [*_walk(room, 12, 0.8, 0.0), _pose(*(room.size[:2] / 2 + [0.8 + 0.1, 0.0]), np.radians(5))]
+    with KeyframeStore(parent=tmp_path) as store:
+        _record(store, room, 0, T_w_b)
+        cfg = MatchConfig(top_k=3, min_index_gap=10)
+        images = [store.get(k, "image") for k in store.keys()]
+        matcher = PlaceMatcher(store, K, T_BASE_CAM, PlaceMatcher.train_vocabulary(images, cfg), cfg)
+        matcher.add(store.keys()[:-1])
+        loops = matcher.edges([(0, 12)], accept=same_session_apart(cfg.min_index_gap))
+    assert len(loops) == 1 and loops[0].a == (0, 0) and loops[0].b == (0, 12)
+    t_err, r_err = _errors(loops[0].T_a_b, np.linalg.inv(T_w_b[0]) @ T_w_b[12])
+    assert t_err < 0.01 and r_err < 0.2, (t_err, r_err)
+    # odometry that drifts 0.02 rad a step: the loop edge brings the last keyframe back
+    drifted = [T_w_b[0]]
+    for i in range(1, 13):
+        drifted.append(drifted[-1] @ np.linalg.inv(T_w_b[i - 1]) @ T_w_b[i] @ _pose(0, 0, 0.02, z=0.0))
+    alone = merge_sessions([SessionGraph(0, np.array(drifted))], []).maps[0]
+    closed = merge_sessions([SessionGraph(0, np.array(drifted), loops=loops)], []).maps[0]
+    assert _errors(alone.T_m_b[(0, 12)], T_w_b[12])[0] > 0.15
+    assert _errors(closed.T_m_b[(0, 12)], T_w_b[12])[0] < 0.01
+
+
 def _synthetic(offset, n=10):
     """Two sessions on the same path, session 2's frame at ``offset``; exact inter-session edges
     between keyframes i, i with a 2 mm / 0.1 degree PnP-like covariance."""
@@ -103,6 +129,9 @@ def test_cauchy_loss_resists_a_wrong_inter_session_edge():
 
     assert worst(robust) < 0.01
     assert worst(plain) > 0.05
+    # the wrong edge first: it places session 2 for the initial guess, 1.4 m off; the annealed
+    # kernel still converges to the true edges (one Cauchy run stays at 1.4 m)
+    assert worst(merge_sessions(sessions, [wrong, *edges])) < 0.01
     # keyframes of the anchor session stay where they were
     for i, T in enumerate(sessions[0].T_s_b):
         assert _errors(robust.maps[0].T_m_b[(0, i)], T)[0] < 0.005
@@ -139,6 +168,8 @@ def test_bad_input_named():
         SessionGraph(0, np.array([np.eye(4)] * 2), ["a"])
     with pytest.raises(ConfigError, match="merge.cauchy_scale"):
         MergeConfig(cauchy_scale=0.0)
+    with pytest.raises(ConfigError, match="merge.cauchy_annealing"):
+        MergeConfig(cauchy_annealing=(10.0, 2.0))
 
 
 def test_keyframe_store_writes_in_its_own_folder_and_cleans_up(tmp_path):
