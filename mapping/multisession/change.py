@@ -24,7 +24,8 @@ built from one side's scans and labels the other side's points dynamic where the
 it saw free: prior points in the current session's free space are removed, current points in
 the prior's free space are added; the updated map is assembled the same way.
 
-"Both directions" (Table II) is :func:`detect_changes` called with the sessions swapped.
+"Both directions" (Table II) is :func:`detect_changes` called with the sessions swapped;
+:func:`update_map` runs the update session after session, each against the map so far.
 """
 
 from __future__ import annotations
@@ -38,7 +39,8 @@ import numpy as np
 from exobench.core.errors import ConfigError, check_int, check_range
 
 __all__ = ["CHANGE_KINDS", "ChangeConfig", "ChangeResult", "DufomapConfig", "OctreeConfig", "Scan",
-           "VoxelChanges", "detect_changes", "dufomap_changes", "octree_changes", "voxel_changes", "voxel_keys"]
+           "VoxelChanges", "detect_changes", "dufomap_changes", "octree_changes", "update_map", "updated_scans",
+           "voxel_changes", "voxel_keys"]
 
 CHANGE_KINDS = ("octree", "dufomap")
 
@@ -114,18 +116,24 @@ class DufomapConfig:
         inflate_unknown: ``d_p`` (voxels), free voxels next to unknown ones are not trusted
             (DUFOMap's default 1).
         num_threads: DUFOMap's threads (0: all cores).
+        hit_guard_voxels: a point is removed (added) only if no point of the other side lies
+            within this many voxels (0: none). This is eq. 3's "occupied overwrites free" for a
+            prior of several sessions: DUFOMap keeps a voxel free once any scan saw it free, so
+            an object a later session added to the prior would read as standing in free space.
     """
 
     resolution_m: float = 0.05
     inflate_hits_m: float = 0.1
     inflate_unknown: int = 1
     num_threads: int = 1
+    hit_guard_voxels: int = 1
 
     def __post_init__(self) -> None:
         check_range("dufomap.resolution_m", self.resolution_m, 0.005, 1.0)
         check_range("dufomap.inflate_hits_m", self.inflate_hits_m, 0.0, 5.0)
         check_int("dufomap.inflate_unknown", self.inflate_unknown, 0, 10)
         check_int("dufomap.num_threads", self.num_threads, 0, 256)
+        check_int("dufomap.hit_guard_voxels", self.hit_guard_voxels, 0, 10)
 
 
 @dataclass(frozen=True)
@@ -161,12 +169,14 @@ class ChangeResult:
         removed_points: prior points where the new session saw free space.
         added_points: new points where the prior saw free space.
         updated_points: the updated map: prior points not removed, plus the new points.
+        kept_prior: (n_prior,) bool, which prior points (scans concatenated in order) stay.
         voxels: the voxel sets (octree kind only; None for DUFOMap, which labels points).
     """
 
     removed_points: np.ndarray
     added_points: np.ndarray
     updated_points: np.ndarray
+    kept_prior: np.ndarray
     voxels: VoxelChanges | None = None
 
 
@@ -263,7 +273,8 @@ def octree_changes(prior: Sequence[Scan], current: Sequence[Scan], config: Octre
     voxels = voxel_changes(keys, _states(_octree(prior, cfg), keys, res), _states(_octree(current, cfg), keys, res),
                            keys_p, keys_c, cfg.hit_guard_voxels)
     gone = _isin(keys_p, voxels.removed)
-    return ChangeResult(pts_p[gone], pts_c[_isin(keys_c, voxels.added)], np.concatenate([pts_p[~gone], pts_c]), voxels)
+    return ChangeResult(pts_p[gone], pts_c[_isin(keys_c, voxels.added)], np.concatenate([pts_p[~gone], pts_c]),
+                        ~gone, voxels)
 
 
 def _dufomap_dynamic(built_from: Sequence[Scan], labelled: np.ndarray, cfg: DufomapConfig) -> np.ndarray:
@@ -291,7 +302,39 @@ def dufomap_changes(prior: Sequence[Scan], current: Sequence[Scan], config: Dufo
     pts_c = np.concatenate([s.points_m for s in current] or [np.zeros((0, 3))])
     gone = _dufomap_dynamic(current, pts_p, cfg)
     new = _dufomap_dynamic(prior, pts_c, cfg)
-    return ChangeResult(pts_p[gone], pts_c[new], np.concatenate([pts_p[~gone], pts_c]))
+    if cfg.hit_guard_voxels > 0:
+        keys_p, keys_c = voxel_keys(pts_p, cfg.resolution_m), voxel_keys(pts_c, cfg.resolution_m)
+        gone &= ~_isin(keys_p, _dilate(_rows(keys_c), cfg.hit_guard_voxels))
+        new &= ~_isin(keys_c, _dilate(_rows(keys_p), cfg.hit_guard_voxels))
+    return ChangeResult(pts_p[gone], pts_c[new], np.concatenate([pts_p[~gone], pts_c]), ~gone)
+
+
+def updated_scans(prior: Sequence[Scan], current: Sequence[Scan], result: ChangeResult) -> list[Scan]:
+    """Eq. 2-3 as scans, the prior of the next session: the prior scans without their removed
+    points (their rays go with them; the current session saw that space free anyway), then the
+    current scans."""
+    keep = np.asarray(result.kept_prior, dtype=bool)
+    n = sum(len(s.points_m) for s in prior)
+    if keep.shape != (n,):
+        raise ConfigError("result.kept_prior", keep.shape, f"one flag per prior point ({n})")
+    out, start = [], 0
+    for scan in prior:
+        stop = start + len(scan.points_m)
+        out.append(Scan(scan.points_m[keep[start:stop]], scan.origin_m))
+        start = stop
+    return [*out, *current]
+
+
+def update_map(sessions: Sequence[Sequence[Scan]], config: ChangeConfig | None = None) -> tuple[list[Scan], list[ChangeResult]]:
+    """Sessions merged in order, each against the map updated by all before it (the paper's
+    incremental update): the final map's scans and one result per session after the first."""
+    if not sessions:
+        raise ConfigError("sessions", 0, "at least one session of scans")
+    prior, results = list(sessions[0]), []
+    for current in sessions[1:]:
+        results.append(detect_changes(prior, current, config))
+        prior = updated_scans(prior, current, results[-1])
+    return prior, results
 
 
 def detect_changes(prior: Sequence[Scan], current: Sequence[Scan], config: ChangeConfig | None = None) -> ChangeResult:

@@ -14,6 +14,7 @@ from exobench.mapping.multisession.change import (
     Scan,
     detect_changes,
     octree_changes,
+    update_map,
     voxel_keys,
 )
 
@@ -114,3 +115,21 @@ def test_bad_config_named():
         OctreeConfig(prob_hit=0.4)
     with pytest.raises(ConfigError, match="scan.origin_m"):
         Scan(np.zeros((2, 3)), np.zeros(2))
+
+
+@pytest.mark.parametrize("kind", ["octree", "dufomap"])
+def test_three_days_update_the_map_in_turn(kind):
+    """Day 1 box A; day 2 A gone, B there; day 3 A back, B still there. Day 3 is compared with
+    the map updated by day 2: A is added again, nothing is removed (B stays)."""
+    origins = [(2.0, 2.0, 1.0), (2.2, 2.4, 0.9)]
+    days = [_session([BOX_A], origins), _session([BOX_B], origins), _session([BOX_A, BOX_B], origins)]
+    final, (day2, day3) = update_map(days, ChangeConfig(kind=kind))
+    assert len(day2.removed_points) > 500 and on_box(day2.removed_points, BOX_A).all()
+    assert len(day2.added_points) > 500 and on_box(day2.added_points, BOX_B).all()
+    assert len(day3.added_points) > 500 and on_box(day3.added_points, BOX_A).all()
+    assert len(day3.removed_points) == 0
+    # the final map: day 1's A went with day 2 and came back with day 3; B from days 2 and 3
+    pts = np.concatenate([s.points_m for s in final])
+    day3_pts = np.concatenate([s.points_m for s in days[2]])
+    assert on_box(pts, BOX_A).sum() >= on_box(day3_pts, BOX_A).sum()
+    assert len(final) == 3 * len(days[0])
