@@ -152,7 +152,7 @@ class ChangeConfig:
 
 @dataclass(frozen=True)
 class VoxelChanges:
-    """Occupied voxel sets (integer keys ``floor(p / resolution)``, (m, 3) int64, sorted) of the
+    """Occupied voxel sets (keys of :func:`voxel_keys`, (m, 3) int64, sorted) of the
     differencing (module docstring)."""
 
     removed: np.ndarray
@@ -253,7 +253,8 @@ def _octree(scans: Sequence[Scan], cfg: OctreeConfig):  # -> pyoctomap.OcTree
     max_range = -1.0 if cfg.max_range_m is None else cfg.max_range_m
     for scan in scans:
         if len(scan.points_m):
-            # discretize: one ray per end voxel, OctoMap's own batching (halves the time)
+            # discretize: one ray per end voxel, OctoMap's own batching (0.96 s against 1.28 s for
+            # 307 200 points, docs/multisession.md)
             tree.insertPointCloud(scan.points_m, scan.origin_m, max_range, discretize=True)
     return tree
 

@@ -195,14 +195,13 @@ def _groups(session_ids: list[int], edges: Sequence[PoseEdge]) -> list[list[int]
 def _initial_frames(group: list[int], graphs: dict[int, SessionGraph], edges: list[PoseEdge]) -> dict[int, np.ndarray]:
     """T_m_s of each session of a group, chained through the first edge that reaches it."""
     T_m_s = {group[0]: np.eye(4)}
-    pending = list(edges)
     while len(T_m_s) < len(group):
-        for e in pending:
+        for e in edges:
             known_a, known_b = e.a[0] in T_m_s, e.b[0] in T_m_s
             if known_a != known_b:
                 break
-        else:  # unreachable: groups are joined by edges
-            raise ConfigError("merge.edges", len(edges), "edges joining every session of a group")
+        else:  # _groups joined every session of the group by an edge
+            raise AssertionError(f"sessions {sorted(set(group) - set(T_m_s))} reached by no edge")
         if known_a:  # T_m_sb = T_m_sa T_sa_a T_a_b T_b_sb
             T_m_a = T_m_s[e.a[0]] @ graphs[e.a[0]].T_s_b[e.a[1]]
             T_m_s[e.b[0]] = T_m_a @ e.T_a_b @ np.linalg.inv(graphs[e.b[0]].T_s_b[e.b[1]])
