@@ -58,7 +58,7 @@ def test_known_offset_recovered_and_non_overlapping_session_kept_apart(tmp_path)
         _record(store, room, 1, T_w_b)
         _record(store, other_room, 2, T_w_c)
         cfg = MatchConfig(top_k=3)
-        images = [store.get(k, "image") for k in store.keys()]
+        images = [store.get(k, "image") for k in store.keys(0)]  # the prior session trains it
         matcher = PlaceMatcher(store, K, T_BASE_CAM, PlaceMatcher.train_vocabulary(images, cfg), cfg)
         matcher.add(store.keys(0))
         edges = matcher.edges(store.keys(1)) + matcher.edges(store.keys(2))
