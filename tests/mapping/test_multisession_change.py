@@ -133,3 +133,13 @@ def test_three_days_update_the_map_in_turn(kind):
     day3_pts = np.concatenate([s.points_m for s in days[2]])
     assert on_box(pts, BOX_A).sum() >= on_box(day3_pts, BOX_A).sum()
     assert len(final) == 3 * len(days[0])
+
+
+def test_change_stage_as_a_nested_config():
+    """``--set lt-exosense.change.kind=dufomap`` reaches the stage through the project's config builder."""
+    from exobench.core.pipeline import config_from_dict
+
+    cfg = config_from_dict(ChangeConfig, {"kind": "dufomap", "octree.resolution_m": "0.1", "dufomap": {"inflate_unknown": "2"}})
+    assert cfg.kind == "dufomap" and cfg.octree.resolution_m == 0.1 and cfg.dufomap.inflate_unknown == 2
+    with pytest.raises(ConfigError, match="change.kind"):
+        config_from_dict(ChangeConfig, {"kind": "voxblox"})
