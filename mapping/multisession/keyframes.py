@@ -1,0 +1,101 @@
+"""Keyframe resources on disk, pose graphs in memory (seeds/000 III-B.2, memory management).
+
+LT-Exosense keeps each session's images, point clouds and descriptors in the file system and
+loads only the pose graphs; a resource is read when an operation needs it. :class:`KeyframeStore`
+is that file system part for one pipeline run: a temporary folder of its own (under the system's
+temporary directory or a given parent), one ``.npy`` per keyframe and array (so features computed
+later join a keyframe without rewriting its image), removed by :meth:`close`
+(or on leaving a ``with`` block). Nothing of it is kept after the run.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from exobench.core.errors import ConfigError, FolderError
+
+__all__ = ["KeyframeId", "KeyframeStore"]
+
+KeyframeId = tuple[int, int]
+"""A keyframe of the multi-session map: (session id, keyframe index in its session), both >= 0."""
+
+
+def _check_id(key: KeyframeId) -> tuple[int, int]:
+    if (not isinstance(key, tuple) or len(key) != 2
+            or not all(isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0 for k in key)):
+        raise ConfigError("keyframe_id", key, "a (session, index) pair of integers >= 0")
+    return int(key[0]), int(key[1])
+
+
+class KeyframeStore:
+    """Arrays of keyframes (image, depth, cloud, ...) in a temporary folder of this store's own.
+
+    Args:
+        parent: folder in which the store makes its own temporary folder (default: the system's
+            temporary directory).
+    """
+
+    def __init__(self, parent: str | Path | None = None) -> None:
+        self.root: Path = Path(tempfile.mkdtemp(prefix="exobench-keyframes-", dir=parent))
+        self._names: dict[tuple[int, int], set[str]] = {}
+        self._closed = False
+
+    def __enter__(self) -> KeyframeStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._names
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def _path(self, key: tuple[int, int], name: str) -> Path:
+        return self.root / f"s{key[0]:04d}_k{key[1]:06d}_{name}.npy"
+
+    def put(self, key: KeyframeId, **arrays: np.ndarray) -> None:
+        """Write the named arrays of keyframe ``key`` (an array of the same name is replaced)."""
+        if self._closed:
+            raise FolderError(f"{self.root}: keyframe store closed (put after close)")
+        k = _check_id(key)
+        for name, a in arrays.items():
+            if not name.isidentifier():
+                raise ConfigError("keyframe_array", name, "a name of letters, digits and underscores")
+            np.save(self._path(k, name), np.asarray(a), allow_pickle=False)
+            self._names.setdefault(k, set()).add(name)
+
+    def has(self, key: KeyframeId, name: str) -> bool:
+        """Whether keyframe ``key`` has an array ``name``."""
+        return name in self._names.get(_check_id(key), ())
+
+    def get(self, key: KeyframeId, name: str) -> np.ndarray:
+        """Read array ``name`` of keyframe ``key`` back from disk."""
+        if self._closed:
+            raise FolderError(f"{self.root}: keyframe store closed (get after close)")
+        k = _check_id(key)
+        if k not in self._names:
+            raise ConfigError("keyframe_id", key, f"one of the {len(self._names)} keyframes stored")
+        if name not in self._names[k]:
+            raise ConfigError("keyframe_array", name, f"one of {sorted(self._names[k])}")
+        return np.load(self._path(k, name), allow_pickle=False)
+
+    def keys(self, session: int | None = None) -> list[tuple[int, int]]:
+        """Stored keyframes (of ``session`` only when given), in order."""
+        return sorted(k for k in self._names if session is None or k[0] == session)
+
+    def close(self) -> None:
+        """Remove the store's folder and everything in it (idempotent)."""
+        if not self._closed:
+            shutil.rmtree(self.root, ignore_errors=True)
+            self._names.clear()
+            self._closed = True
