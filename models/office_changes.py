@@ -185,14 +185,14 @@ class _State:
         """Why ``item`` cannot stand where it is, among the other pieces, or None."""
         solids = place_piece(item.piece, item.id, item.k, item.x, item.y)[0]
         rect = footprint_rect(item.k, item.x, item.y, item.piece.size[0], item.piece.size[1])
+        hit = _cuts(solids, self.static)
+        if hit is not None:
+            return f"it would cut {hit} (walls, doors and glass stay where they are)"
         region = _region_of(self.layout, rect)
         if region is None:
             return f"its footprint {np.round(rect, 3).tolist()} is not on the floor of one room or corridor"
         if obstacle and region["kind"] != "corridor":
             return f"an obstacle goes in a corridor, not in {region['name']}"
-        hit = _cuts(solids, self.static)
-        if hit is not None:
-            return f"it would cut {hit} (walls, doors and glass stay where they are)"
         for oid, other in self.solids.items():
             if oid != item.id and _cuts(solids, other) is not None:
                 return f"it would cut {oid}"

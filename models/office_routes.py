@@ -99,7 +99,7 @@ def _touched(grid: FloorGrid, rect: Sequence[float], inside: bool = False) -> tu
 
 def corridor_open(grid: FloorGrid, rect: Sequence[float], clearance_m: float = ROUTE_CLEARANCE_M) -> bool:
     """Whether a walker can still get from one end of a corridor (``rect``, its long side the
-    corridor's axis) to the other within it."""
+    corridor's axis) to the other within it: a free path joins the squares at its two ends."""
     from scipy.ndimage import label
 
     si, sj = grid.cells_in(rect)
@@ -107,8 +107,11 @@ def corridor_open(grid: FloorGrid, rect: Sequence[float], clearance_m: float = R
     if rect[1] - rect[0] < rect[3] - rect[2]:
         free = free.T
     labels, _ = label(free, structure=np.ones((3, 3)))
-    ends = set(labels[0][labels[0] > 0].tolist()) & set(labels[-1][labels[-1] > 0].tolist())
-    return bool(ends)
+    # the ends: a square of the corridor's width at each end (where it meets the cross
+    # corridor, or the wall it ends at)
+    n = min(free.shape[1], free.shape[0] // 2)
+    a, b = labels[:n], labels[-n:]
+    return bool(set(a[a > 0].tolist()) & set(b[b > 0].tolist()))
 
 
 def _pair(d: int, n: int) -> tuple[slice, slice]:
