@@ -31,6 +31,8 @@ WALKER_HALF_WIDTH_M = 0.25
 WALKER_HEIGHT_M = 1.8
 ROUTE_CLEARANCE_M = 0.30
 CELL_M = 0.05
+CENTRE_M, CENTRE_WEIGHT = 0.9, 2.0  # see region_route
+SHORT_SEGMENT_M = 0.3  # the walk drops shorter segments (envs.sim.scenarios.office.MIN_SEGMENT_M)
 
 
 @dataclass(frozen=True)
@@ -119,8 +121,9 @@ def _pair(d: int, n: int) -> tuple[slice, slice]:
     return slice(max(0, -d), n - max(0, d)), slice(max(0, d), n - max(0, -d))
 
 
-def _graph(free: np.ndarray) -> object:
-    """The free cells as a graph (scipy CSR): 8-connected, steps of 1 or sqrt(2) cells."""
+def _graph(free: np.ndarray, cost: np.ndarray) -> object:
+    """The free cells as a graph (scipy CSR): 8-connected, a step of 1 or sqrt(2) cells times the
+    mean ``cost`` of its two cells."""
     from scipy.sparse import coo_matrix
 
     nx, ny = free.shape
@@ -134,7 +137,8 @@ def _graph(free: np.ndarray) -> object:
         ia, ib = idx[ai, aj][ok], idx[bi, bj][ok]
         rows += [ia, ib]
         cols += [ib, ia]
-        w.append(np.full(2 * len(ia), math.hypot(di, dj)))
+        step = math.hypot(di, dj) * 0.5 * (cost.ravel()[ia] + cost.ravel()[ib])
+        w += [step, step]
     r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(w)
     return coo_matrix((v, (r, c)), shape=(nx * ny, nx * ny)).tocsr()
 
@@ -147,6 +151,9 @@ def _visible(grid: FloorGrid, free: np.ndarray, a: np.ndarray, b: np.ndarray) ->
 
 
 def _simplify(grid: FloorGrid, free: np.ndarray, pts: np.ndarray) -> list[np.ndarray]:
+    """Few straight segments along a path of cells: each as long as it keeps the clearance, then
+    the corners that the next and previous ones can skip dropped (the walk's route drops
+    segments shorter than 0.3 m itself, so few short ones are left for it to cut)."""
     out, i = [pts[0]], 0
     while i < len(pts) - 1:
         j = i + 1
@@ -154,6 +161,20 @@ def _simplify(grid: FloorGrid, free: np.ndarray, pts: np.ndarray) -> list[np.nda
             j += 1
         out.append(pts[j])
         i = j
+    k = 1
+    while k < len(out) - 1:
+        if _visible(grid, free, out[k - 1], out[k + 1]):
+            del out[k]
+        else:
+            k += 1
+    k = 1
+    while k < len(out) - 2:  # two corners closer than a short segment: one between them, if it keeps clear
+        m = 0.5 * (out[k] + out[k + 1])
+        if np.linalg.norm(out[k + 1] - out[k]) < SHORT_SEGMENT_M and _visible(grid, free, out[k - 1], m) \
+                and _visible(grid, free, m, out[k + 2]):
+            out[k:k + 2] = [m]
+        else:
+            k += 1
     return out
 
 
@@ -179,11 +200,17 @@ def region_route(truth: object, regions: Sequence[str], clearance_m: float = ROU
         raise ConfigError("route_regions", "", "at least one region name")
     grid = floor_grid(solids_from_truth(truth), params["regions"], params["extent_m"], cell_m)
     free = grid.free(clearance_m)
+    # keep to the middle of corridors and doors where there is room: a step costs up to
+    # (1 + CENTRE_WEIGHT) times more the nearer it comes to anything than CENTRE_M
+    from scipy.ndimage import distance_transform_edt
+
+    near = np.clip((CENTRE_M - distance_transform_edt(~grid.blocked) * cell_m) / CENTRE_M, 0.0, 1.0)
+    cost = 1.0 + CENTRE_WEIGHT * near
     start = np.asarray(params["start_w"][:2], dtype=float)
     s = grid.index(start)
     if not free[s]:
         raise ConfigError("route_regions", ",".join(regions), f"a start at {start.tolist()} with {clearance_m} m clear")
-    g = _graph(free)
+    g = _graph(free, cost)
     ny = free.shape[1]
     path: list[np.ndarray] = [start]
     here = s[0] * ny + s[1]

@@ -250,11 +250,11 @@ def test_a_route_visits_the_regions_and_goes_round_a_corridor_obstacle():
     regions = ["corridor_s", "corridor_e", "office2"]
     t = _trolley(3)
     w, d = t.size[0], t.size[1]
-    # against the core's wall, where the shortest way along the south corridor runs
-    cart = Change(1, "obstacle", "cart", "trolley", 3, 8.0, 1.78 - d / 2, 0)
+    # across the middle of the south corridor, where the way along it runs, leaving 0.85 m on its south side
+    cart = Change(1, "obstacle", "cart", "trolley", 3, 8.0, 0.85 + d / 2, 0)
     script = ChangeScript((cart,))
     day0, day1 = build_office(p, script, 0), build_office(p, script, 1)
-    lo, hi = np.array([8.0 - w / 2, 1.78 - d]), np.array([8.0 + w / 2, 1.78])
+    lo, hi = np.array([8.0 - w / 2, 0.85]), np.array([8.0 + w / 2, 0.85 + d])
     before, after = _dense(region_route(day0.truth, regions)), _dense(region_route(day1.truth, regions))
     assert _distance_to_rect(before, lo, hi).min() < WALKER_HALF_WIDTH_M  # the obstacle is in the way
     assert _distance_to_rect(after, lo, hi).min() >= WALKER_HALF_WIDTH_M

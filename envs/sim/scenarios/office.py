@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
+from exobench.core import ConfigError, Episode, EpisodeTruth, UnknownNameError, compact_truth
 from exobench.core.episode import EpisodeStream
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.furniture_kinds import FURNISHINGS
@@ -67,7 +67,7 @@ LIDAR_ID = LIDAR_TRUNK
 PENETRATION_RATE_HZ = 1000.0
 MIN_SEGMENT_M = 0.3  # shorter route segments are merged into the next one
 LIDAR_PATTERNS = ("vlp16", "vlp32", "ouster64", "livox")
-ROUTES = ("loop", "ring", "corridor", "regions")
+ROUTES = ("loop", "ring", "corridor")
 LIDAR_TRUTHS = ("full", "labels")
 LIDAR_MOUNTS = ("mast", "pelvis")
 RETURN_MODES = ("sampled", "strongest", "last")
@@ -108,10 +108,10 @@ PARAMS: dict[str, ParamSpec] = {
                              "not with changes)"),
     "route": ParamSpec("corridor", None, None, "", "office route walked (loop: every office and two laps, "
                        "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor; "
-                       "regions: through route_regions in turn, round what stands there that day)",
-                       choices=ROUTES),
-    "route_regions": ParamSpec("", None, None, "", "regions the 'regions' route visits in order, comma-separated "
-                               "(corridor_n, corridor_s, corridor_w, corridor_e, meeting, office0, ...)"),
+                       "not used when route_regions is given)", choices=ROUTES),
+    "route_regions": ParamSpec("", None, None, "", "regions to walk through in turn instead of route, comma-separated "
+                               "(corridor_n, corridor_s, corridor_w, corridor_e, meeting, office0, ...), planned on the "
+                               "day's floor round whatever stands there (models.office_routes)"),
     "lidar_truth": ParamSpec("full", None, None, "", "per-point LiDAR truth kept: full, or labels only "
                              "(kind, surface, range; ~8x smaller, for long walks)", choices=LIDAR_TRUTHS),
     "max_distance_m": ParamSpec(20.0, 0.5, 500.0, "m", "the route is cut after this length (keeps quick runs short)"),
@@ -183,11 +183,10 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
         super().check_composition()
         self.office_params()
         self.change_script()
-        regions = self.regions()
-        if self.route == "regions" and not regions:
-            raise ConfigError("route_regions", self.route_regions, "at least one region name with route=regions")
-        if self.route != "regions" and regions:
-            raise ConfigError("route_regions", self.route_regions, "empty unless route=regions")
+        for r in self.regions():
+            names = _region_names(self.office_params())
+            if r not in names:
+                raise UnknownNameError("office region (route_regions)", r, names)
 
     def regions(self) -> tuple[str, ...]:
         return tuple(r.strip() for r in self.route_regions.split(",") if r.strip())
@@ -216,6 +215,13 @@ def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], 
     from exobench.models.office import build_office
 
     return compose_rig(build_office(params, changes, day), exo, sites, look=look, look_seed=params.seed)  # type: ignore[arg-type, attr-defined]
+
+
+@lru_cache(maxsize=8)
+def _region_names(params: object) -> tuple[str, ...]:
+    from exobench.models.office_layout import build_layout
+
+    return tuple(r["name"] for r in build_layout(params).regions)  # type: ignore[arg-type]
 
 
 @lru_cache(maxsize=8)
@@ -258,7 +264,7 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
     script = scenario.change_script()
     world = {} if script is None else {"changes": script, "day": scenario.day}
     scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), None if look.is_default else look, **world)
-    if scenario.route == "regions":
+    if scenario.regions():
         from exobench.models.office_routes import region_route
 
         wps = route_waypoints(region_route(scene.truth, scenario.regions()), scenario.max_distance_m)
