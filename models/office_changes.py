@@ -185,6 +185,10 @@ class _State:
         """Why ``item`` cannot stand where it is, among the other pieces, or None."""
         solids = place_piece(item.piece, item.id, item.k, item.x, item.y)[0]
         rect = footprint_rect(item.k, item.x, item.y, item.piece.size[0], item.piece.size[1])
+        taken = {s.name for s in self.static} | {s.name for oid, ss in self.solids.items() if oid != item.id for s in ss}
+        clash = sorted({s.name for s in solids} & taken)
+        if clash:
+            return f"its geom {clash[0]} would have the name of one already there"
         hit = _cuts(solids, self.static)
         if hit is not None:
             return f"it would cut {hit} (walls, doors and glass stay where they are)"
