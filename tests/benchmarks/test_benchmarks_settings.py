@@ -32,6 +32,7 @@ CONTEXT = {
     ("loop-closure", "n_offices"): {"corridor_length_m": "80"},
     ("loop-closure", "corridor_length_m"): {"n_offices": "1", "meeting_room_m": "1.5"},
     ("loop-closure", "meeting_room_m"): {"corridor_length_m": "80"},
+    **{(t, "change_seed"): {"day": "1"} for t in ("odometry", "lidar-filter", "loop-closure")},  # it draws `day` days
 }
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from exobench.core import ChangeScriptError, UnknownNameError
+from exobench.core import ChangeScriptError, ConfigError, UnknownNameError
 from exobench.envs.sim.scenario import check_scenario
 from exobench.envs.sim.scenarios.office import OfficeScenario, plan_office_walk
 from exobench.models.furniture_kinds import MAKERS
@@ -32,6 +32,10 @@ def test_an_invalid_script_is_refused_before_anything_runs():
         check_scenario(OfficeScenario.from_dict({"route_regions": "corridor_s,kitchen"}))
     with pytest.raises(ChangeScriptError):
         plan_office_walk(bad)
+    with pytest.raises(ConfigError, match="change_seed"):  # a script of 0 days would draw nothing
+        check_scenario(OfficeScenario.from_dict({"change_seed": 3}))
+    with pytest.raises(ConfigError, match="change_seed"):  # written or drawn, not both
+        check_scenario(OfficeScenario.from_dict({"change_seed": 3, "day": 1, "changes": "1 remove chair0"}))
 
 
 def test_the_command_line_refuses_an_invalid_script_in_one_line(tmp_path):

@@ -194,6 +194,8 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
     def change_script(self) -> object:
         """The furniture's change script (``models.office_changes.ChangeScript``), validated on
         the office; None for the office as furnished (no script, day 0)."""
+        if self.change_seed >= 0 and self.day == 0:  # it would draw nothing
+            raise ConfigError("change_seed", self.change_seed, "-1 when day is 0 (a script of `day` days is drawn)")
         if not self.changes.strip() and self.change_seed < 0 and self.day == 0:
             return None
         return _change_script(self.office_params(), self.changes, self.change_seed, self.day)
