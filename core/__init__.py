@@ -8,6 +8,7 @@ from .calibration import Calibration, SensorMount
 from .counters import FrameCounts, StreamCounters
 from .episode import Episode, EpisodeTruth
 from .errors import (
+    ChangeScriptError,
     ConfigError,
     ExobenchError,
     RenderError,
@@ -56,6 +57,7 @@ from .truth import (
 
 __all__ = [
     "Calibration",
+    "ChangeScriptError",
     "ConfigError",
     "ContactSample",
     "Episode",

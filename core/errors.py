@@ -45,6 +45,22 @@ class ConfigError(ExobenchError, ValueError):
         super().__init__(f"{field}={short_repr(value)} is invalid; allowed: {short_text(str(allowed), 300)}")
 
 
+class ChangeScriptError(ConfigError):
+    """A world's change script cannot be applied: an object moved into a wall or another object,
+    one removed or moved that does not exist, an obstacle that closes a corridor. Refused before
+    anything runs; ``day`` and ``object_id`` name the change, ``field`` is
+    ``"changes.day<d>.<object_id>"``."""
+
+    def __init__(self, day: int, object_id: str, problem: str) -> None:
+        self.day = int(day)
+        self.object_id = str(object_id)
+        self.problem = problem
+        ExobenchError.__init__(self, f"change script, day {self.day}, object {short_repr(self.object_id)}: {short_text(problem, 300)}")
+        self.field = f"changes.day{self.day}.{self.object_id}"
+        self.value = self.object_id
+        self.allowed = problem
+
+
 class UnknownNameError(ExobenchError, KeyError):
     """A name (suite, track, pipeline, parameter, sensor, ...) is not known.
 

@@ -31,10 +31,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from exobench.core.errors import ConfigError, UnknownNameError
+from exobench.core.errors import ConfigError, UnknownNameError, check_int
 from exobench.core.truth import SceneTruth
 
+from .furniture_kinds import LAB_CLASSES, OBSTACLE_CLASSES
 from .materials import MATERIALS as LIDAR_MATERIALS
+from .office_changes import MAX_DAY, ChangeScript, apply_changes
 from .office_furniture import CLASSES as FURNITURE_CLASSES
 from .office_layout import Layout, build_layout
 from .office_look import add_office_materials
@@ -46,7 +48,7 @@ from .worlds import WORLD_GEOM_GROUP, BuiltWorld
 if TYPE_CHECKING:
     import mujoco
 
-OBJECT_CLASSES = FURNITURE_CLASSES + ("door", "glass_partition", "window")
+OBJECT_CLASSES = FURNITURE_CLASSES + ("door", "glass_partition", "window") + LAB_CLASSES + OBSTACLE_CLASSES
 SURFACE_KINDS = ("ground", "ceiling", "wall", "glass", "frame", "door", "furniture")
 ROUTE_KINDS = ("loop", "ring", "corridor")
 
@@ -72,12 +74,21 @@ def _emit(spec: mujoco.MjSpec, layout: Layout) -> None:
                     quat=[1.0, 0.0, 0.0, 0.0] if s.up else [0.0, 1.0, 0.0, 0.0], group=WORLD_GEOM_GROUP)
 
 
-def build_office(params: OfficeParams | None = None) -> BuiltWorld:
-    """The office of ``params`` (defaults if None): spec with materials and lights, and its truth."""
+def build_office(params: OfficeParams | None = None, changes: ChangeScript | None = None, day: int = 0) -> BuiltWorld:
+    """The office of ``params`` (defaults if None): spec with materials and lights, and its truth.
+
+    With a change script, the office of ``day``: the furniture after the changes of days
+    1..``day`` (:mod:`office_changes`; the whole script is validated first, and an invalid one
+    raises ``ChangeScriptError`` naming the day and the object); the truth's params then hold
+    ``day`` and ``changes`` (the script's compact form).
+    """
     import mujoco
 
     p = params or OfficeParams()
+    day = check_int("day", day, 0, MAX_DAY)
     layout = build_layout(p)
+    if changes is not None:
+        layout = layout.with_furniture(apply_changes(layout, changes, day)[day])
     spec = mujoco.MjSpec()
     spec.modelname = "exobench_office"
     add_office_materials(spec)
@@ -101,6 +112,8 @@ def build_office(params: OfficeParams | None = None) -> BuiltWorld:
         "corridor_y_m": layout.corridor_y_m,
         "extent_m": list(layout.extent),
     })
+    if changes is not None:
+        values.update({"day": day, "changes": changes.compact()})
     truth = SceneTruth(surfaces=tuple(surfaces), geom_surfaces=geom_surfaces, params=values, kind="office",
                        geom_materials={s.name: s.material for s in layout.solids}, objects=tuple(layout.objects))
     return BuiltWorld(spec=spec, truth=truth)

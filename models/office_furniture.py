@@ -210,6 +210,25 @@ def place_piece(piece: Piece, name: str, k: int, x: float, y: float, kind: str =
 Rect = tuple[float, float, float, float]  # x0, x1, y0, y1
 
 
+@dataclass(frozen=True)
+class Placed:
+    """A piece of furniture standing in the office: its identity ``id`` (the name it got when the
+    office was furnished, or the one a change script gave it; its geoms are ``<id>_<part>``), the
+    piece, its turn k * 90 deg and origin (x, y), and the region it stands in."""
+
+    id: str
+    piece: Piece
+    k: int
+    x: float
+    y: float
+    room: str
+
+    def emit(self) -> tuple[list[Solid], dict]:
+        solids, obj = place_piece(self.piece, self.id, self.k, self.x, self.y)
+        obj["room"] = self.room
+        return solids, obj
+
+
 def overlaps(a: Rect, b: Rect, margin: float = 0.0) -> bool:
     return a[0] < b[1] + margin and b[0] < a[1] + margin and a[2] < b[3] + margin and b[2] < a[3] + margin
 

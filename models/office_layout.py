@@ -36,26 +36,19 @@ corridor, so it passes all of them.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .furniture_kinds import Candidate, room_candidates
 from .office_furniture import (
     Group,
+    Placed,
     Rect,
     Solid,
-    cabinet,
-    couch,
     find_spot,
     footprint_rect,
-    meeting_table,
-    place_piece,
-    plant,
     rotate_xy,
-    single,
-    waste_bin,
-    workstation,
 )
 from .office_params import (
     DOOR_HEIGHT_M,
@@ -94,12 +87,25 @@ class Layout:
     featureless_x_m: list[float]
     corridor_y_m: dict[str, float]
     extent: Rect  # outside of the exterior walls
+    # the furniture layer: the pieces standing (their solids are the last of ``solids``, from
+    # ``n_static`` on), and the areas by each room's doors that furniture keeps clear
+    furniture: list[Placed]
+    n_static: int
+    keepouts: dict[str, list[Rect]]
+
+    def with_furniture(self, furniture: list[Placed]) -> Layout:
+        """The same building furnished with ``furniture`` (solids and objects of the pieces last)."""
+        solids, objects = list(self.solids[: self.n_static]), list(self.objects[: len(self.objects) - len(self.furniture)])
+        for item in furniture:
+            s, obj = item.emit()
+            solids += s
+            objects.append(obj)
+        return replace(self, solids=solids, objects=objects, furniture=list(furniture))
 
 
 def _place_groups(rng: np.random.Generator, names: Names, room: Rect, room_name: str, density: float,
-                  candidates: list[tuple[Callable[[np.random.Generator], Group], bool]], keepouts: list[Rect]) -> tuple[list[Solid], list[dict]]:
-    solids: list[Solid] = []
-    objects: list[dict] = []
+                  candidates: list[Candidate], keepouts: list[Rect]) -> list[Placed]:
+    placed: list[Placed] = []
     taken = list(keepouts)
     for i, (make, against_wall) in enumerate(candidates):
         group: Group = make(rng)
@@ -112,11 +118,8 @@ def _place_groups(rng: np.random.Generator, names: Names, room: Rect, room_name:
         taken.append(footprint_rect(k, x, y, *group.footprint))
         for piece, (ox, oy), km in group.members:
             dx, dy = rotate_xy(k, ox, oy)
-            s, obj = place_piece(piece, names(piece.cls), (k + km) % 4, x + dx, y + dy)
-            obj["room"] = room_name
-            solids += s
-            objects.append(obj)
-    return solids, objects
+            placed.append(Placed(names(piece.cls), piece, (k + km) % 4, x + dx, y + dy, room_name))
+    return placed
 
 
 def _plane(name: str, rect: Rect, z: float, up: bool, material: str, look: str, kind: str) -> Solid:
@@ -259,27 +262,21 @@ def build_layout(p: OfficeParams) -> Layout:
                        (hinge_s - (op_s[1] - op_s[0]), hinge_s, yc0, yc0 + op_s[1] - op_s[0]),
                        (dm - ROUTE_KEEPOUT_M, dm + ROUTE_KEEPOUT_M, yc0, yc1)]
 
-    # furniture
+    # furniture: drawn from the layout's generator where it left off (as it always was), or from
+    # its own seed, so the same building can be furnished differently
+    n_static = len(solids)
+    frng = rng if p.furniture_seed < 0 else np.random.default_rng(p.furniture_seed)
+    furniture: list[Placed] = []
     for r in regions:
         if r["kind"] == "corridor":
             continue
         room = tuple(r["clear"])
-        area = (room[1] - room[0]) * (room[3] - room[2])
-        if r["kind"] == "office":
-            cands = [(workstation, True)]
-            if room[1] - room[0] >= 3.6:
-                cands.append((workstation, True))
-            if area >= 16.0:
-                cands.append((lambda g: single(couch(g)), True))
-            cands += [(lambda g: single(cabinet(g)), True), (lambda g: single(cabinet(g)), True),
-                      (lambda g: single(plant(g)), True), (lambda g: single(waste_bin(g)), True)]
-        else:
-            cands = [(meeting_table, False), (lambda g: single(couch(g)), True), (lambda g: single(cabinet(g)), True),
-                     (lambda g: single(plant(g)), True), (lambda g: single(plant(g)), True),
-                     (lambda g: single(waste_bin(g)), True)]
-        s, objs = _place_groups(rng, names, room, r["name"], p.furniture_density, cands, keep[r["name"]])
+        cands = room_candidates(p.furnish, r["kind"], room)
+        furniture += _place_groups(frng, names, room, r["name"], p.furniture_density, cands, keep[r["name"]])
+    for item in furniture:
+        s, obj = item.emit()
         solids += s
-        objects += objs
+        objects.append(obj)
 
     # routes: a loop round the ring visiting every office (in and out again), then a second lap
     # through the meeting room, both closing at the start; and the whole south corridor
@@ -293,7 +290,7 @@ def build_layout(p: OfficeParams) -> Layout:
     routes = {"loop": loop, "ring": [S, NE, SE, SW, S], "corridor": [SW, SE]}
     return Layout(solids=solids, objects=objects, regions=regions, routes=routes, start_w=[W / 2, yN, 0.0],
                   featureless_x_m=[W, xm0], corridor_y_m={"north": yN, "south": yS},
-                  extent=(-te, X + te, -te, yo1 + te))
+                  extent=(-te, X + te, -te, yo1 + te), furniture=furniture, n_static=n_static, keepouts=keep)
 
 
 def _first(order: np.ndarray, item: int) -> np.ndarray:

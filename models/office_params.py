@@ -52,6 +52,11 @@ OFFICE_PARAMS: dict[str, ParamSpec] = {
     "glass_thickness_m": ParamSpec(0.010, 0.008, 0.012, "m", "thickness of glass panes (8-12 mm)"),
     "polished_fraction": ParamSpec(0.3, 0.0, 1.0, "", "share of floor areas (rooms and corridors) with a polished floor"),
     "furniture_density": ParamSpec(0.8, 0.0, 1.0, "", "probability that each optional piece of furniture is placed (a room's desk or meeting table is there whenever > 0)"),
+    "furniture_seed": ParamSpec(-1, -1, 2**31 - 1, "", "random seed of the furniture layer (-1: drawn from the "
+                                "layout's seed, as the office has always been furnished)"),
+    "furnish": ParamSpec("office", None, None, "", "how the rooms are furnished: office (desks, chairs, couches, "
+                         "cabinets, plants, bins) or lab (benches with stools, steel shelving, cabinets, a bench "
+                         "island in the large room; models.furniture_kinds)", choices=("office", "lab")),
     "windows": ParamSpec(True, None, None, "", "one window per office in the north facade", choices=(False, True)),
     "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain; windows (a row of "
                         "windows along the south, west and east walls, as in a window-lined building); or curtain "
@@ -82,6 +87,8 @@ class OfficeParams:
     glass_thickness_m: float = OFFICE_PARAMS["glass_thickness_m"].default
     polished_fraction: float = OFFICE_PARAMS["polished_fraction"].default
     furniture_density: float = OFFICE_PARAMS["furniture_density"].default
+    furniture_seed: int = OFFICE_PARAMS["furniture_seed"].default
+    furnish: str = OFFICE_PARAMS["furnish"].default
     windows: bool = OFFICE_PARAMS["windows"].default
     facade: str = OFFICE_PARAMS["facade"].default
     facade_glass: str = OFFICE_PARAMS["facade_glass"].default

@@ -45,7 +45,11 @@ CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
     (None, "max_turn_deg"): {"route": "loop", "max_distance_m": 3.0},  # a corner 2.5 m along the loop
     ("locomotion", "segmentation_truth"): {},  # which it has
     (None, "texture_seed"): {"surfaces": "textured"},  # the seed of the textures that setting draws
+    (None, "change_seed"): {"day": 1},  # it draws a script of `day` days
 }
+
+# free-string keys: values to try
+FREE_STRINGS: dict[str, tuple[str, ...]] = {"changes": ("1 remove chair0",), "route_regions": ("corridor_s",)}
 
 
 # a shorter course than the smoke scenario's, so that each of the ~15 courses is planned quickly
@@ -121,6 +125,8 @@ def _candidates(p, base: Any) -> list[str]:
         from exobench.envs.sim.rig import PRESETS
 
         return list(PRESETS)
+    if p.name in FREE_STRINGS:
+        return [v for v in FREE_STRINGS[p.name] if v != base]
     lo, hi = p.low, p.high
     vals = [lo if not p.low_open else None, hi] + [lo + f * (hi - lo) for f in (0.5, 0.25, 0.1)]
     if isinstance(p.default, int) and not isinstance(p.default, bool):

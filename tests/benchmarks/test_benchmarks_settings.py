@@ -32,7 +32,13 @@ CONTEXT = {
     ("loop-closure", "n_offices"): {"corridor_length_m": "80"},
     ("loop-closure", "corridor_length_m"): {"n_offices": "1", "meeting_room_m": "1.5"},
     ("loop-closure", "meeting_room_m"): {"corridor_length_m": "80"},
+    **{(t, "change_seed"): {"day": "1"} for t in ("odometry", "lidar-filter", "loop-closure")},  # it draws `day` days
 }
+
+
+# free-string parameters and values of them to try (the presets of extra_sensors: see below)
+FREE_STRINGS = {"extra_sensors": ("",), "changes": ("", "1 remove chair0; 2 move chair1 1.0 1.0 0; 1 remove bin0"),
+                "route_regions": ("", "corridor_s,office0")}
 
 
 def _number_text(x: float | int) -> str:
@@ -49,8 +55,8 @@ def _cases(track_name: str) -> list[tuple[str, str, object]]:
             out += [(p.name, s, True) for s in TRUE_SPELLINGS] + [(p.name, s, False) for s in FALSE_SPELLINGS]
         elif p.choices:
             out += [(p.name, str(c), c) for c in p.choices]
-        elif p.name == "extra_sensors":
-            out.append((p.name, "", ""))
+        elif p.name in FREE_STRINGS:
+            out += [(p.name, v, v) for v in FREE_STRINGS[p.name]]
         else:
             assert p.low is not None and p.high is not None, p
             is_int = isinstance(p.default, int) or (

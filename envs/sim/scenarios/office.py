@@ -35,9 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from exobench.core import ConfigError, Episode, EpisodeTruth, compact_truth
+from exobench.core import ConfigError, Episode, EpisodeTruth, UnknownNameError, compact_truth
 from exobench.core.episode import EpisodeStream
 from exobench.models.exo_spec import ExoSpec
+from exobench.models.furniture_kinds import FURNISHINGS
+from exobench.models.office_changes import MAX_DAY
 from exobench.models.office_params import FACADE_GLASSES, FACADES
 from exobench.models.vision_look import WorldLook
 from exobench.models.world_params import ParamSpec
@@ -93,9 +95,23 @@ PARAMS: dict[str, ParamSpec] = {
                                     feeds=("lidar.glass_bow_mm_per_m",)),
     "glass_roller_wave_mm": ParamSpec(0.0, 0.0, 5.0, "mm", "roller wave of every glass pane, peak-to-valley (0: none; "
                                       "toughened glass, models.materials)", feeds=("lidar.glass_roller_wave_mm",)),
+    "furniture_seed": ParamSpec(-1, -1, 2**31 - 1, "", "random seed of the furniture layer (-1: drawn from "
+                                "office_seed, as always)", feeds=("office.furniture_seed",)),
+    "furnish": ParamSpec("office", None, None, "", "office (desks, chairs, ...) or lab (benches, stools, steel "
+                         "shelving; models.furniture_kinds)", choices=FURNISHINGS, feeds=("office.furnish",)),
+    "day": ParamSpec(0, 0, MAX_DAY, "", "the day the office stands as: the furniture after the changes of days "
+                     "1..day of the change script (0: as furnished)"),
+    "changes": ParamSpec("", None, None, "", "change script of the furniture (models.office_changes): JSON, or "
+                         "'DAY move ID X Y TURN; DAY remove ID; DAY add CLASS/VARIANT ID X Y TURN; DAY obstacle "
+                         "CLASS/VARIANT ID X Y TURN'; validated before anything runs"),
+    "change_seed": ParamSpec(-1, -1, 2**31 - 1, "", "draw a change script of `day` days from this seed (-1: none; "
+                             "not with changes)"),
     "route": ParamSpec("corridor", None, None, "", "office route walked (loop: every office and two laps, "
-                       "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor)",
-                       choices=ROUTES),
+                       "~130 m; ring: once round the corridor ring back to the start; corridor: the south corridor; "
+                       "not used when route_regions is given)", choices=ROUTES),
+    "route_regions": ParamSpec("", None, None, "", "regions to walk through in turn instead of route, comma-separated "
+                               "(corridor_n, corridor_s, corridor_w, corridor_e, meeting, office0, ...), planned on the "
+                               "day's floor round whatever stands there (models.office_routes)"),
     "lidar_truth": ParamSpec("full", None, None, "", "per-point LiDAR truth kept: full, or labels only "
                              "(kind, surface, range; ~8x smaller, for long walks)", choices=LIDAR_TRUTHS),
     "max_distance_m": ParamSpec(20.0, 0.5, 500.0, "m", "the route is cut after this length (keeps quick runs short)"),
@@ -162,9 +178,27 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
         return self.configured("lidar", LidarConfig, pattern=pattern)
 
     def check_composition(self) -> None:
-        """The rig (see the base class) and the office's parameters, without building it."""
+        """The rig (see the base class), the office's parameters, its change script (applied and
+        validated) and the route's regions, without building it."""
         super().check_composition()
         self.office_params()
+        self.change_script()
+        for r in self.regions():
+            names = _region_names(self.office_params())
+            if r not in names:
+                raise UnknownNameError("office region (route_regions)", r, names)
+
+    def regions(self) -> tuple[str, ...]:
+        return tuple(r.strip() for r in self.route_regions.split(",") if r.strip())
+
+    def change_script(self) -> object:
+        """The furniture's change script (``models.office_changes.ChangeScript``), validated on
+        the office; None for the office as furnished (no script, day 0)."""
+        if self.change_seed >= 0 and self.day == 0:  # it would draw nothing
+            raise ConfigError("change_seed", self.change_seed, "-1 when day is 0 (a script of `day` days is drawn)")
+        if not self.changes.strip() and self.change_seed < 0 and self.day == 0:
+            return None
+        return _change_script(self.office_params(), self.changes, self.change_seed, self.day)
 
     def rig(self) -> Rig:
         """Encoders, trunk IMU, insoles and the trunk LiDAR, plus ``extra_sensors``."""
@@ -175,12 +209,32 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
 
 
 @lru_cache(maxsize=8)
-def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = (), look: WorldLook | None = None) -> Any:
+def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = (), look: WorldLook | None = None,
+                    changes: Any = None, day: int = 0) -> Any:
     """The composed office world (``models.worlds.CompiledScene``), compiled once per key; ``look``
-    (textures drawn from the office's seed, light level) when not the default."""
+    (textures drawn from the office's seed, light level) when not the default; with a change
+    script, the office of ``day``."""
     from exobench.models.office import build_office
 
-    return compose_rig(build_office(params), exo, sites, look=look, look_seed=params.seed)  # type: ignore[arg-type, attr-defined]
+    return compose_rig(build_office(params, changes, day), exo, sites, look=look, look_seed=params.seed)  # type: ignore[arg-type, attr-defined]
+
+
+@lru_cache(maxsize=8)
+def _region_names(params: object) -> tuple[str, ...]:
+    from exobench.models.office_layout import build_layout
+
+    return tuple(r["name"] for r in build_layout(params).regions)  # type: ignore[arg-type]
+
+
+@lru_cache(maxsize=8)
+def _change_script(params: object, changes: str, change_seed: int, day: int) -> Any:
+    from exobench.models.office_changes import apply_changes, script_from
+    from exobench.models.office_layout import build_layout
+
+    layout = build_layout(params)  # type: ignore[arg-type]
+    script = script_from(layout, changes, change_seed, day)
+    apply_changes(layout, script, day)  # refused here, before anything runs, if it cannot be applied
+    return script
 
 
 def route_waypoints(waypoints: list[tuple[float, float]], max_distance_m: float) -> tuple[tuple[float, float], ...]:
@@ -209,8 +263,15 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
 
     exo = scenario.exo_spec()
     look = WorldLook(scenario.surfaces, scenario.light_level)
-    scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), *(() if look.is_default else (look,)))
-    wps = route_waypoints(office_route(scene.truth, scenario.route), scenario.max_distance_m)
+    script = scenario.change_script()
+    world = {} if script is None else {"changes": script, "day": scenario.day}
+    scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), None if look.is_default else look, **world)
+    if scenario.regions():
+        from exobench.models.office_routes import region_route
+
+        wps = route_waypoints(region_route(scene.truth, scenario.regions()), scenario.max_distance_m)
+    else:
+        wps = route_waypoints(office_route(scene.truth, scenario.route), scenario.max_distance_m)
     pts = np.asarray(wps)
     length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
     d0 = pts[1] - pts[0]
