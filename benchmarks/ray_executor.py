@@ -36,7 +36,7 @@ from typing import Any
 
 from exobench.core.errors import ConfigError, ExobenchError
 
-from .pool import LOST_REASON, Death, lost_reason
+from .pool import LOST_REASON, Death, longest_first, lost_reason
 
 CONNECT_TIMEOUT_S = 5.0
 LOST_GRACE_S = 30.0  # how long a failing Ray call waits for the health check before it is called a lost cluster
@@ -189,7 +189,8 @@ def run_actors(
 
     worker_cls = _make_actor_class().options(num_cpus=cpus, num_gpus=gpus or None)
     work_ref = ray.put(work)
-    todo = list(reversed(jobs))  # popped from the end: submitted in the run's order
+    # popped from the end: submitted in the run's order, longest first with more than one actor (as the pool)
+    todo = list(reversed(longest_first(jobs) if workers > 1 else list(jobs)))
     idle = [worker_cls.remote() for _ in range(workers)]
     running: dict[Any, tuple[Any, Any, int]] = {}  # ref -> (actor, job, deaths so far)
     retry: list[tuple[Any, int]] = []
