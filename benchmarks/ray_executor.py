@@ -355,9 +355,9 @@ def connected(ray_ex: RayExecutor | None, plan: Any = None) -> Iterator[None]:
         yield
         return
     ray_ex.connect()
-    if plan is not None:
-        ray_ex.start_workers(len(plan.episodes), plan_modules(plan))
     try:
+        if plan is not None:
+            ray_ex.start_workers(len(plan.episodes), plan_modules(plan))
         yield
     finally:
         ray_ex.close()
