@@ -167,7 +167,7 @@ def run(
         check_out_dir("--out", out)
         if rerun_path is not None:
             check_out_file("--rerun", rerun_path)
-        with connected(ray_ex):
+        with connected(ray_ex, plan):  # its actors start while the run folder is prepared
             errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report, ray_ex), ray_ex)
         _exit_on_harness_errors(errors)
         return
@@ -191,7 +191,7 @@ def run(
         again = " (or --resume to continue the run in it)" if _stored_settings(str(root), must=False) else ""
         raise ConfigError("--out", str(root), f"a new or empty folder{again}")
     hint = _continue_command(str(root), jobs, rerun_path, no_report, ray_ex)
-    with connected(ray_ex):
+    with connected(ray_ex, plans[0] if plans else None):
         root.mkdir(parents=True, exist_ok=True)
         errors = _run_all(plans, root, names, suite, run_seeds, jobs, resume, rerun_path, no_report, hint, ray_ex)
     _exit_on_harness_errors(errors)

@@ -7,6 +7,10 @@ with the pool. The choices, and why:
 - Workers are Ray actors, one per concurrent episode, kept for the whole run, so that the
   per-process caches (compiled worlds, meshes) stay warm across episodes. Each chooses the GL
   platform before it imports MuJoCo (:mod:`exobench.envs.gl_platform`), as the pool's do.
+- Actors can be started, and made to import what the episodes will (the runner, the track's and
+  the pipelines' modules), before the episodes are submitted (:meth:`RayExecutor.start_workers`):
+  `run` starts them as soon as it is connected, while it prepares the run folder, and
+  `bench executor` times that start-up apart from the episodes. A run takes them first.
 - An actor runs one episode at a time, so an actor that dies names its episode without doubt
   (the pool has to retry suspects alone to know): that episode is retried once on a new actor,
   then recorded failed through ``on_lost`` with the pool's reason (:func:`.pool.lost_reason`;
@@ -36,7 +40,7 @@ from typing import Any
 
 from exobench.core.errors import ConfigError, ExobenchError
 
-from .pool import LOST_REASON, Death, lost_reason
+from .pool import LOST_REASON, Death, longest_first, lost_reason
 
 CONNECT_TIMEOUT_S = 5.0
 LOST_GRACE_S = 30.0  # how long a failing Ray call waits for the health check before it is called a lost cluster
@@ -92,6 +96,7 @@ class RayExecutor:
     num_cpus: int | None = None
     object_store_bytes: int = LOCAL_OBJECT_STORE_BYTES
     started: bool = field(default=False, init=False)
+    _warm: list[Any] = field(default_factory=list, init=False, repr=False)  # actors started ahead of a run
 
     def __post_init__(self) -> None:
         if self.jobs is not None and self.jobs < 1:
@@ -127,10 +132,22 @@ class RayExecutor:
             raise ConfigError("--address", self.address, f"a Ray head that accepts this driver ({str(e)[:160]})") from None
         self.started = True
 
+    def start_workers(self, n: int, modules: Sequence[str] = ()) -> list[Any]:
+        """Start actors for the next :meth:`run` now (``n``, at most :meth:`concurrency`, counting
+        those started before) and have each import ``modules``; returns, without waiting, the
+        refs of their imports (``ray.get`` them to wait until the actors are ready)."""
+        cls = _make_actor_class().options(num_cpus=self.cpus, num_gpus=self.gpus or None)
+        for _ in range(min(n, self.concurrency()) - len(self._warm)):
+            actor = cls.remote()
+            self._warm.append((actor, actor.ready.remote(tuple(modules))))
+        return [ref for _, ref in self._warm]
+
     def close(self) -> None:
         """Leave the cluster (a local instance this executor started ends with it)."""
         import ray
 
+        _kill([actor for actor, _ in self._warm])
+        self._warm = []
         if self.started:
             ray.shutdown()
             self.started = False
@@ -152,7 +169,23 @@ class RayExecutor:
         """``finish(*work(job))`` for every job on Ray actors (the contract of :func:`.pool.run_pool`)."""
         if not jobs:
             return
-        run_actors(jobs, min(self.concurrency(), len(jobs)), work, finish, on_lost, cpus=self.cpus, gpus=self.gpus)
+        warm, self._warm = [actor for actor, _ in self._warm], []
+        run_actors(jobs, min(self.concurrency(), len(jobs)), work, finish, on_lost, cpus=self.cpus, gpus=self.gpus, actors=warm)
+
+
+def plan_modules(plan: Any) -> tuple[str, ...]:
+    """The modules a run's episodes import in a worker: the runner, the track's and every
+    pipeline's (what :meth:`RayExecutor.start_workers` has the actors import ahead)."""
+    pipes = [p.entry_point.partition(":")[0] for p in plan.pipelines]
+    return tuple(dict.fromkeys(["exobench.benchmarks.runner", type(plan.track).__module__, *pipes]))
+
+
+def _kill(actors: Sequence[Any]) -> None:
+    import ray
+
+    for actor in actors:
+        with contextlib.suppress(Exception):  # the cluster is gone: nothing left to end
+            ray.kill(actor, no_restart=True)
 
 
 def _make_actor_class() -> Any:
@@ -163,6 +196,13 @@ def _make_actor_class() -> Any:
             from exobench.envs import gl_platform
 
             gl_platform.install()
+
+        def ready(self, modules: tuple[str, ...]) -> int:
+            import importlib
+
+            for name in modules:
+                importlib.import_module(name)
+            return os.getpid()
 
         def run(self, work: Callable[[Any], tuple], job: Any) -> tuple:
             return work(job)
@@ -181,16 +221,20 @@ def run_actors(
     gpus: float = 0.0,
     wait_s: float = 0.5,
     health_every_s: float = 5.0,
+    actors: Sequence[Any] = (),
 ) -> None:
-    """Run ``jobs`` on ``workers`` actors of an initialised Ray (see the module doc); results
-    ready together are handed to ``finish`` in key order, as the pool does."""
+    """Run ``jobs`` on ``workers`` actors of an initialised Ray (see the module doc): the
+    ``actors`` already started first (those beyond ``workers`` are ended), new ones for the
+    rest; results ready together are handed to ``finish`` in key order, as the pool does."""
     import ray
     from ray import exceptions as rx
 
     worker_cls = _make_actor_class().options(num_cpus=cpus, num_gpus=gpus or None)
     work_ref = ray.put(work)
-    todo = list(reversed(jobs))  # popped from the end: submitted in the run's order
-    idle = [worker_cls.remote() for _ in range(workers)]
+    # popped from the end: submitted in the run's order, longest first with more than one actor (as the pool)
+    todo = list(reversed(longest_first(jobs) if workers > 1 else list(jobs)))
+    _kill(actors[workers:])
+    idle = [*actors[:workers], *(worker_cls.remote() for _ in range(workers - len(actors[:workers])))]
     running: dict[Any, tuple[Any, Any, int]] = {}  # ref -> (actor, job, deaths so far)
     retry: list[tuple[Any, int]] = []
 
@@ -248,9 +292,7 @@ def run_actors(
             raise
         raise ClusterLostError(_lost_text(e)) from None
     finally:
-        for actor in [a for a, _, _ in running.values()] + idle:
-            with contextlib.suppress(Exception):  # the cluster is gone: nothing left to end
-                ray.kill(actor, no_restart=True)
+        _kill([a for a, _, _ in running.values()] + idle)
 
 
 def _death_reason(err: Exception) -> str:
@@ -305,14 +347,17 @@ def executor_from_options(executor: str, address: str | None, jobs: int | None, 
 
 
 @contextlib.contextmanager
-def connected(ray_ex: RayExecutor | None) -> Iterator[None]:
+def connected(ray_ex: RayExecutor | None, plan: Any = None) -> Iterator[None]:
     """Connected to Ray for the block (an unreachable address is refused here, before any
-    folder is made), and disconnected after it, however it ends."""
+    folder is made), and disconnected after it, however it ends. With ``plan``, the actors of
+    its episodes are started at once (:meth:`RayExecutor.start_workers`), without waiting."""
     if ray_ex is None:
         yield
         return
     ray_ex.connect()
     try:
+        if plan is not None:
+            ray_ex.start_workers(len(plan.episodes), plan_modules(plan))
         yield
     finally:
         ray_ex.close()

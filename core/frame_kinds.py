@@ -33,6 +33,7 @@ from .limits import (
     RangeLimits,
     absurd_depth,
     contact_absurd,
+    finite_rows,
     imu_absurd,
     max_depth_m,
     odometry_absurd,
@@ -151,8 +152,8 @@ def _lidar_absurd(f: LidarScan, variant: int) -> LidarScan:
 
 
 def _lidar_nan_values(f: LidarScan) -> int:
-    p = np.asarray(f.points_xyz, dtype=float).reshape(-1, 3)
-    return int(np.count_nonzero(~np.all(np.isfinite(p), axis=1)))
+    ok = finite_rows(f.points_xyz)
+    return len(ok) - int(np.count_nonzero(ok))
 
 
 def _lidar_rule(calibration: Calibration | None) -> Callable[[LidarScan], int]:

@@ -53,7 +53,7 @@ from exobench.core.counters import StreamCounters, nan_values
 from exobench.core.errors import ConfigError, check_int, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, LidarScan
-from exobench.core.limits import RangeLimits, scrub_points
+from exobench.core.limits import RangeLimits, finite_rows, scrub_points
 from exobench.core.pipeline import check_frame
 from exobench.perception.lidar_filter.config import FilterStageConfig
 
@@ -158,7 +158,7 @@ class KissOdometry:
         offs = np.asarray(scan.time_offset_s, dtype=float).reshape(-1)
         if len(offs) != len(pts):
             offs = np.zeros(len(pts))
-        ok = np.all(np.isfinite(pts), axis=1) & np.isfinite(offs)
+        ok = finite_rows(pts) & np.isfinite(offs)
         if keep is not None:
             k = np.asarray(keep, dtype=bool).reshape(-1)
             ok &= k if len(k) == len(pts) else np.zeros(len(pts), dtype=bool)

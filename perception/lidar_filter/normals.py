@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from exobench.core.limits import finite_rows
+
 
 def estimate_normals(
     points_xyz: np.ndarray, k: int = 10, radius_m: float = 0.5, viewpoint_xyz: np.ndarray | None = None
@@ -74,7 +76,7 @@ def range_image_index(points_xyz: np.ndarray, ring: np.ndarray | None) -> tuple[
     ring_arr = np.asarray(ring).reshape(-1)
     if len(ring_arr) != len(p) or len(p) == 0:
         return None
-    valid = np.all(np.isfinite(p), axis=1) & (np.einsum("ni,ni->n", p, p) > 1e-12)
+    valid = finite_rows(p) & (np.einsum("ni,ni->n", p, p) > 1e-12)
     if ring_arr.dtype.kind == "f":
         valid &= np.isfinite(ring_arr)
     vi = np.flatnonzero(valid)
@@ -114,6 +116,16 @@ def _unit(v: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(v, axis=-1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
         return v / n
+
+
+def _unit_components(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``_unit(v.astype(float)).T`` of (M, 3) vectors as three contiguous arrays, the same bits:
+    the norm summed in the same order, ``(x*x + y*y) + z*z`` (``np.linalg.norm`` along an axis
+    of three and strided components cost more than the arithmetic)."""
+    x, y, z = (np.ascontiguousarray(c, dtype=float) for c in np.asarray(v).reshape(-1, 3).T)
+    n = np.sqrt(x * x + y * y + z * z)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return x / n, y / n, z / n
 
 
 def range_image_normal_candidates(
@@ -196,11 +208,10 @@ def range_image_normal_candidates(
 
         # the cells with a return only, as component arrays (cheaper than strided (.., 3) ops)
         idx = index[has]
-        az_u = {k: _unit(v[has].astype(float)).T for k, v in t_az.items()}
-        ring_u = {k: _unit(v[has].astype(float)).T for k, v in t_ring.items()}
-        px, py, pz = p[idx].T
-        out = np.empty((len(p), 4, 3))
-        out.fill(np.nan)
+        az_u = {k: _unit_components(v[has]) for k, v in t_az.items()}
+        ring_u = {k: _unit_components(v[has]) for k, v in t_ring.items()}
+        px, py, pz = (np.ascontiguousarray(c) for c in p[idx].T)
+        cells = np.empty((len(idx), 4, 3))
         for c, (sa, sr) in enumerate(((-1, 1), (-1, -1), (1, 1), (1, -1))):
             (ax, ay, az), (bx, by, bz) = az_u[sa], ring_u[sr]
             nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
@@ -208,7 +219,9 @@ def range_image_normal_candidates(
             # unit normal, NaN when the tangents are (nearly) parallel; towards the sensor: n . (0 - p) >= 0
             scale = np.where(sin > min_sin, 1.0, np.nan) / sin
             scale = np.where(nx * px + ny * py + nz * pz > 0, -scale, scale)
-            out[idx, c, 0], out[idx, c, 1], out[idx, c, 2] = nx * scale, ny * scale, nz * scale
+            cells[:, c, 0], cells[:, c, 1], cells[:, c, 2] = nx * scale, ny * scale, nz * scale
+    out = np.full((len(p), 4, 3), np.nan)
+    out[idx] = cells  # one scatter of whole rows: a cell's point is never another cell's
     return out
 
 

@@ -64,7 +64,14 @@ from exobench.core.counters import FrameCounts, StreamCounters, nan_values
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import FilterEstimate
 from exobench.core.frames import ContactSample, Frame, ImuSample, JointState, LidarScan
-from exobench.core.limits import JointLimits, RangeLimits, contact_absurd, imu_absurd, scrub_points
+from exobench.core.limits import (
+    JointLimits,
+    RangeLimits,
+    contact_absurd,
+    finite_rows,
+    imu_absurd,
+    scrub_points,
+)
 from exobench.core.pipeline import check_frame
 
 from .config import (
@@ -195,7 +202,7 @@ class _FilterPipeline:
                 T = kin.T_footprint_sensor()
                 stance = kin.stance_side or ""
         pts = np.asarray(scan.points_xyz, dtype=float).reshape(-1, 3)
-        n_nan = int(np.count_nonzero(~np.all(np.isfinite(pts), axis=1)))
+        n_nan = len(pts) - int(np.count_nonzero(finite_rows(pts)))
         pts, n_absurd = scrub_points(pts, self._limits.get(scan.sensor_id) or RangeLimits())
         psi = np.asarray(scan.intensity, dtype=float).reshape(-1)
         if len(psi) != len(pts):  # malformed scan: nothing can be trusted

@@ -247,6 +247,29 @@ def test_scoring_settings_stay_out_of_the_episode_and_figures_need_no_scorer_sta
     assert not any(k.startswith("est_") for k in LidarFilterTrack().figure_data(walk.episode, filters, {}))
 
 
+def test_figure_reuses_the_scorers_kiss_icp_trajectory(walk, monkeypatch):
+    """The figure takes KISS-ICP's trajectory on a filter's kept points from the scorer of the
+    same episode (the same poses as a run here) instead of registering every scan again; with
+    another downsampling it registers them again."""
+    import exobench.mapping.odometry.kiss_icp as kiss
+    from exobench.mapping.odometry.kiss_icp import KissConfig
+
+    ep, name = walk.episode, "filter-threshold"
+    est = walk.est[name]
+    track = get_track("lidar-filter")
+    direct = kiss.run_kiss_icp([s for s, _ in lidar_pairs(ep)], list(est.keep), KissConfig(downsample="single"))
+    track.score(ep, est, walk.scoring)
+    calls = []
+    real = kiss.run_kiss_icp
+    monkeypatch.setattr(kiss, "run_kiss_icp", lambda *a, **k: calls.append(1) or real(*a, **k))
+    data = track.figure_data(ep, {name: est}, walk.scoring)
+    assert calls == []
+    np.testing.assert_array_equal(data[f"est_poses__kiss-icp+{name}"], direct.T_world_sensor)
+    np.testing.assert_array_equal(data[f"est_stamps__kiss-icp+{name}"], direct.stamps_s)
+    track.figure_data(ep, {name: est}, {**walk.scoring, "odometry_downsample": "double"})
+    assert calls == [1]
+
+
 def test_leo_slam_beats_kiss_icp_on_the_same_scans(walk):
     """The odometry target: the SLAM pipeline's ATE at most 0.7 times KISS-ICP's."""
     leo, kiss = walk.metrics["leo-slam"], walk.metrics["kiss-icp"]

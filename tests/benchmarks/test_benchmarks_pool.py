@@ -137,3 +137,33 @@ def test_each_worker_gets_the_cpus_over_the_workers_and_a_users_setting_is_kept(
     for seen in got.values():
         assert seen == {"OMP_NUM_THREADS": want, "OPENBLAS_NUM_THREADS": want, "MKL_NUM_THREADS": "3"}
     assert "OMP_NUM_THREADS" not in os.environ and os.environ["MKL_NUM_THREADS"] == "3"  # the parent's as it was
+
+
+def test_two_workers_take_the_longest_episodes_first_and_the_records_are_the_same(monkeypatch):
+    """Longest first by the scenario's length (ties in the run's order); one worker keeps the
+    run's order; every job's record is handed over either way."""
+    from concurrent.futures import ThreadPoolExecutor
+    from types import SimpleNamespace
+
+    import exobench.benchmarks.pool as pool
+
+    submitted: list[str] = []
+
+    class Recording(ThreadPoolExecutor):  # the pool's executor, in threads, noting the order jobs are given
+        def submit(self, fn, job):
+            submitted.append(job.plan.key)
+            return super().submit(fn, job)
+
+    monkeypatch.setattr(pool, "make_pool", lambda workers: Recording(max_workers=workers))
+    lengths = {"corridor": 60.0, "ring": 500.0, "ring-glazed": 500.0, "quick": 4.0, "loop": 120.0}
+    jobs = [SimpleNamespace(plan=SimpleNamespace(key=k, scenario={"route": "x", "max_distance_m": v})) for k, v in lengths.items()]
+
+    def work(job):
+        return job.plan.key, 2 * job.plan.scenario["max_distance_m"]
+
+    for workers, order in ((2, ["ring", "ring-glazed", "loop", "corridor", "quick"]), (1, list(lengths))):
+        submitted.clear()
+        got: dict[str, float] = {}
+        run_pool(jobs, workers, work, got.__setitem__, _lost)
+        assert submitted == order
+        assert got == {k: 2 * v for k, v in lengths.items()}

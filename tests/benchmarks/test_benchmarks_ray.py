@@ -189,8 +189,30 @@ def test_bench_executor_times_the_pool_at_1_and_2_and_ray_on_the_same_records(ex
     assert set(walls) == {"pool_1", "pool_2", "ray_2"} and all(w > 0 for w in walls.values())
     assert got["episodes_per_s"]["pool_1"] == pytest.approx(n / walls["pool_1"])
     assert got["pool_2_over_pool_1_speedup"] == pytest.approx(walls["pool_1"] / walls["pool_2"])
-    assert got["ray_overhead_s_per_episode"] == pytest.approx((walls["ray_2"] - walls["pool_2"]) / n)
+    # each executor's start-up inside its window (the pool's spawning) is out of the per-episode figures
+    startup = got["startup_s"]
+    assert set(startup) == set(walls) and all(0 <= startup[k] < walls[k] for k in walls)
+    assert startup["pool_1"] > 0 and startup["pool_2"] > 0  # their processes are spawned inside the window
+    per = {k: (walls[k] - startup[k]) / n for k in walls}
+    assert got["per_episode_s"] == pytest.approx(per)
+    assert got["ray_overhead_s_per_episode"] == pytest.approx(per["ray_2"] - per["pool_2"])
+    assert got["ray_workers_start_s"] > 0  # Ray's actors were started before its window
     assert ray.is_initialized()  # the executor it was given is left connected
+
+
+def _pid(job):
+    return job, os.getpid()
+
+
+def test_actors_started_ahead_run_the_episodes_and_end_with_the_run(executor):
+    """start_workers starts at most the executor's concurrency (2) and has them import what it
+    is given; the run that follows uses those actors, and ends them."""
+    pids = set(ray.get(executor.start_workers(5, ["test_benchmarks_support"])))
+    assert len(pids) == 2
+    got: dict[str, int] = {}
+    executor.run(["a", "b", "c", "d"], _pid, got.__setitem__, lambda j, why: (j, "lost"))
+    assert set(got) == {"a", "b", "c", "d"} and set(got.values()) == pids
+    assert executor.start_workers(0) == []  # none left over for the next run
 
 
 def test_the_command_line_runs_a_suite_on_ray_and_says_so_in_run_config(executor, tmp_path, capsys):

@@ -10,6 +10,7 @@ from exobench.core.limits import (
     JointLimits,
     RangeLimits,
     absurd_depth,
+    finite_rows,
     imu_absurd,
     max_depth_m,
     scrub_points,
@@ -21,6 +22,15 @@ TOF = SensorMount("tof_a", "tof", "shank", np.eye(4),
 URDF = """<robot name="r"><link name="a"/><link name="b"/>
 <joint name="knee" type="revolute"><parent link="a"/><child link="b"/>
 <limit lower="-2.0" upper="0.1" effort="1" velocity="1"/></joint></robot>"""
+
+
+def test_finite_rows_marks_every_row_with_a_non_finite_value():
+    bad = (math.nan, math.inf, -math.inf)
+    rows = [[1.0, 2.0, 3.0], [1e308, -1e308, 0.0]] + [[v if i == c else 0.5 for i in range(3)] for c in range(3) for v in bad]
+    expected = [True, True] + [False] * 9
+    assert finite_rows(np.array(rows)).tolist() == expected
+    assert finite_rows(np.array(rows[2:], dtype=np.float32)).tolist() == expected[2:]
+    assert finite_rows(np.zeros((0, 3))).shape == (0,)
 
 
 def test_range_limits_from_the_mount():

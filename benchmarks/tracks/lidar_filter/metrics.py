@@ -30,6 +30,7 @@ by default; :class:`~exobench.mapping.odometry.kiss_icp.KissConfig`).
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -38,6 +39,7 @@ import numpy as np
 from exobench.core.counters import admitted
 from exobench.core.episode import Episode
 from exobench.core.estimates import FilterEstimate
+from exobench.core.limits import finite_rows
 
 from ... import trajectory as tj
 from ..office_walks import GENUINE, GHOST, GLASS, NAN_POINT, lidar_pairs, point_classes
@@ -138,6 +140,25 @@ def _kiss(downsample: str) -> Any:
     return KissOdometry(KissConfig(downsample=downsample))
 
 
+# KISS-ICP's trajectory on an estimate's kept points as score_filter registered them: the figure
+# and the recording of the same episode take it from here instead of registering every scan
+# again (KISS-ICP is deterministic: the same poses; that second pass was a fifth of a paper
+# episode's time). Held only while the estimate lives.
+_SCORED_ODOMETRY: weakref.WeakKeyDictionary[FilterEstimate, tuple[Any, str, Any]] = weakref.WeakKeyDictionary()
+
+
+def scored_odometry(episode: Episode, est: Any, downsample: str) -> Any:
+    """The trajectory :func:`score_filter` registered for ``est`` on ``episode`` with
+    ``downsample``, or None when it did not (not scored, another episode or downsampling)."""
+    try:
+        got = _SCORED_ODOMETRY.get(est)
+    except TypeError:  # not weakly referable: never stored
+        return None
+    if got is None or got[0]() is not episode or got[1] != downsample:
+        return None
+    return got[2]
+
+
 def kiss_on_kept(episode: Episode, keep: Sequence[np.ndarray], downsample: str = "single",
                  pairs: ScanPairs | None = None) -> Any:
     """kiss-icp's :class:`TrajectoryEstimate` on the kept points of every scan of
@@ -162,7 +183,8 @@ def kiss_trajectories(episode: Episode, estimates: Mapping[str, Any], downsample
         except ValueError:
             continue
         if all(m is not None and len(m) == n for m, n in zip(masks, pairs.n_points, strict=True)):
-            out[f"kiss-icp+{name}"] = kiss_on_kept(episode, masks, downsample, pairs)
+            traj = scored_odometry(episode, est, downsample)
+            out[f"kiss-icp+{name}"] = traj if traj is not None else kiss_on_kept(episode, masks, downsample, pairs)
     return out
 
 
@@ -228,7 +250,7 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
                 tally.add(c, g, None)
                 continue
             p = np.asarray(scan.points_xyz, dtype=float).reshape(-1, 3)
-            tally.add(c, g, mask, np.all(np.isfinite(p), axis=1) if len(p) == len(c) else np.ones(len(c), dtype=bool))
+            tally.add(c, g, mask, finite_rows(p) if len(p) == len(c) else np.ones(len(c), dtype=bool))
             if odo is not None:
                 odo.add(scan, mask)
         if bad:
@@ -251,7 +273,9 @@ def score_filter(episode: Episode, est: FilterEstimate, *, odometry: bool = Fals
             out["failed_reason"] = f"{out['failed_reason']}; {note}" if out["failed_reason"] else note
         out.update({k: math.nan for k in ODOM_KEYS})
         if odo is not None:
-            out.update(_odom_metrics(episode, odo.estimate()))
+            traj = odo.estimate()
+            _SCORED_ODOMETRY[est] = (weakref.ref(episode), downsample, traj)
+            out.update(_odom_metrics(episode, traj))
         return out
     except Exception as e:  # a scorer never raises on an estimate
         return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")

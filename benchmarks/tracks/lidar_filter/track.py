@@ -10,8 +10,9 @@ removed, ground points kept, per kind, time per scan) and, where the scenario as
 (``score_odometry``, on in the paper and full suites), through KISS-ICP odometry on the kept
 points as Table 5.4 does (loop TE/OE/TVE, ATE). ``score_odometry`` and ``odometry_downsample``
 are its scoring settings (``scoring_keys``): they never reach the simulation. The figures and
-the recording run KISS-ICP on the kept points again (it is deterministic) rather than keep the
-scorer's trajectories between calls.
+the recording take KISS-ICP's trajectory on an estimate's kept points from the scorer of the
+same episode while that estimate lives (:func:`.metrics.scored_odometry`), and run KISS-ICP on
+them again otherwise (it is deterministic: the same poses).
 
 Suites (cases deterministic; the run seed drives the sensor noise):
 
