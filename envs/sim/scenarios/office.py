@@ -15,7 +15,8 @@ Truth: one ``LidarTruth`` per scan (``EpisodeTruth.lidar``; compacted to labels 
 :mod:`exobench.envs.sensors.lidar.faults`), link tracks at
 50 Hz (plus the ``lidar_trunk`` pose) and the deepest foot penetration; ``T_world_estimator`` is
 the LiDAR pose at t = 0. A camera on the rig adds its optical-frame poses
-(``body_tracks[<camera>]``, ``extra["camera_T_world"]``, ``extra["camera_stamps_s"]``).
+(``body_tracks[<camera>]``, ``extra["camera_T_world"]``, ``extra["camera_stamps_s"]``), its IMU
+its pose at every IMU sample (``body_tracks[<imu>]``).
 
 Route handling: the office routes turn by 90 and 180 degrees at corners and doors; the planner
 tracks its progress monotonically along the polyline (the loop passes corridors twice) and walks
@@ -54,7 +55,7 @@ from ...sensors import (
 )
 from ...sensors.adapter import MountedSensor
 from ..calibration import build_calibration
-from ..compose import attached_sites, compose_rig
+from ..compose import CHEST_CAMERA, attached_sites, compose_rig
 from ..pose import pose_rows
 from ..recorder import TRACK_RATE_HZ, TRACKED_BODIES, record, stream_record
 from ..rig import LIDAR_TRUNK, Rig, scalar_rig, segmentation_truths, with_presets, with_segmentation_truth
@@ -173,14 +174,30 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
         base = (*scalar_rig(cfg, tof=False), MountedSensor(LIDAR_ID, "lidar", self.lidar_config()))
         return with_presets(base, self.extra_sensors)
 
+    def route_polyline(self, waypoints: list[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
+        """The waypoints walked: the route's, cut at ``max_distance_m`` (:func:`route_waypoints`)."""
+        return route_waypoints(waypoints, self.max_distance_m)
+
+    def moves_cameras(self) -> bool:
+        """Whether the chest camera sits on its turning rig (``chest_yaw``/``chest_pitch``) and
+        :meth:`recording_hooks` turn the cameras: not for the LiDAR tracks' office walks, whose
+        cameras (``extra_sensors``) stay fixed as before (:mod:`.office_camera` turns them)."""
+        return False
+
+    def recording_hooks(self, exo: ExoSpec, motion: Motion, seed: int) -> tuple[Any, ...]:
+        """Extra motion of the recording (:class:`~exobench.envs.sim.recorder.Hook`): none here."""
+        return ()
+
 
 @lru_cache(maxsize=8)
-def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = (), look: WorldLook | None = None) -> Any:
+def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = (), look: WorldLook | None = None,
+                    chest_rig: bool = False) -> Any:  # fmt: skip
     """The composed office world (``models.worlds.CompiledScene``), compiled once per key; ``look``
-    (textures drawn from the office's seed, light level) when not the default."""
+    (textures drawn from the office's seed, light level) when not the default; the chest camera
+    on its turning rig with ``chest_rig``."""
     from exobench.models.office import build_office
 
-    return compose_rig(build_office(params), exo, sites, look=look, look_seed=params.seed)  # type: ignore[arg-type, attr-defined]
+    return compose_rig(build_office(params), exo, sites, look=look, look_seed=params.seed, chest_rig=chest_rig)  # type: ignore[arg-type, attr-defined]
 
 
 def route_waypoints(waypoints: list[tuple[float, float]], max_distance_m: float) -> tuple[tuple[float, float], ...]:
@@ -209,8 +226,10 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
 
     exo = scenario.exo_spec()
     look = WorldLook(scenario.surfaces, scenario.light_level)
-    scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), *(() if look.is_default else (look,)))
-    wps = route_waypoints(office_route(scene.truth, scenario.route), scenario.max_distance_m)
+    chest = scenario.moves_cameras() and any(s.sensor_id == CHEST_CAMERA for s in rig)
+    scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), None if look.is_default else look,
+                            *((True,) if chest else ()))  # fmt: skip
+    wps = scenario.route_polyline(office_route(scene.truth, scenario.route))
     pts = np.asarray(wps)
     length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
     d0 = pts[1] - pts[0]
@@ -230,7 +249,8 @@ def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSe
     """A walk along the scenario's office route with every sensor of ``rig`` (default
     :meth:`OfficeScenario.rig`; a trunk LiDAR ``lidar_trunk`` is what the LiDAR truth follows)."""
     rig, exo, scene, motion = _office_setup(scenario, rig)
-    rec = record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+    hooks = scenario.recording_hooks(exo, motion, seed)
+    rec = record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES, hooks=hooks)
     lidar_truth = rec.frame_truth([s.sensor_id for s in rig if s.kind == "lidar"])
     if scenario.lidar_truth != "full":
         lidar_truth = tuple(compact_truth(t) for t in lidar_truth)
@@ -254,7 +274,8 @@ def stream_office(
     if any(s.kind == "lidar" and s.config.time_jump_prob > 0 and s.config.time_jump_s < 0 for s in rig):
         whole = simulate_office(scenario, seed, rig)
         return EpisodeStream(scenario.as_dict(), int(seed), whole.calibration, iter(whole.frames), lambda: whole)
-    srec = stream_record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+    hooks = scenario.recording_hooks(exo, motion, seed)
+    srec = stream_record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES, hooks=hooks)
     lidars = {s.sensor_id for s in rig if s.kind == "lidar"} if lidar_truth or lidar_sink is not None else set()
     cams = {s.sensor_id for s in rig if s.kind == "rgbd" and s.config.segmentation_truth}
     kept_lidar: list[Any] = []
@@ -312,6 +333,8 @@ def _office_episode(
             body_tracks[s.sensor_id] = pose_rows(cam["t_s"], cam["T_world_sensor"])
             extra.setdefault("camera_T_world", cam["T_world_sensor"])
             extra.setdefault("camera_stamps_s", cam["t_s"])
+        elif s.kind == "imu" and s.attached_to is not None:  # a camera's IMU: its pose at its own rate
+            body_tracks[s.sensor_id] = rec.outputs[s.sensor_id].truth["pose_rows"]
     ep_truth = EpisodeTruth(
         scene=truth,
         T_world_estimator=T_world_est,
