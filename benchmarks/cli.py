@@ -174,7 +174,7 @@ def run(
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
-    names = stored_tracks or track_names()
+    names = stored_tracks or _served_tracks(track_names())
     plans = [plan_run(name, suite, None, run_seeds, {}) for name in names]
     root = Path(out or _default_out(f"all-{suite or 'quick'}"))
     check_out_dir("--out", str(root))
@@ -195,6 +195,19 @@ def run(
         root.mkdir(parents=True, exist_ok=True)
         errors = _run_all(plans, root, names, suite, run_seeds, jobs, resume, rerun_path, no_report, hint, ray_ex)
     _exit_on_harness_errors(errors)
+
+
+def _served_tracks(names: list[str]) -> list[str]:
+    """The tracks some registered pipeline serves; each of the others is skipped with a line on
+    stderr (a track whose pipelines are not installed or not yet written has nothing to run)."""
+    from .registry import default_registry
+
+    reg = default_registry()
+    served = [n for n in names if reg.names(track=n)]
+    for n in names:
+        if n not in served:
+            click.echo(f"exobench: skipping track {n}: no registered pipeline serves it", err=True)
+    return served
 
 
 def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, run_seeds: list[int], jobs: int,
