@@ -266,7 +266,8 @@ def test_quick_suite_runs_from_the_command_line_with_a_test_pipeline(tmp_path, s
 
     out = tmp_path / "run"
     args = ["run", "--track", "vio", "--pipeline", "vio-still", "--out", str(out), "--set", "max_distance_m=0.6",
-            "--set", "rate_hz=10", "--set", "width_px=64", "--set", "height_px=48", "--set", "vio-still.lost_every=2"]
+            "--set", "rate_hz=10", "--set", "width_px=64", "--set", "height_px=48", "--set", "vio-still.lost_every=2",
+            "--set", "repeated_frames=0.2", "--set", "late_frames=0.1", "--set", "imu_dropout=0.1"]
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
     records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
@@ -275,7 +276,9 @@ def test_quick_suite_runs_from_the_command_line_with_a_test_pipeline(tmp_path, s
         m = r["metrics"]
         assert m["lost_frac"] == pytest.approx(np.floor(m["n_frames"] / 2) / m["n_frames"])
         assert m["ate_m"] > 0.0
-        assert r["frames.rgbd.used"] == m["n_frames"] if "frames.rgbd.used" in r else True
+        # the delivery faults reached the streams and were counted, not fatal
+        assert m["frames.imu.repeated"] > 0 and m["frames.imu.out_of_order"] > 0 and m["frames.imu.dropped"] > 0
+        assert m["frames.rgbd.used"] == m["n_frames"]
     report = (out / "report.md").read_text()
     assert "Table IV" in report and "Table V" in report
     assert any(Path(out, "trajectories").glob("*__vio-still.tum"))
@@ -302,3 +305,41 @@ def still_camera_installed(monkeypatch):
     yield
     monkeypatch.undo()
     pipeline_registry.default_registry.cache_clear()
+
+
+# ---------------------------------------------------------------- delivery faults
+
+
+def _imu(t: float) -> ImuSample:
+    return ImuSample(t, "imu_head", np.array([1.0, 0, 0, 0]), np.zeros(3), np.array([0, 0, 9.81]))
+
+
+def _rgbd(t: float) -> RgbdFrame:
+    return RgbdFrame(t, "rgbd_head", np.zeros((4, 4, 3), np.uint8), np.ones((4, 4)), np.eye(3))
+
+
+def test_delivery_faults_at_probability_one_do_exactly_what_they_say():
+    from exobench.benchmarks.tracks.vio.faults import DeliveryFaults
+
+    frames = [_imu(k / 200) for k in range(6)]
+    late = list(DeliveryFaults({"depth_missing": 0, "repeated_frames": 0, "late_frames": 1.0}, 0).apply(frames))
+    assert [f.stamp_s * 200 for f in late] == pytest.approx([1, 0, 3, 2, 5, 4])  # each pair swapped
+    twice = list(DeliveryFaults({"depth_missing": 0, "repeated_frames": 1.0, "late_frames": 0}, 0).apply(frames))
+    assert [f.stamp_s * 200 for f in twice] == pytest.approx([k for k in range(6) for _ in (0, 1)])
+    cams = [_rgbd(k / 30) for k in range(3)]
+    dark = list(DeliveryFaults({"depth_missing": 1.0, "repeated_frames": 0, "late_frames": 0}, 0).apply(cams + frames))
+    assert all(not np.any(np.asarray(f.depth_m)) for f in dark[:3]) and dark[3:] == frames
+    none = DeliveryFaults({"depth_missing": 0, "repeated_frames": 0, "late_frames": 0}, 0)
+    assert list(none.apply(cams + frames)) == cams + frames
+
+
+def test_delivery_fault_rates_and_independent_draws():
+    from exobench.benchmarks.tracks.vio.faults import DeliveryFaults
+
+    frames = [_imu(k / 200) for k in range(4000)]
+    rep = list(DeliveryFaults({"depth_missing": 0, "repeated_frames": 0.1, "late_frames": 0}, 3).apply(frames))
+    assert 0.08 < (len(rep) - len(frames)) / len(frames) < 0.12
+    both = list(DeliveryFaults({"depth_missing": 0, "repeated_frames": 0.1, "late_frames": 0.1}, 3).apply(frames))
+    stamps = np.array([f.stamp_s for f in both])
+    assert len(both) == len(rep)  # turning on late frames moves no repeat draw
+    assert 0.07 < np.mean(np.diff(stamps) < 0) < 0.11

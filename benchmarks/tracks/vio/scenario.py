@@ -5,7 +5,7 @@ One parameter table over two worlds: ``world`` picks the office
 courses (:class:`VioCourseScenario`, the locomotion course with the camera's IMU and the camera
 only: no insoles, no odometry stream). The camera's rows (mount, resolution, rate, depth noise,
 dropout, exposure, the IMU's rate, extrinsics and clock offset, heel strikes, surfaces, light,
-the user) are the same in both worlds; a row of one world only (the office's route, a course's
+the user) are the same in both worlds, and so are the delivery faults (:mod:`.faults`); a row of one world only (the office's route, a course's
 riser) set away from its default for the other world is refused naming the row, the value and
 the world it needs, never silently dropped.
 
@@ -27,6 +27,7 @@ from exobench.core.errors import ConfigError, UnknownNameError
 from exobench.models.world_params import ParamSpec
 
 from ..spec import ParamInfo, param_infos
+from .faults import FAULT_ROWS, DeliveryFaults, fault_settings
 
 WORLDS = ("office", "course")
 WORLD_ROW = ParamSpec("office", None, None, "", "where the sequence is walked: office (an office route, "
@@ -43,9 +44,9 @@ def scenario_classes() -> dict[str, type]:
     from exobench.envs.sim.rig import Rig, camera_rig
     from exobench.envs.sim.scenario import scenario_base
     from exobench.envs.sim.scenarios import course
-    from exobench.envs.sim.scenarios.office_camera import CameraOfficeScenario
+    from exobench.envs.sim.scenarios.office_camera import IMU_DROPOUT, CameraOfficeScenario
 
-    table = {k: v for k, v in course.PARAMS.items() if k not in COURSE_LEFT_OUT}
+    table = {**{k: v for k, v in course.PARAMS.items() if k not in COURSE_LEFT_OUT}, "imu_dropout": IMU_DROPOUT}
     base = scenario_base("VioCourseScenario", "vio course walk", table, course.LocomotionScenario)
 
     class VioCourseScenario(base):  # type: ignore[misc,valid-type]
@@ -60,7 +61,7 @@ def scenario_classes() -> dict[str, type]:
 def vio_table() -> dict[str, Any]:
     """name -> ParamSpec of every vio parameter: ``world``, the office's, then the course's own."""
     cls = scenario_classes()
-    return {"world": WORLD_ROW, **cls["office"].PARAMS, **cls["course"].PARAMS}
+    return {"world": WORLD_ROW, **cls["office"].PARAMS, **cls["course"].PARAMS, **FAULT_ROWS}
 
 
 def vio_params() -> list[ParamInfo]:
@@ -72,6 +73,7 @@ def validate_vio(values: Mapping[str, Any]) -> dict[str, Any]:
     world are refused unless at their default (then left out). The rig is checked on the user's
     device (``check_composition``) without building anything."""
     from exobench.envs.sim.scenario import check_scenario
+    from exobench.models.world_params import check_param
 
     table = vio_table()
     for k in values:
@@ -82,8 +84,9 @@ def validate_vio(values: Mapping[str, Any]) -> dict[str, Any]:
         raise ConfigError("world", world, " or ".join(WORLDS))
     classes = scenario_classes()
     cls, other = classes[world], classes[WORLDS[1 - WORLDS.index(world)]]
+    faults = {k: check_param(k, values.get(k, spec.default), spec) for k, spec in FAULT_ROWS.items()}
     for k, v in values.items():
-        if k == "world" or k in cls.PARAMS:
+        if k == "world" or k in cls.PARAMS or k in FAULT_ROWS:
             continue
         typed = getattr(other.from_dict({k: v}), k)  # refused here when outside its own range
         if typed != table[k].default:
@@ -91,7 +94,7 @@ def validate_vio(values: Mapping[str, Any]) -> dict[str, Any]:
                               f"{'course' if world == 'office' else 'office'!r} only)")  # fmt: skip
     scenario = cls.from_dict({k: v for k, v in values.items() if k in cls.PARAMS})
     check_scenario(scenario)
-    return {"world": world, **scenario.as_dict()}
+    return {"world": world, **scenario.as_dict(), **faults}
 
 
 def _scenario(values: Mapping[str, Any]) -> Any:
@@ -107,7 +110,8 @@ def simulate_vio(scenario: Mapping[str, Any], seed: int) -> Episode:
 
     sc = _scenario(scenario)
     ep = simulate_office(sc, seed) if scenario.get("world", "office") == "office" else simulate_locomotion(sc, seed, sc.rig())
-    return dataclasses.replace(ep, scenario=dict(scenario))
+    frames = tuple(DeliveryFaults(fault_settings(scenario), seed).apply(ep.frames))
+    return dataclasses.replace(ep, scenario=dict(scenario), frames=frames)
 
 
 def stream_vio(scenario: Mapping[str, Any], seed: int) -> EpisodeStream:
@@ -122,4 +126,5 @@ def stream_vio(scenario: Mapping[str, Any], seed: int) -> EpisodeStream:
     def finish() -> Episode:
         return dataclasses.replace(stream.finish(), scenario=dict(scenario))
 
-    return EpisodeStream(dict(scenario), stream.seed, stream.calibration, stream.frames, finish)
+    frames = DeliveryFaults(fault_settings(scenario), seed).apply(stream.frames)
+    return EpisodeStream(dict(scenario), stream.seed, stream.calibration, frames, finish)

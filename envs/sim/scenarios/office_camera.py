@@ -53,12 +53,15 @@ CAMERA_ROWS = ("mount", "view", "head_pitch_mean_rad", "head_pitch_std_rad", "wi
                "latency_s", "depth_noise_scale", "min_depth_m", "max_depth_m", "frame_dropout", "exposure_s",
                "imu_rate_hz", "imu_extrinsics", "imu_time_offset_s")  # fmt: skip
 
+IMU_DROPOUT = ParamSpec(0.0, 0.0, 0.9, "", "probability a sample of the camera's IMU is lost", feeds=("imu.dropout_prob",))
+
 PARAMS: dict[str, ParamSpec] = {
     **{k: v for k, v in OFFICE_PARAMS.items() if k not in OFFICE_ONLY_LIDAR},
     "out_and_back": ParamSpec(False, None, None, "", "walk half of max_distance_m along the route, turn round on the spot "
                               "and walk back to the start, facing as at the start: a closed loop of any length",
                               choices=(False, True)),
     **{k: course.PARAMS[k] for k in CAMERA_ROWS},
+    "imu_dropout": IMU_DROPOUT,
 }
 
 
