@@ -343,3 +343,19 @@ def test_delivery_fault_rates_and_independent_draws():
     stamps = np.array([f.stamp_s for f in both])
     assert len(both) == len(rep)  # turning on late frames moves no repeat draw
     assert 0.07 < np.mean(np.diff(stamps) < 0) < 0.11
+
+
+def test_a_run_of_every_track_skips_the_vio_track_while_no_pipeline_serves_it(tmp_path, monkeypatch):
+    """Planned, not run: the runner's loop is replaced by one that keeps the plans it is given."""
+    from click.testing import CliRunner
+
+    from exobench.benchmarks import cli as cli_module
+    from exobench.benchmarks.registry import default_registry
+
+    assert not default_registry().names(track="vio")
+    planned = []
+    monkeypatch.setattr(cli_module, "_run_all", lambda plans, *a, **k: planned.extend(p.track.name for p in plans) or [])
+    result = CliRunner().invoke(cli_module.cli, ["run", "--out", str(tmp_path / "all")])
+    assert result.exit_code == 0, result.output
+    assert "vio" not in planned and {"stairs", "odometry", "locomotion"} <= set(planned)
+    assert "skipping track vio: no registered pipeline serves it" in result.stderr
