@@ -128,9 +128,17 @@ def _recorder_inputs(track, scenario: dict[str, Any]) -> bytes:
     raise AssertionError(f"{track.name}: simulate() never called the recorder")
 
 
+_EPISODES: dict[tuple[str, str], bytes] = {}
+
+
 def _episode_bytes(track, scenario: dict[str, Any]) -> bytes:
-    ep = track.simulate(scenario, 0)
-    return pickle.dumps((ep.frames, ep.truth, ep.calibration))
+    """The whole episode's bytes, simulated once per (track, scenario): the base scenario of every
+    key that acts after the recorder is the same smoke scenario."""
+    key = (track.name, repr(sorted(scenario.items())))
+    if key not in _EPISODES:
+        ep = track.simulate(scenario, 0)
+        _EPISODES[key] = pickle.dumps((ep.frames, ep.truth, ep.calibration))
+    return _EPISODES[key]
 
 
 def _candidates(p, base: Any) -> list[str]:

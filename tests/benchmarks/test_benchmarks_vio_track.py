@@ -359,3 +359,20 @@ def test_a_run_of_every_track_skips_the_vio_track_while_no_pipeline_serves_it(tm
     assert result.exit_code == 0, result.output
     assert "vio" not in planned and {"stairs", "odometry", "locomotion"} <= set(planned)
     assert "skipping track vio: no registered pipeline serves it" in result.stderr
+
+
+def test_the_recording_holds_the_images_and_the_estimate_against_the_truth(tmp_path):
+    import rerun  # noqa: F401  (the recording's dependency)
+    from vio_pipeline import StillCamera
+
+    scenario = TRACK.validate_scenario({**TRACK.smoke_scenario, "width_px": 64, "height_px": 48, "rate_hz": 10})
+    ep = TRACK.simulate(scenario, 0)
+    pipe = StillCamera()
+    pipe.reset(ep.calibration)
+    for f in ep.frames:
+        pipe.process(f)
+    path = TRACK.write_recording(ep, {"vio-still": pipe.finalize()}, tmp_path / "vio.rrd")
+    data = path.read_bytes()
+    assert len(data) > 10_000
+    for entity in (b"world/camera/rgb", b"world/camera/depth", b"world/truth", b"world/estimates/vio-still"):
+        assert entity in data, entity
