@@ -376,3 +376,22 @@ def test_the_recording_holds_the_images_and_the_estimate_against_the_truth(tmp_p
     assert len(data) > 10_000
     for entity in (b"world/camera/rgb", b"world/camera/depth", b"world/truth", b"world/estimates/vio-still"):
         assert entity in data, entity
+
+
+def test_an_office_walk_the_asked_step_cannot_walk_is_planned_with_a_shorter_one(monkeypatch):
+    """The office loop's first doorway leaves a 1.65 m user jogging with 0.45 m steps no foothold
+    (found planning the paper suite's V102-like walk): the vio office walk retries as the courses
+    do; the LiDAR tracks' office walks keep the one step they ask for."""
+    from exobench.benchmarks.tracks.vio.scenario import _scenario
+    from exobench.envs.motion import GaitError
+    from exobench.envs.sim.scenarios.office import plan_office_walk
+    from exobench.envs.sim.scenarios.office_camera import CameraOfficeScenario
+
+    values = {"route": "loop", "max_distance_m": 4.0, "step_length_m": 0.45, "swing_s": 0.3, "user_height_m": 1.65}
+    sc = _scenario(TRACK.validate_scenario(values))
+    _, motion = plan_office_walk(sc, sc.rig())
+    steps = [np.linalg.norm((b.sole_w - a.sole_w)[:2]) for a, b in zip(motion.footsteps, motion.footsteps[2:], strict=False)]
+    assert max(steps) < 0.45 * 2 * 0.95  # walked with a shorter step than asked
+    monkeypatch.setattr(CameraOfficeScenario, "step_factors", lambda self: (1.0,))
+    with pytest.raises(GaitError):
+        plan_office_walk(sc, sc.rig())

@@ -43,7 +43,7 @@ from exobench.models.office_params import FACADE_GLASSES, FACADES
 from exobench.models.vision_look import WorldLook
 from exobench.models.world_params import ParamSpec
 
-from ...motion import Motion, Route, plan_walk
+from ...motion import GaitError, Motion, Route, plan_walk
 from ...sensors import (
     ContactConfig,
     EncoderConfig,
@@ -178,6 +178,11 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
         """The waypoints walked: the route's, cut at ``max_distance_m`` (:func:`route_waypoints`)."""
         return route_waypoints(waypoints, self.max_distance_m)
 
+    def step_factors(self) -> tuple[float, ...]:
+        """Step lengths to plan with, as factors of ``step_length_m``, tried in turn while the
+        walker finds no foothold (a doorway at some steps and heights): the step asked for only."""
+        return (1.0,)
+
     def moves_cameras(self) -> bool:
         """Whether the chest camera sits on its turning rig (``chest_yaw``/``chest_pitch``) and
         :meth:`recording_hooks` turn the cameras: not for the LiDAR tracks' office walks, whose
@@ -237,12 +242,20 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
     closed = bool(np.linalg.norm(pts[-1] - pts[0]) < 1e-9)
     turns = np.arctan2(np.diff(pts, axis=0)[:, 1], np.diff(pts, axis=0)[:, 0])
     turning_steps = int(np.sum(np.abs((np.diff(turns) + np.pi) % (2 * np.pi) - np.pi)) / np.radians(scenario.max_turn_deg))
-    route = Route(
-        wps, step_length_m=scenario.step_length_m, swing_s=scenario.swing_s, max_turn_deg=scenario.max_turn_deg,
-        start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None, start_lean_deg=scenario.start_lean_deg,
-        max_steps=min(10000, int(3.0 * length / scenario.step_length_m) + 2 * turning_steps + 100),
-    )  # fmt: skip
-    return scene, plan_walk(exo, scene.truth, route)
+    factors = scenario.step_factors()
+    for k, f in enumerate(factors):
+        step = scenario.step_length_m * f
+        route = Route(
+            wps, step_length_m=step, swing_s=scenario.swing_s, max_turn_deg=scenario.max_turn_deg,
+            start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None, start_lean_deg=scenario.start_lean_deg,
+            max_steps=min(10000, int(3.0 * length / step) + 2 * turning_steps + 100),
+        )  # fmt: skip
+        try:
+            return scene, plan_walk(exo, scene.truth, route)
+        except GaitError:
+            if k == len(factors) - 1:
+                raise
+    raise AssertionError("unreachable: step_factors() is never empty")
 
 
 def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> Episode:
