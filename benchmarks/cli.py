@@ -174,8 +174,10 @@ def run(
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
-    names = stored_tracks or _served_tracks(track_names())
+    names, unserved = (stored_tracks, []) if stored_tracks else _served_tracks(track_names())
     plans = [plan_run(name, suite, None, run_seeds, {}) for name in names]
+    for name in unserved:  # said once the run is known to go ahead
+        click.echo(f"exobench: skipping track {name}: no registered pipeline serves it", err=True)
     root = Path(out or _default_out(f"all-{suite or 'quick'}"))
     check_out_dir("--out", str(root))
     for plan in plans if rerun_path is not None else ():
@@ -197,17 +199,14 @@ def run(
     _exit_on_harness_errors(errors)
 
 
-def _served_tracks(names: list[str]) -> list[str]:
-    """The tracks some registered pipeline serves; each of the others is skipped with a line on
-    stderr (a track whose pipelines are not installed or not yet written has nothing to run)."""
+def _served_tracks(names: list[str]) -> tuple[list[str], list[str]]:
+    """(the tracks some registered pipeline serves, the others): a track whose pipelines are not
+    installed or not yet written has nothing to run, and a run of every track skips it."""
     from .registry import default_registry
 
     reg = default_registry()
     served = [n for n in names if reg.names(track=n)]
-    for n in names:
-        if n not in served:
-            click.echo(f"exobench: skipping track {n}: no registered pipeline serves it", err=True)
-    return served
+    return served, [n for n in names if n not in served]
 
 
 def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, run_seeds: list[int], jobs: int,
