@@ -174,8 +174,10 @@ def run(
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
-    names = stored_tracks or track_names()
+    names, unserved = (stored_tracks, []) if stored_tracks else _served_tracks(track_names())
     plans = [plan_run(name, suite, None, run_seeds, {}) for name in names]
+    for name in unserved:  # said once the run is known to go ahead
+        click.echo(f"exobench: skipping track {name}: no registered pipeline serves it", err=True)
     root = Path(out or _default_out(f"all-{suite or 'quick'}"))
     check_out_dir("--out", str(root))
     for plan in plans if rerun_path is not None else ():
@@ -195,6 +197,16 @@ def run(
         root.mkdir(parents=True, exist_ok=True)
         errors = _run_all(plans, root, names, suite, run_seeds, jobs, resume, rerun_path, no_report, hint, ray_ex)
     _exit_on_harness_errors(errors)
+
+
+def _served_tracks(names: list[str]) -> tuple[list[str], list[str]]:
+    """(the tracks some registered pipeline serves, the others): a track whose pipelines are not
+    installed or not yet written has nothing to run, and a run of every track skips it."""
+    from .registry import default_registry
+
+    reg = default_registry()
+    served = [n for n in names if reg.names(track=n)]
+    return served, [n for n in names if n not in served]
 
 
 def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, run_seeds: list[int], jobs: int,

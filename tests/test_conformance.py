@@ -46,6 +46,7 @@ import numpy as np
 import pytest
 from kind_conformance import kind_problems
 from toy_track import ToyScale, ToyScaleTrack
+from vio_pipeline import StillCamera
 
 import exobench.envs  # noqa: F401  (registers the gymnasium environments)
 from exobench.benchmarks.registry import build_registry
@@ -66,6 +67,7 @@ from exobench.envs.sensors.kinds import SENSOR_KINDS, registration_problems
 # picked up.
 PIPELINE_REGISTRY = build_registry()
 PIPELINE_REGISTRY.register("toy-scale", ToyScale)
+PIPELINE_REGISTRY.register("vio-still", StillCamera)  # the vio track has no registered pipeline of its own yet
 TRACK_REGISTRY = build_track_registry()
 TRACK_REGISTRY.register("toy-scale", ToyScaleTrack)
 PIPELINES = PIPELINE_REGISTRY.names()

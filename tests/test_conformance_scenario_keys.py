@@ -56,6 +56,26 @@ FREE_STRINGS: dict[str, tuple[str, ...]] = {"changes": ("1 remove chair0",), "ro
 BASE: dict[str, dict[str, Any]] = {"locomotion": {"n_steps": 2, "approach_m": 1.0, "landing_m": 1.2}}
 
 
+def _vio_context() -> dict[tuple[str, str], dict[str, Any]]:
+    """The vio track walks an office (its smoke scenario) or a course: a course's row is tried on
+    the short course (the smoke's office length back at its default), and so is ``world``."""
+    from exobench.benchmarks.tracks.vio.scenario import scenario_classes
+
+    office, course_rows = (set(c.PARAMS) for c in scenario_classes().values())
+    away = {"max_distance_m": office_default("max_distance_m")}
+    out = {("vio", k): {**away, "world": "course", **BASE["locomotion"], **CONTEXT.get((None, k), {})}
+           for k in course_rows - office}  # fmt: skip
+    out[("vio", "world")] = away
+    return out
+
+
+def office_default(key: str) -> Any:
+    return office.PARAMS[key].default
+
+
+CONTEXT.update(_vio_context())
+
+
 def _context(track_name: str, key: str) -> dict[str, Any]:
     return {**BASE.get(track_name, {}), **CONTEXT.get((track_name, key), CONTEXT.get((None, key), {}))}
 
@@ -112,9 +132,17 @@ def _recorder_inputs(track, scenario: dict[str, Any]) -> bytes:
     raise AssertionError(f"{track.name}: simulate() never called the recorder")
 
 
+_EPISODES: dict[tuple[str, str], bytes] = {}
+
+
 def _episode_bytes(track, scenario: dict[str, Any]) -> bytes:
-    ep = track.simulate(scenario, 0)
-    return pickle.dumps((ep.frames, ep.truth, ep.calibration))
+    """The whole episode's bytes, simulated once per (track, scenario): the base scenario of every
+    key that acts after the recorder is the same smoke scenario."""
+    key = (track.name, repr(sorted(scenario.items())))
+    if key not in _EPISODES:
+        ep = track.simulate(scenario, 0)
+        _EPISODES[key] = pickle.dumps((ep.frames, ep.truth, ep.calibration))
+    return _EPISODES[key]
 
 
 def _candidates(p, base: Any) -> list[str]:

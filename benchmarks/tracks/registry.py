@@ -32,6 +32,7 @@ BUILTIN_TRACKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "odometry": ("exobench.benchmarks.tracks.odometry:OdometryTrack", ("lidar", "imu", "joints", "contact")),
     "locomotion": ("exobench.benchmarks.tracks.locomotion:LocomotionTrack", ("rgbd", "imu", "contact", "odometry")),
     "loop-closure": ("exobench.benchmarks.tracks.loop_closure:LoopClosureTrack", ("lidar", "imu", "joints", "contact")),
+    "vio": ("exobench.benchmarks.tracks.vio:VioTrack", ("rgbd", "imu")),
 }
 
 

@@ -332,16 +332,22 @@ def stream_record(
     track_bodies: Sequence[str] = (),
     track_rate_hz: float = TRACK_RATE_HZ,
     chunk_s: float = CHUNK_S,
+    duration_s: float | None = None,
+    hooks: Sequence[Hook] = (),
+    watch_geoms: Sequence[Sequence[int]] = (),
 ) -> StreamedRecording:
-    """:func:`record` of ``rig`` over the whole ``motion`` (no hooks, no watched geoms) as a
-    stream (see the module docstring). The small streams are recorded here; the big ones as
+    """:func:`record` of ``rig`` over ``motion`` (up to ``duration_s``) as a stream (see the
+    module docstring). The small streams are recorded here; the big ones as
     :meth:`StreamedRecording.items` is iterated. Their kinds must never stamp a frame before the
-    instant it was observed at (a LiDAR clock stepping back cannot stream)."""
+    instant it was observed at (a LiDAR clock stepping back cannot stream). ``hooks`` act on both
+    recordings: the small one is run to its end before the big one starts, so a hook that keeps
+    what :meth:`Hook.prepare` computed for :meth:`Hook.place` (pedestrians) sees one recording
+    at a time; ``watch_geoms`` are the cameras' (big)."""
     ids = [s.sensor_id for s in rig]
     if len(set(ids)) != len(ids):
         raise ConfigError("rig", ids, "sensors with distinct ids")
     big = [s for s in rig if adapter_class(s.kind).chunked]
     small = record(model, truth, exo, motion, [s for s in rig if not adapter_class(s.kind).chunked], seed, track_bodies=track_bodies,
-                   track_rate_hz=track_rate_hz)  # fmt: skip
-    rec = Recorder(model, truth, exo, motion, big, seed)
+                   track_rate_hz=track_rate_hz, duration_s=duration_s, hooks=hooks)  # fmt: skip
+    rec = Recorder(model, truth, exo, motion, big, seed, duration_s=duration_s, hooks=hooks, watch_geoms=watch_geoms)
     return StreamedRecording(small, rec, {sid: i for i, sid in enumerate(ids)}, float(chunk_s))

@@ -28,6 +28,7 @@ EMPTY = {
     "lidar-filter": FilterEstimate(E, (), E),
     "odometry": TrajectoryEstimate(E, np.zeros((0, 4, 4)), E),
     "loop-closure": PlaceRecognitionEstimate(E, E.astype(int), E, E, E),
+    "vio": TrajectoryEstimate(E, np.zeros((0, 4, 4)), E),
 }
 
 

@@ -1,4 +1,8 @@
-"""The IMU inside the simulation core: measured where the state carries the motion's accelerations."""
+"""The IMU inside the simulation core: measured where the state carries the motion's accelerations.
+
+Truth (``SensorOutput.truth``): ``pose_rows``, the IMU site's true pose at every measurement
+instant, rows ``[t, x, y, z, qw, qx, qy, qz]`` (the instants of the samples before any drop,
+clock offset or latency: ``t`` is the measurement time)."""
 
 from __future__ import annotations
 
@@ -29,7 +33,7 @@ class ImuAdapter(BaseAdapter):
         self.model.observe(model, data, t)
 
     def finish(self) -> SensorOutput:
-        return SensorOutput(list(self.model.frames()))
+        return SensorOutput(list(self.model.frames()), None, {"pose_rows": self.model.pose_rows()})
 
     @staticmethod
     def calibration_params(sensor: MountedSensor) -> dict[str, Any]:

@@ -43,6 +43,7 @@ class ImuSensor:
         self.noise_rng, self.drop_rng = sensor_rngs(seed, sensor_id)
         self._t: list[float] = []
         self._q: list[np.ndarray] = []
+        self._p: list[np.ndarray] = []
         self._gyro: list[np.ndarray] = []
         self._acc: list[np.ndarray] = []
         self._buf = np.zeros(6)
@@ -54,6 +55,7 @@ class ImuSensor:
         q = np.empty(4)
         mujoco.mju_mat2Quat(q, data.site_xmat[self.site])  # type: ignore[attr-defined]
         self._q.append(q)
+        self._p.append(np.array(data.site_xpos[self.site]))  # type: ignore[attr-defined]
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_SITE, self.site, self._buf, 1)
         self._gyro.append(self._buf[:3].copy())
         mujoco.mj_objectAcceleration(model, data, mujoco.mjtObj.mjOBJ_SITE, self.site, self._buf, 1)
@@ -62,6 +64,12 @@ class ImuSensor:
     def true_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(t (N,), quat_wxyz of R_world_imu (N, 4), gyro (N, 3), accel (N, 3)) without noise."""
         return np.array(self._t), np.array(self._q).reshape(-1, 4), np.array(self._gyro), np.array(self._acc)
+
+    def pose_rows(self) -> np.ndarray:
+        """The true pose of the IMU site at each measurement time, rows ``[t, x, y, z, qw, qx, qy, qz]``
+        (N, 8): 8 numbers a sample instead of a 4x4 matrix, so a long walk's IMU truth stays small."""
+        t = np.asarray(self._t, dtype=float)
+        return np.column_stack([t, np.asarray(self._p).reshape(-1, 3), np.asarray(self._q).reshape(-1, 4)])
 
     def frames(self) -> list[ImuSample]:
         c = self.config

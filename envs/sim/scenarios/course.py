@@ -102,13 +102,15 @@ frames per CPU-second (37 with the three passes of before; `exobench bench locom
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
 from exobench.core import ConfigError, Episode, EpisodeTruth
+from exobench.core.episode import EpisodeStream
 from exobench.models.exo_spec import ExoSpec
 from exobench.models.vision_look import WorldLook
 from exobench.models.world_params import ParamSpec
@@ -123,7 +125,7 @@ from ..calibration import build_calibration
 from ..compose import CHEST_CAMERA, attached_sites, compose_rig
 from ..hooks import PedestrianHook, ViewHook
 from ..pose import pose_rows
-from ..recorder import record
+from ..recorder import record, stream_record
 from ..rig import Rig, camera_rig, segmentation_truths, with_presets, with_segmentation_truth
 from ..scenario import scenario_base
 from .common import COMMON_PARAMS
@@ -331,17 +333,63 @@ def _view_hook(sc: LocomotionScenario, exo: ExoSpec, motion: Motion, info: dict[
 def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> Episode:
     """One walk along the scenario's course with every sensor of ``rig`` (default: the camera of
     ``mount``, its IMU, insoles and odometry, :func:`default_rig`)."""
+    setup = _locomotion_setup(scenario, seed, rig)
+    rec = record(setup.scene.model, setup.world.truth, setup.exo, setup.motion, setup.rig, seed, duration_s=setup.dur,
+                 hooks=setup.hooks, watch_geoms=setup.ped_hook.geom_groups(setup.scene.model))  # fmt: skip
+    lidars = [s.sensor_id for s in setup.rig if s.kind == "lidar"]
+    return _locomotion_episode(scenario, seed, setup, rec, rec.frames, rec.frame_truth(lidars), segmentation_truths(rec, setup.rig))
+
+
+def stream_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> EpisodeStream:
+    """:func:`simulate_locomotion` as a stream (:func:`~exobench.envs.sim.recorder.stream_record`):
+    the same frames in the same order, handed out as they are rendered, and the same episode at
+    the end without its frames, so a long walk is never held whole. A rig with a LiDAR, or a
+    scenario keeping segmentation truth (per-frame truths the episode would hold), is refused."""
+    if getattr(scenario, "segmentation_truth", False):
+        raise ConfigError("segmentation_truth", True, "false for a streamed course walk (its per-frame truth is not kept)")
+    setup = _locomotion_setup(scenario, seed, rig)
+    lidars = [s.sensor_id for s in setup.rig if s.kind == "lidar"]
+    if lidars:
+        raise ConfigError("extra_sensors", getattr(scenario, "extra_sensors", lidars), "no LiDAR on a streamed course walk")
+    srec = stream_record(setup.scene.model, setup.world.truth, setup.exo, setup.motion, setup.rig, seed,
+                         duration_s=setup.dur, hooks=setup.hooks, watch_geoms=setup.ped_hook.geom_groups(setup.scene.model))  # fmt: skip
+    cal = build_calibration(setup.exo, setup.rig)
+
+    def frames() -> Iterator[Any]:
+        for f, _ in srec.items():
+            yield f
+
+    def finish() -> Episode:
+        return _locomotion_episode(scenario, seed, setup, srec, (), (), ())
+
+    return EpisodeStream(scenario.as_dict(), int(seed), cal, frames(), finish)
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """What a course walk is recorded from: the rig, the device, the planned walk and the scene."""
+
+    rig: Rig
+    exo: ExoSpec
+    world: Any
+    wps: tuple
+    motion: Motion
+    info: dict[str, float]
+    dur: float
+    scene: Any
+    ped_hook: PedestrianHook
+    hooks: tuple[Any, ...]
+
+
+def _locomotion_setup(sc: LocomotionScenario, seed: int, rig: Sequence[MountedSensor] | None) -> _Setup:
     from ...motion.pedestrians import pedestrian_paths
 
-    sc = scenario
     rig = tuple(default_rig(sc) if rig is None else rig)
-    if sc.segmentation_truth:
+    if getattr(sc, "segmentation_truth", False):  # a scenario class may leave the row out (the vio track's)
         rig = with_segmentation_truth(rig)
     exo = sc.exo_spec()
     world, wps, motion, info = plan_locomotion(sc)
-    truth_scene = world.truth
     dur = float(min(motion.duration_s, sc.duration_cap_s))
-    cam_id = sensor_ids(sc.mount)[0]
     ped_rng = sensor_rngs(seed, "locomotion_pedestrians")[0]
 
     def walker_xy(t: float) -> np.ndarray:
@@ -355,12 +403,18 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
     look = WorldLook(sc.surfaces, sc.light_level)
     scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds),
                       *((look, sc.texture_seed) if not look.is_default else ()))  # fmt: skip
-    model = scene.model
-    ped_hook = PedestrianHook(peds, Terrain(truth_scene))
-    hooks = (_view_hook(sc, exo, motion, info, truth_scene, dur, seed), ped_hook)
-    rec = record(model, truth_scene, exo, motion, rig, seed, duration_s=dur, hooks=hooks, watch_geoms=ped_hook.geom_groups(model))
+    ped_hook = PedestrianHook(peds, Terrain(world.truth))
+    hooks = (_view_hook(sc, exo, motion, info, world.truth, dur, seed), ped_hook)
+    return _Setup(rig, exo, world, wps, motion, info, dur, scene, ped_hook, hooks)
 
-    # truth
+
+def _locomotion_episode(sc: LocomotionScenario, seed: int, setup: _Setup, rec: Any, frames: Sequence[Any],
+                        lidar_truth: Sequence[Any], segmentation: Sequence[Any]) -> Episode:  # fmt: skip
+    """The episode of a recording (``rec``: its ``outputs``' truth and ``context``)."""
+    rig, exo, motion, dur, ped_hook = setup.rig, setup.exo, setup.motion, setup.dur, setup.ped_hook
+    truth_scene = setup.world.truth
+    peds = ped_hook.paths
+    cam_id = sensor_ids(sc.mount)[0]
     steps = tuple(s for s in step_truths(motion, truth_scene, exo) if s.heel_strike_s <= dur + 1e-9)
     events: dict[str, float] = {"liftoff_s": float(motion.events.get("liftoff_s", 0.0)), "end_s": dur}
     prev = "LG"
@@ -397,7 +451,10 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
             "pedestrian_pixel_fraction": cam["watch_fraction"],
             "pedestrian_geom_names": [[f"ped{k}_body", f"ped{k}_head"] for k in range(len(peds))],
         })  # fmt: skip
-    extra.update({"route_waypoints_xy": np.asarray(wps, dtype=float), "pattern": dict(info),
+    for s in rig:  # a camera's IMU: its pose at its own rate
+        if s.kind == "imu" and s.attached_to is not None and s.sensor_id in rec.outputs:
+            tracks[s.sensor_id] = rec.outputs[s.sensor_id].truth["pose_rows"]
+    extra.update({"route_waypoints_xy": np.asarray(setup.wps, dtype=float), "pattern": dict(setup.info),
                   "walk_duration_s": float(motion.duration_s)})  # fmt: skip
     lidars = [s.sensor_id for s in rig if s.kind == "lidar"]
     if lidars:
@@ -412,9 +469,9 @@ def simulate_locomotion(scenario: LocomotionScenario, seed: int, rig: Sequence[M
         events=events,
         trajectory_w=trajectory,
         steps=steps,
-        lidar=rec.frame_truth(lidars),
-        segmentation=segmentation_truths(rec, rig),
+        lidar=tuple(lidar_truth),
+        segmentation=tuple(segmentation),
         extra=extra,
     )
     cal = build_calibration(exo, rig)
-    return Episode(scenario=sc.as_dict(), seed=int(seed), calibration=cal, frames=rec.frames, truth=ep_truth)
+    return Episode(scenario=sc.as_dict(), seed=int(seed), calibration=cal, frames=frames, truth=ep_truth)  # type: ignore[arg-type]

@@ -15,7 +15,8 @@ Truth: one ``LidarTruth`` per scan (``EpisodeTruth.lidar``; compacted to labels 
 :mod:`exobench.envs.sensors.lidar.faults`), link tracks at
 50 Hz (plus the ``lidar_trunk`` pose) and the deepest foot penetration; ``T_world_estimator`` is
 the LiDAR pose at t = 0. A camera on the rig adds its optical-frame poses
-(``body_tracks[<camera>]``, ``extra["camera_T_world"]``, ``extra["camera_stamps_s"]``).
+(``body_tracks[<camera>]``, ``extra["camera_T_world"]``, ``extra["camera_stamps_s"]``), its IMU
+its pose at every IMU sample (``body_tracks[<imu>]``).
 
 Route handling: the office routes turn by 90 and 180 degrees at corners and doors; the planner
 tracks its progress monotonically along the polyline (the loop passes corridors twice) and walks
@@ -44,7 +45,7 @@ from exobench.models.office_params import FACADE_GLASSES, FACADES
 from exobench.models.vision_look import WorldLook
 from exobench.models.world_params import ParamSpec
 
-from ...motion import Motion, Route, plan_walk
+from ...motion import GaitError, Motion, Route, plan_walk
 from ...sensors import (
     ContactConfig,
     EncoderConfig,
@@ -56,7 +57,7 @@ from ...sensors import (
 )
 from ...sensors.adapter import MountedSensor
 from ..calibration import build_calibration
-from ..compose import attached_sites, compose_rig
+from ..compose import CHEST_CAMERA, attached_sites, compose_rig
 from ..pose import pose_rows
 from ..recorder import TRACK_RATE_HZ, TRACKED_BODIES, record, stream_record
 from ..rig import LIDAR_TRUNK, Rig, scalar_rig, segmentation_truths, with_presets, with_segmentation_truth
@@ -207,16 +208,36 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
         base = (*scalar_rig(cfg, tof=False), MountedSensor(LIDAR_ID, "lidar", self.lidar_config()))
         return with_presets(base, self.extra_sensors)
 
+    def route_polyline(self, waypoints: list[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
+        """The waypoints walked: the route's, cut at ``max_distance_m`` (:func:`route_waypoints`)."""
+        return route_waypoints(waypoints, self.max_distance_m)
+
+    def step_factors(self) -> tuple[float, ...]:
+        """Step lengths to plan with, as factors of ``step_length_m``, tried in turn while the
+        walker finds no foothold (a doorway at some steps and heights): the step asked for only."""
+        return (1.0,)
+
+    def moves_cameras(self) -> bool:
+        """Whether the chest camera sits on its turning rig (``chest_yaw``/``chest_pitch``) and
+        :meth:`recording_hooks` turn the cameras: not for the LiDAR tracks' office walks, whose
+        cameras (``extra_sensors``) stay fixed as before (:mod:`.office_camera` turns them)."""
+        return False
+
+    def recording_hooks(self, exo: ExoSpec, motion: Motion, seed: int) -> tuple[Any, ...]:
+        """Extra motion of the recording (:class:`~exobench.envs.sim.recorder.Hook`): none here."""
+        return ()
+
 
 @lru_cache(maxsize=8)
 def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = (), look: WorldLook | None = None,
-                    changes: Any = None, day: int = 0) -> Any:
+                    changes: Any = None, day: int = 0, chest_rig: bool = False) -> Any:
     """The composed office world (``models.worlds.CompiledScene``), compiled once per key; ``look``
     (textures drawn from the office's seed, light level) when not the default; with a change
-    script, the office of ``day``."""
+    script, the office of ``day``; the chest camera on its turning rig with ``chest_rig``."""
     from exobench.models.office import build_office
 
-    return compose_rig(build_office(params, changes, day), exo, sites, look=look, look_seed=params.seed)  # type: ignore[arg-type, attr-defined]
+    return compose_rig(build_office(params, changes, day), exo, sites, look=look, look_seed=params.seed,  # type: ignore[arg-type, attr-defined]
+                       chest_rig=chest_rig)  # fmt: skip
 
 
 @lru_cache(maxsize=8)
@@ -264,14 +285,16 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
     exo = scenario.exo_spec()
     look = WorldLook(scenario.surfaces, scenario.light_level)
     script = scenario.change_script()
-    world = {} if script is None else {"changes": script, "day": scenario.day}
+    world: dict[str, Any] = {} if script is None else {"changes": script, "day": scenario.day}
+    if scenario.moves_cameras() and any(s.sensor_id == CHEST_CAMERA for s in rig):
+        world["chest_rig"] = True
     scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), None if look.is_default else look, **world)
     if scenario.regions():
         from exobench.models.office_routes import region_route
 
-        wps = route_waypoints(region_route(scene.truth, scenario.regions()), scenario.max_distance_m)
+        wps = scenario.route_polyline(region_route(scene.truth, scenario.regions()))
     else:
-        wps = route_waypoints(office_route(scene.truth, scenario.route), scenario.max_distance_m)
+        wps = scenario.route_polyline(office_route(scene.truth, scenario.route))
     pts = np.asarray(wps)
     length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
     d0 = pts[1] - pts[0]
@@ -279,19 +302,28 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
     closed = bool(np.linalg.norm(pts[-1] - pts[0]) < 1e-9)
     turns = np.arctan2(np.diff(pts, axis=0)[:, 1], np.diff(pts, axis=0)[:, 0])
     turning_steps = int(np.sum(np.abs((np.diff(turns) + np.pi) % (2 * np.pi) - np.pi)) / np.radians(scenario.max_turn_deg))
-    route = Route(
-        wps, step_length_m=scenario.step_length_m, swing_s=scenario.swing_s, max_turn_deg=scenario.max_turn_deg,
-        start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None, start_lean_deg=scenario.start_lean_deg,
-        max_steps=min(10000, int(3.0 * length / scenario.step_length_m) + 2 * turning_steps + 100),
-    )  # fmt: skip
-    return scene, plan_walk(exo, scene.truth, route)
+    factors = scenario.step_factors()
+    for k, f in enumerate(factors):
+        step = scenario.step_length_m * f
+        route = Route(
+            wps, step_length_m=step, swing_s=scenario.swing_s, max_turn_deg=scenario.max_turn_deg,
+            start_yaw_deg=start_yaw, end_yaw_deg=start_yaw if closed else None, start_lean_deg=scenario.start_lean_deg,
+            max_steps=min(10000, int(3.0 * length / step) + 2 * turning_steps + 100),
+        )  # fmt: skip
+        try:
+            return scene, plan_walk(exo, scene.truth, route)
+        except GaitError:
+            if k == len(factors) - 1:
+                raise
+    raise AssertionError("unreachable: step_factors() is never empty")
 
 
 def simulate_office(scenario: OfficeScenario, seed: int, rig: Sequence[MountedSensor] | None = None) -> Episode:
     """A walk along the scenario's office route with every sensor of ``rig`` (default
     :meth:`OfficeScenario.rig`; a trunk LiDAR ``lidar_trunk`` is what the LiDAR truth follows)."""
     rig, exo, scene, motion = _office_setup(scenario, rig)
-    rec = record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+    hooks = scenario.recording_hooks(exo, motion, seed)
+    rec = record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES, hooks=hooks)
     lidar_truth = rec.frame_truth([s.sensor_id for s in rig if s.kind == "lidar"])
     if scenario.lidar_truth != "full":
         lidar_truth = tuple(compact_truth(t) for t in lidar_truth)
@@ -315,7 +347,8 @@ def stream_office(
     if any(s.kind == "lidar" and s.config.time_jump_prob > 0 and s.config.time_jump_s < 0 for s in rig):
         whole = simulate_office(scenario, seed, rig)
         return EpisodeStream(scenario.as_dict(), int(seed), whole.calibration, iter(whole.frames), lambda: whole)
-    srec = stream_record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES)
+    hooks = scenario.recording_hooks(exo, motion, seed)
+    srec = stream_record(scene.model, scene.truth, exo, motion, rig, seed, track_bodies=TRACKED_BODIES, hooks=hooks)
     lidars = {s.sensor_id for s in rig if s.kind == "lidar"} if lidar_truth or lidar_sink is not None else set()
     cams = {s.sensor_id for s in rig if s.kind == "rgbd" and s.config.segmentation_truth}
     kept_lidar: list[Any] = []
@@ -373,6 +406,8 @@ def _office_episode(
             body_tracks[s.sensor_id] = pose_rows(cam["t_s"], cam["T_world_sensor"])
             extra.setdefault("camera_T_world", cam["T_world_sensor"])
             extra.setdefault("camera_stamps_s", cam["t_s"])
+        elif s.kind == "imu" and s.attached_to is not None:  # a camera's IMU: its pose at its own rate
+            body_tracks[s.sensor_id] = rec.outputs[s.sensor_id].truth["pose_rows"]
     ep_truth = EpisodeTruth(
         scene=truth,
         T_world_estimator=T_world_est,
