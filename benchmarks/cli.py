@@ -290,6 +290,8 @@ def _run_plan(
     from .runner import execute
 
     bar: dict[str, Any] = {}
+    for name, why in plan.skipped.items():  # left out of a run of all the track's pipelines
+        click.echo(f"exobench: skipping pipeline {name}: {why}", err=True)
 
     def on_start(n_todo: int, n_skipped: int) -> None:
         if n_skipped:
@@ -366,7 +368,9 @@ def list_() -> None:
     click.echo("pipelines (--pipeline NAME; parameters with --set NAME.KEY=VALUE):")
     for name in reg.names():
         spec = reg.spec(name)
-        click.echo(f"  {name:<14} track {spec.track or '?':<8} {spec.source:<12} {spec.entry_point}")
+        why = reg.unavailable(name)
+        note = f"  UNAVAILABLE: {why}" if why else ""
+        click.echo(f"  {name:<14} track {spec.track or '?':<8} {spec.source:<12} {spec.entry_point}{note}")
 
 
 @cli.command()
