@@ -164,3 +164,16 @@ def test_a_worker_that_crashes_or_hangs_gives_a_failure_not_a_hang(vocab, how):
         for _ in range(50):
             os.kill(pid, 0)
             time.sleep(0.1)
+
+
+def test_the_euroc_export_is_read_as_ns_stamps_and_xyzw_quaternions(tmp_path):
+    from exobench.mapping.odometry.orbslam3.adapter import read_euroc
+
+    h = np.sqrt(0.5)
+    path = tmp_path / "t.txt"
+    # ORB-SLAM3's SaveTrajectoryEuRoC: "t_ns tx ty tz qx qy qz qw", written out of order here
+    path.write_text(f"2000000000.000000 4 5 6 0 0 0 1\n1500000000.000000 1 2 3 0 0 {h} {h}\n")
+    t, T = read_euroc(path)
+    np.testing.assert_allclose(t, [1.5, 2.0])
+    np.testing.assert_allclose(T[0], [[0, -1, 0, 1], [1, 0, 0, 2], [0, 0, 1, 3], [0, 0, 0, 1]], atol=1e-12)
+    np.testing.assert_allclose(T[1], [[1, 0, 0, 4], [0, 1, 0, 5], [0, 0, 1, 6], [0, 0, 0, 1]], atol=1e-12)

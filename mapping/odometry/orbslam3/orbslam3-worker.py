@@ -11,7 +11,8 @@ order. Requests: ``init`` (vocabulary, settings) -> ``ready``; ``track`` (stamp 
 ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32, ``imu`` (N, 7) float64 rows
 ``[t, gx, gy, gz, ax, ay, az]``) -> ``tracked`` (state, pose_valid, points, imu_initialised,
 map_changed; array ``pose_wc`` (4, 4) when valid); ``close`` (optional ``trajectory``: a path to
-save ORB-SLAM3's EuRoC trajectory export to after its shutdown) -> ``closed`` (``saved``). A request that raises
+save ORB-SLAM3's EuRoC trajectory export to after its shutdown) -> ``closed`` (``saved``, or
+``save_error`` when ORB-SLAM3 had nothing to save). A request that raises
 is answered ``error`` (message) and the worker goes on; a closed stdin ends it.
 """
 
@@ -81,13 +82,16 @@ def main():
                 pose = res.pose_wc if res.pose_valid else None
                 _write(out, reply, {"pose_wc": np.asarray(pose, dtype=np.float64)} if pose is not None else None)
             elif op == "close":
-                saved = False
+                reply = {"op": "closed", "saved": False}
                 if slam is not None:
                     slam.shutdown()
                     if req.get("trajectory"):
-                        slam.save_trajectory_euroc(req["trajectory"])
-                        saved = True
-                _write(out, {"op": "closed", "saved": saved})
+                        try:  # ORB-SLAM3 raises when its atlas holds no keyframe (every map was reset)
+                            slam.save_trajectory_euroc(req["trajectory"])
+                            reply["saved"] = True
+                        except Exception as e:
+                            reply["save_error"] = f"{type(e).__name__}: {e}"
+                _write(out, reply)
                 break
             else:
                 _write(out, {"op": "error", "message": f"unknown request {op!r}"})

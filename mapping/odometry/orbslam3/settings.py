@@ -55,6 +55,7 @@ class OrbSlam3Config:
         init_timeout_s: time allowed to start ORB-SLAM3 and load the vocabulary, s.
         frame_timeout_s: time allowed for one frame, s; a worker slower than that is killed.
         close_timeout_s: time allowed to shut ORB-SLAM3 down and export its trajectory, s.
+
     """
 
     n_features: int = 2000
@@ -85,6 +86,7 @@ class OrbSlam3Config:
         check_range("init_timeout_s", self.init_timeout_s, 1.0, 3600.0)
         check_range("frame_timeout_s", self.frame_timeout_s, 0.1, 600.0)
         check_range("close_timeout_s", self.close_timeout_s, 1.0, 3600.0)
+
 
 
 def camera_mounts(calibration: Calibration, camera_id: str) -> tuple[SensorMount, SensorMount | None]:

@@ -123,11 +123,11 @@ class OrbSlam3Worker:
         except subprocess.TimeoutExpired:  # a process the kernel has not reaped yet: nothing more to do
             pass
 
-    def finish(self, trajectory: Path, timeout_s: float) -> None:
-        """Shut ORB-SLAM3 down and save its trajectory export (EuRoC format) to ``trajectory``."""
+    def finish(self, trajectory: Path, timeout_s: float) -> str:
+        """Shut ORB-SLAM3 down and save its trajectory export (EuRoC format) to ``trajectory``;
+        returns "" when saved, else ORB-SLAM3's reason (no keyframe left in its atlas)."""
         reply, _ = self.request({"op": "close", "trajectory": str(trajectory)}, timeout_s=timeout_s)
-        if not reply.get("saved"):
-            raise WorkerError("ORB-SLAM3 worker saved no trajectory")
+        return "" if reply.get("saved") else str(reply.get("save_error") or "nothing saved")
 
     def close(self, timeout_s: float = 10.0) -> None:
         """Ask the worker to shut ORB-SLAM3 down (when it still runs); kill it when it does not in time."""
