@@ -374,6 +374,23 @@ def list_() -> None:
 
 
 @cli.command()
+@click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON.")
+def orbvoc(as_json: bool) -> None:
+    """Build the ORB vocabulary of the orb-slam3 pipeline from simulated images (once per user, a
+    few minutes; a run with orb-slam3 builds it itself on first use) and print where it is."""
+    from exobench.mapping.odometry.orbslam3.vocabulary import DEFAULT_PARAMS, vocabulary_path
+
+    from . import orbvoc as builder
+
+    path = vocabulary_path(DEFAULT_PARAMS)
+    if path.is_file():
+        info: dict[str, Any] = {"path": str(path), "built": False, "bytes": path.stat().st_size}
+    else:
+        info = {**builder.build_vocabulary(path, DEFAULT_PARAMS, builder.training_images()), "built": True}
+    click.echo(json.dumps(info) if as_json else "\n".join(f"{k}: {v}" for k, v in info.items()))
+
+
+@cli.command()
 @click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion", "executor"]))
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--seed", type=int, default=0, show_default=True)

@@ -78,11 +78,12 @@ def build_vocabulary(path: Path, params: VocabularyParams, images: Iterable[np.n
 
 
 def ensure_vocabulary(params: VocabularyParams = DEFAULT_PARAMS,
-                      images: Callable[[], Iterable[np.ndarray]] = training_images) -> Path:  # fmt: skip
-    """The cached vocabulary of ``params``, built from ``images()`` when it is not there yet."""
+                      images: Callable[[], Iterable[np.ndarray]] | None = None) -> Path:  # fmt: skip
+    """The cached vocabulary of ``params``, built from ``images()`` (default
+    :func:`training_images`) when it is not there yet."""
     path = vocabulary_path(params)
     if not path.is_file():
-        build_vocabulary(path, params, images())
+        build_vocabulary(path, params, (images or training_images)())
     return path
 
 

@@ -128,3 +128,39 @@ def test_a_pipelines_setup_runs_once_before_the_episodes(monkeypatch, tmp_path):
 
 def record_setup(config):
     sys.modules[__name__]._SETUP_CALLS.append(config)
+
+
+def test_orbvoc_builds_the_default_vocabulary_once_into_the_user_cache(monkeypatch, tmp_path):
+    import json
+
+    import numpy as np
+
+    from exobench.benchmarks import orbvoc
+    from exobench.mapping.odometry.orbslam3.vocabulary import DEFAULT_PARAMS, vocabulary_path
+
+    monkeypatch.setenv("EXOBENCH_CACHE", str(tmp_path))
+    rng = np.random.default_rng(0)
+    renders = []
+
+    def images():  # instead of minutes of simulation: noise images full of corners
+        renders.append(1)
+        return [rng.integers(0, 256, (240, 424), dtype=np.uint8) for _ in range(3)]
+
+    monkeypatch.setattr(orbvoc, "training_images", images)
+    first = json.loads(_run(["orbvoc", "--json"]).output)
+    path = vocabulary_path(DEFAULT_PARAMS)
+    assert first["built"] is True and first["path"] == str(path) and path.parent == tmp_path
+    assert first["images"] == 3 and first["bytes"] == path.stat().st_size > 0
+    again = json.loads(_run(["orbvoc", "--json"]).output)
+    assert again == {"path": str(path), "built": False, "bytes": first["bytes"]} and renders == [1]
+    # the orb-slam3 entry's setup finds it there, and builds nothing when the config names a file
+    from exobench.mapping.odometry.orbslam3 import OrbSlam3Config
+
+    orbvoc.setup_pipeline(OrbSlam3Config())
+    orbvoc.setup_pipeline(OrbSlam3Config(vocabulary=str(tmp_path / "mine.txt")))
+    assert renders == [1]
+    path.unlink()
+    orbvoc.setup_pipeline(OrbSlam3Config(vocabulary=str(tmp_path / "mine.txt")))
+    assert renders == [1] and not path.exists()
+    orbvoc.setup_pipeline(OrbSlam3Config())
+    assert renders == [1, 1] and path.is_file()
