@@ -59,7 +59,7 @@ def test_rule_checker_detects_a_violation(tmp_path):
     assert {"mujoco", "exobench.envs"} <= _imports(f, "perception")
 
 
-GPL_MODULES = ("pyorbslam3",)  # ARCHITECTURE.md: GPL peers run in a separate process, never imported
+GPL_MODULES = ("pyorbslam3",)  # docs/architecture.md: GPL peers run in a separate process, never imported
 WORKER = ROOT / "mapping" / "odometry" / "orbslam3" / "orbslam3-worker.py"
 
 
