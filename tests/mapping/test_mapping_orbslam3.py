@@ -177,3 +177,34 @@ def test_the_euroc_export_is_read_as_ns_stamps_and_xyzw_quaternions(tmp_path):
     np.testing.assert_allclose(t, [1.5, 2.0])
     np.testing.assert_allclose(T[0], [[0, -1, 0, 1], [1, 0, 0, 2], [0, 0, 1, 3], [0, 0, 0, 1]], atol=1e-12)
     np.testing.assert_allclose(T[1], [[1, 0, 0, 4], [0, 1, 0, 5], [0, 0, 1, 6], [0, 0, 0, 1]], atol=1e-12)
+
+
+def test_faults_in_its_streams_are_counted_as_every_pipeline_counts_them(vocab):
+    # what test_conformance asks of every registered pipeline, on the first 45 frames of the walk:
+    # in each stream one frame dropped, one NaN, one absurd, one repeated, one late
+    from exobench.core.counters import stream_rates
+    from exobench.core.faults import inject_stream_faults
+
+    ep = walk()
+    frames, injected = inject_stream_faults(_frames_until(ep, 45))
+    pipe = OrbSlam3Pipeline(OrbSlam3Config(vocabulary=str(vocab)))
+    pipe.reset(ep.calibration)
+    for f in frames:
+        pipe.process(f)
+    est = pipe.finalize()
+    assert est.stats["worker_failed"] is False
+    rates = stream_rates(ep.calibration)
+    for kind, sid in (("rgbd", "rgbd_head"), ("imu", "imu_head")):
+        c = est.counts[kind]
+        inj = injected[sid]
+        nan_values = int(np.asarray(inj["nan"][0].depth_m).size) if kind == "rgbd" else 1
+        absurd_values = int(np.asarray(inj["absurd"][0].depth_m).size) if kind == "rgbd" else 1
+        assert (c.nan, c.absurd, c.repeated, c.out_of_order) == (1, 1, 1, 1), (kind, c)
+        assert (c.nan_values, c.absurd_values) == (nan_values, absurd_values), (kind, c)
+        assert c.dropped == 2 * (sid in rates), (kind, c)  # the removed frame and the late one's gap
+        assert c.sensors == (sid,)
+    # the other streams of the episode (insoles, odometry, trunk IMU) are ignored, not read
+    ignored = [f for f in frames if f.sensor_id not in ("rgbd_head", "imu_head")]
+    assert sum(c.ignored for c in est.counts.values()) == len(ignored)
+    # a NaN or absurd depth image is still tracked (no depth): one pose slot per RGB-D frame used
+    assert len(est.stamps_s) == est.counts["rgbd"].used
