@@ -494,7 +494,7 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
     from .overrides import parse_assignments
     from .report import summary_text
     from .results import json_safe
-    from .runner import plan_run, run_pipelines
+    from .runner import plan_run, run_pipelines, setup_pipelines
 
     meta = read_meta(session_dir)
     check_track(session_dir, meta, track)
@@ -509,6 +509,9 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
         allowed = "pipeline parameters (NAME.KEY=VALUE)" + (f" and scoring settings ({', '.join(sorted(scoring_keys))})" if scoring_keys else "")
         raise ConfigError("--set", ",".join(recorded), allowed)
     episode = read_session(session_dir, track=plan.track.name)  # a refused session: its one error line only
+    for name, why in plan.skipped.items():
+        click.echo(f"exobench: skipping pipeline {name}: {why}", err=True)
+    setup_pipelines(plan.pipelines)
     if not content_checked(meta):
         click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its files are not verified, only its frames against their truth", err=True)
     scorer_errors: dict[str, str] = {}

@@ -164,3 +164,21 @@ def test_orbvoc_builds_the_default_vocabulary_once_into_the_user_cache(monkeypat
     assert renders == [1] and not path.exists()
     orbvoc.setup_pipeline(OrbSlam3Config())
     assert renders == [1, 1] and path.is_file()
+
+
+def test_replay_skips_it_says_so_and_runs_the_setups(monkeypatch, tmp_path, no_pyorbslam3):
+    from exobench.benchmarks.registry import BUILTIN_PIPELINES
+
+    session = tmp_path / "session"
+    assert _run(["record", "--case", "B", "--seed", "3", str(session)]).exit_code == 0
+    calls = []
+    monkeypatch.setattr(sys.modules[__name__], "_SETUP_CALLS", calls, raising=False)
+    reg = PipelineRegistry()
+    reg.register("rtls", BUILTIN_PIPELINES["rtls"][0], track="stairs", setup=f"{__name__}:record_setup")
+    reg.register("orb-slam3", ORB_SLAM3_ENTRY_POINT, track="stairs", **ORB_SLAM3_NEEDS)
+    monkeypatch.setattr(registry_mod, "default_registry", lambda: reg)
+    monkeypatch.setattr("exobench.benchmarks.runner.default_registry", lambda: reg)
+    result = _run(["replay", str(session), "--json"])
+    assert result.exit_code == 0, result.output + result.stderr
+    assert "skipping pipeline orb-slam3" in result.stderr and INSTALL in result.stderr
+    assert len(calls) == 1 and type(calls[0]) is reg.load("rtls").Config
