@@ -30,11 +30,11 @@ def calibration(T_camera_imu: np.ndarray | None = None, shift_s: float | None = 
 
 @functools.cache
 def walk():
-    """A 9 s ramp-course walk, head camera at 424x240 and 15 Hz with its 200 Hz IMU, textured walls
+    """A 7.5 s ramp-course walk (5.4 m), head camera at 424x240 and 15 Hz with its 200 Hz IMU, textured walls
     (what ORB-SLAM3 needs: more than 500 ORB features to start a map)."""
     from exobench.envs.sim.scenarios.course import LocomotionScenario, simulate_locomotion
 
-    sc = LocomotionScenario(terrain="ramp", mount="head", rate_hz=15.0, duration_cap_s=9.0, surfaces="textured",
+    sc = LocomotionScenario(terrain="ramp", mount="head", rate_hz=15.0, duration_cap_s=7.5, surfaces="textured",
                             gaze="random", head_pitch_std_rad=0.05)  # fmt: skip
     return simulate_locomotion(sc, 0)
 
