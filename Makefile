@@ -27,7 +27,7 @@ test: $(STAMP)
 	$(VENV)/bin/python -m pytest
 
 bench: $(STAMP)
-	$(VENV)/bin/python -m pip install -q -e '.[test,ray,bench]' $(EDITABLE)
+	$(VENV)/bin/python -m pip install -q -e '.[test,ray,bench,orbslam3]' $(EDITABLE)
 	$(VENV)/bin/exobench bench rtls
 	$(VENV)/bin/exobench bench sim
 	$(VENV)/bin/exobench bench lidar
@@ -54,7 +54,7 @@ $(VENV)/bin/python:
 	$(VENV)/bin/python -m pip install -q --upgrade pip
 
 $(STAMP): pyproject.toml $(MODULES) | $(VENV)/bin/python system
-	$(VENV)/bin/python -m pip install -q -e '.[test,ray]' $(EDITABLE)
+	$(VENV)/bin/python -m pip install -q -e '.[test,ray,orbslam3]' $(EDITABLE)
 	@touch $(STAMP)
 
 clean:

@@ -302,6 +302,8 @@ def _run_plan(
     from .runner import execute
 
     bar: dict[str, Any] = {}
+    for name, why in plan.skipped.items():  # left out of a run of all the track's pipelines
+        click.echo(f"exobench: skipping pipeline {name}: {why}", err=True)
 
     def on_start(n_todo: int, n_skipped: int) -> None:
         if n_skipped:
@@ -378,7 +380,26 @@ def list_() -> None:
     click.echo("pipelines (--pipeline NAME; parameters with --set NAME.KEY=VALUE):")
     for name in reg.names():
         spec = reg.spec(name)
-        click.echo(f"  {name:<14} track {spec.track or '?':<8} {spec.source:<12} {spec.entry_point}")
+        why = reg.unavailable(name)
+        note = f"  UNAVAILABLE: {why}" if why else ""
+        click.echo(f"  {name:<14} track {spec.track or '?':<8} {spec.source:<12} {spec.entry_point}{note}")
+
+
+@cli.command()
+@click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON.")
+def orbvoc(as_json: bool) -> None:
+    """Build the ORB vocabulary of the orb-slam3 pipeline from simulated images (once per user, a
+    few minutes; a run with orb-slam3 builds it itself on first use) and print where it is."""
+    from exobench.mapping.odometry.orbslam3.vocabulary import DEFAULT_PARAMS, vocabulary_path
+
+    from . import orbvoc as builder
+
+    path = vocabulary_path(DEFAULT_PARAMS)
+    if path.is_file():
+        info: dict[str, Any] = {"path": str(path), "built": False, "bytes": path.stat().st_size}
+    else:
+        info = {**builder.build_vocabulary(path, DEFAULT_PARAMS, builder.training_images()), "built": True}
+    click.echo(json.dumps(info) if as_json else "\n".join(f"{k}: {v}" for k, v in info.items()))
 
 
 @cli.command()
@@ -485,7 +506,7 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
     from .overrides import parse_assignments
     from .report import summary_text
     from .results import json_safe
-    from .runner import plan_run, run_pipelines
+    from .runner import plan_run, run_pipelines, setup_pipelines
 
     meta = read_meta(session_dir)
     check_track(session_dir, meta, track)
@@ -500,6 +521,9 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
         allowed = "pipeline parameters (NAME.KEY=VALUE)" + (f" and scoring settings ({', '.join(sorted(scoring_keys))})" if scoring_keys else "")
         raise ConfigError("--set", ",".join(recorded), allowed)
     episode = read_session(session_dir, track=plan.track.name)  # a refused session: its one error line only
+    for name, why in plan.skipped.items():
+        click.echo(f"exobench: skipping pipeline {name}: {why}", err=True)
+    setup_pipelines(plan.pipelines)
     if not content_checked(meta):
         click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its files are not verified, only its frames against their truth", err=True)
     scorer_errors: dict[str, str] = {}

@@ -75,6 +75,7 @@ class PipelineRun:
     name: str
     entry_point: str
     config: Any
+    setup: str | None = None  # "module:function" run once with the config before the episodes
 
     def config_dict(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self.config))
@@ -91,6 +92,7 @@ class RunPlan:
     seeds: list[int]
     scenario_overrides: dict[str, Any]
     pipeline_overrides: dict[str, dict[str, Any]]
+    skipped: dict[str, str] = field(default_factory=dict)  # pipelines of the track left out: name -> why
 
     def run_config(self) -> dict[str, Any]:
         return {
@@ -148,9 +150,24 @@ def plan_run(
     if suite not in trk.suites:
         raise UnknownNameError("suite", suite, trk.suites)
     reg = registry or default_registry()
-    names = list(pipelines) if pipelines else reg.names(track=trk.name)
+    skipped: dict[str, str] = {}
+    if pipelines:
+        names = list(pipelines)
+        for name in names:  # named, it must run: refused with what installs it
+            why = reg.unavailable(name) if name in reg.names() else None
+            if why:
+                raise ConfigError("pipeline", name, f"an installed pipeline; {name} {why}")
+    else:  # all of the track's: those that cannot run here are left out, and the plan says so
+        names = []
+        for name in reg.names(track=trk.name):
+            why = reg.unavailable(name)
+            if why:
+                skipped[name] = why
+            else:
+                names.append(name)
     if not names:
-        raise ConfigError("pipeline", "", f"at least one pipeline for track {trk.name!r}")
+        raise ConfigError("pipeline", "", f"at least one pipeline for track {trk.name!r} that can run here"
+                          + "".join(f"; {n} {w}" for n, w in skipped.items()))  # fmt: skip
     if len(set(names)) != len(names):
         raise ConfigError("pipeline", ",".join(names), "each pipeline once")
     for name in names:
@@ -172,7 +189,7 @@ def plan_run(
 
     scen_raw, pipe_raw = split_overrides(overrides or {}, names)
     scen = check_scenario_overrides(trk, scen_raw)
-    runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n))) for n in names]
+    runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n)), reg.spec(n).setup) for n in names]
 
     # case-major order (each case with every seed); a drawn suite has its own cases per seed
     planned: list[tuple[int, int, EpisodePlan]] = []
@@ -188,7 +205,7 @@ def plan_run(
     episodes = [e for _, _, e in sorted(planned, key=lambda x: (x[0], x[1]))]
     if len({e.key for e in episodes}) != len(episodes):
         raise ConfigError("suite", suite, "cases whose names are unique within each seed")
-    return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()})
+    return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()}, skipped)
 
 
 # ---------------------------------------------------------------- one episode (runs in workers)
@@ -526,6 +543,8 @@ def _execute(
         on_start(len(todo), len(outcome.skipped))
     vers = versions()
     job_list = [_Job(plan.track, e, tuple(plan.pipelines), vers) for e in todo]
+    if job_list:
+        setup_pipelines(plan.pipelines)
 
     def finish(key: str, records: list[dict[str, Any]], figure: dict[str, Any] | None) -> None:
         append_records(results, records)  # the records first: a figure is a convenience
@@ -547,6 +566,15 @@ def _execute(
         _run_pool(job_list, jobs, finish)
     outcome.records = sort_records(read_records(results), [p.name for p in plan.pipelines])
     return outcome
+
+
+def setup_pipelines(pipelines: Sequence[PipelineRun]) -> None:
+    """Run each pipeline's ``setup(config)`` (its registry entry's; once, in this process, before
+    any episode: what it prepares, e.g. a file in the user's cache, is then there for every worker
+    of this machine)."""
+    for p in pipelines:
+        if p.setup:
+            load_entry_point(p.setup)(p.config)
 
 
 def _run_pool(job_list: list[_Job], jobs: int, finish: Callable[..., None]) -> None:

@@ -57,3 +57,38 @@ def test_rule_checker_detects_a_violation(tmp_path):
     f = tmp_path / "x.py"
     f.write_text("import mujoco\nfrom exobench.envs import sim\n")
     assert {"mujoco", "exobench.envs"} <= _imports(f, "perception")
+
+
+GPL_MODULES = ("pyorbslam3",)  # docs/architecture.md: GPL peers run in a separate process, never imported
+WORKER = ROOT / "mapping" / "odometry" / "orbslam3" / "orbslam3-worker.py"
+
+
+def test_no_exobench_module_imports_a_gpl_peer():
+    bad = []
+    for path in sorted(ROOT.rglob("*.py")):
+        rel = path.relative_to(ROOT)
+        if rel.parts[0] in ("tests", ".venv", "build") or path == WORKER:
+            continue
+        names = _imports(path, rel.parts[0])
+        bad += [f"{rel} imports {n}" for n in names for m in GPL_MODULES if n == m or n.startswith(m + ".")]
+    assert not bad, "\n".join(bad)
+    # the worker script does, and cannot be imported as a module: its name is not an identifier
+    assert "pyorbslam3" in _imports(WORKER, "mapping")
+    assert not WORKER.stem.isidentifier()
+
+
+def test_importing_the_orbslam3_adapter_and_the_harness_loads_no_gpl_module():
+    import subprocess
+    import sys
+
+    code = ("import sys, exobench.mapping.odometry.orbslam3, exobench.benchmarks.cli, exobench.benchmarks.orbvoc, "
+            f"exobench.benchmarks.runner; print(sorted(m for m in sys.modules if m.split('.')[0] in {GPL_MODULES!r}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"
+
+
+def test_gpl_rule_checker_detects_a_violation(tmp_path):
+    f = tmp_path / "x.py"
+    f.write_text("from pyorbslam3 import Slam\n")
+    assert "pyorbslam3" in _imports(f, "mapping")
