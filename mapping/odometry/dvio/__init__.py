@@ -19,7 +19,15 @@ from .factors import (
     reprojection_factor,
 )
 from .imu import GRAVITY_MPS2, ImuNoise, ImuPreintegrator, combined_factor
-from .init import InitResult, KeyframeObs, align_visual_inertial, depth_sfm, initialise
+from .init import (
+    InitResult,
+    KeyframeObs,
+    align_visual_inertial,
+    corrected_deltas,
+    depth_sfm,
+    initialise,
+    solve_gyro_bias,
+)
 from .tracker import FeatureTracker, TrackedFrame, TrackerConfig, normalised
 
 __all__ = [
@@ -35,6 +43,7 @@ __all__ = [
     "TrackerConfig",
     "align_visual_inertial",
     "combined_factor",
+    "corrected_deltas",
     "depth_sfm",
     "host_depth_factor",
     "initialise",
@@ -42,4 +51,5 @@ __all__ = [
     "normalised",
     "projection_depth_factor",
     "reprojection_factor",
+    "solve_gyro_bias",
 ]
