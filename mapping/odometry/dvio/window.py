@@ -144,7 +144,8 @@ class SlidingWindow:
         self.sigma = config.pixel_sigma_px / focal_px
         self._T_IC = gtsam.Pose3(gtsam.Rot3(ext.R_IC), ext.p_IC)
         self.stats = {"keyframes": 0, "reinitialisations": 0, "init_attempts": 0, "optimisation_failures": 0,
-                      "pnp_refined": 0, "landmarks": 0}
+                      "pnp_refined": 0, "landmarks": 0,
+                      "lm_iterations": 0}
         self.init_time_s: float | None = None  # stamp of the first pose
         self._anchor: gtsam.Pose3 | None = None  # last good IMU pose, for a re-initialised segment
         self.loss_reasons: dict[str, int] = {}
@@ -434,7 +435,8 @@ class SlidingWindow:
 
     def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
                 stamps: gtsam.FixedLagSmootherKeyTimestampMap) -> None:
-        self._smoother.update(graph, values, stamps)
+        result = self._smoother.update(graph, values, stamps)
+        self.stats["lm_iterations"] += int(result.getIterations())
         est = self._smoother.calculateEstimate()
         newest = self._kfs[-1].serial
         self._estimate = est
