@@ -23,11 +23,14 @@ def walk():
     return simulate_locomotion(sc, 0)
 
 
-def run(cls, episode, frames=None, **config):
+def run(cls, episode, frames=None, imu_rate=None, **config):
+    """The pipeline's estimate; the IMU-rate poses it returned are appended to ``imu_rate``."""
     p = cls(cls.Config(**{**FAST, **config}))
     p.reset(episode.calibration)
     for f in episode.frames if frames is None else frames:
-        p.process(f)
+        out = p.process(f)
+        if out is not None and imu_rate is not None:
+            imu_rate.append(out)
     return p.finalize()
 
 
@@ -42,7 +45,8 @@ def ate(est, episode):
 
 
 def test_dvio_tracks_a_simulated_course_walk(walk):
-    est = run(DvioPipeline, walk)
+    imu_rate = []
+    est = run(DvioPipeline, walk, imu_rate=imu_rate)
     n_rgbd = sum(isinstance(f, RgbdFrame) for f in walk.frames)
     assert len(est.stamps_s) == n_rgbd == est.counts["rgbd"].used
     assert est.counts["imu"].used == sum(isinstance(f, ImuSample) for f in walk.frames)
@@ -59,12 +63,43 @@ def test_dvio_tracks_a_simulated_course_walk(walk):
     assert np.allclose(est.T_world_sensor[-1][2, :3], T_cam[k][2, :3], atol=0.05)
     # About 3 m of walk: the paper's D-VIO reaches 0.05-0.19 m over 35-90 m of EuRoC.
     assert ate(est, walk) < 0.05
+    # The IMU-rate pose (200 Hz) in the same frame: the camera it implies lies near the frame
+    # poses around it (linear motion between two frames 33 ms apart). It propagates the newest
+    # keyframe's state, the frames are PnP-refined: measured median 5 mm, largest 2.5 cm.
+    assert len(imu_rate) > 5 * ok.sum()
+    T_ci = np.asarray(walk.calibration.extra["T_camera_imu"])
+    t_ok, P_ok = est.stamps_s[ok], est.T_world_sensor[ok][:, :3, 3]
+    gaps = []
+    for r in imu_rate[::20]:
+        k = np.searchsorted(t_ok, r.stamp_s)
+        if 0 < k < len(t_ok) and t_ok[k] - t_ok[k - 1] < 0.05:
+            a = (r.stamp_s - t_ok[k - 1]) / (t_ok[k] - t_ok[k - 1])
+            cam = (r.T_world_imu @ np.linalg.inv(T_ci))[:3, 3]
+            gaps.append(np.linalg.norm(cam - ((1 - a) * P_ok[k - 1] + a * P_ok[k])))
+    assert len(gaps) > 10 and np.median(gaps) < 0.01 and max(gaps) < 0.04
 
 
 def test_dvio_no_depth_tracks_the_same_walk(walk):
     est = run(DvioNoDepthPipeline, walk)
     assert est.stats["depth_factors"] is False
+    # Measured 7.6 mm (dvio: 8.9 mm with this 6-keyframe window; 6.9 mm against 8.3 mm over 6 s
+    # with the default 10): on walks this short the depth factors do not lower the ATE reliably.
     assert ate(est, walk) < 0.05
+
+
+def test_feature_depth_is_bilinear_on_a_surface_and_none_on_a_depth_edge(walk):
+    p = DvioPipeline()
+    p.reset(walk.calibration)
+    # A plane tilted along x (depth 1 m + 1 mm per pixel) with a step to 3 m from column 40 on.
+    depth = 1.0 + 0.001 * np.tile(np.arange(60, dtype=float), (40, 1))
+    depth[:, 40:] = 3.0
+    depth[5, 5] = 0.0  # no measurement
+    pts = np.array([[10.25, 20.5], [39.5, 10.0], [5.5, 5.0], [50.0, 30.0]])
+    d = p._depth_at(depth, pts)
+    assert d[0] == pytest.approx(1.01025, abs=1e-9)  # between pixels 10 and 11
+    assert np.isnan(d[1])  # straddles the step
+    assert np.isnan(d[2])  # touches the hole
+    assert d[3] == pytest.approx(3.0)
 
 
 def test_faulty_input_is_counted_and_survived(walk):

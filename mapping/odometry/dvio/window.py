@@ -149,6 +149,7 @@ class SlidingWindow:
         self.init_time_s: float | None = None  # stamp of the first pose
         self._anchor: gtsam.Pose3 | None = None  # last good IMU pose, for a re-initialised segment
         self.loss_reasons: dict[str, int] = {}
+        self.last_error = ""  # gtsam's message of the last failed optimisation
         # While lost: the IMU propagation of the last good state (preintegrator, nav, bias).
         self._lost: tuple[ImuPreintegrator, gtsam.NavState, gtsam.imuBias.ConstantBias] | None = None
         self._clear()
@@ -207,8 +208,9 @@ class SlidingWindow:
             return "ok", self._motion_only(stamp_s, feats).matrix()
         try:
             self._add_keyframe(stamp_s, feats)
-        except RuntimeError:  # gtsam: an indeterminant system, a singular marginal
+        except RuntimeError as err:  # gtsam: an indeterminant system, a singular marginal
             self.stats["optimisation_failures"] += 1
+            self.last_error = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
             return self._fail("optimisation")
         if not self._healthy():
             return self._fail("state out of bounds")
@@ -387,11 +389,11 @@ class SlidingWindow:
                     fac = host_depth_factor(lm.key, host.features[f][1], self.depth, c.kernel, c.kernel_k)
                     if fac is not None:
                         graph.add(fac)
-                else:
-                    # A landmark seen from two close keyframes is barely constrained along its ray
-                    # without depth: a weak prior (sigma 2 m^-1 around its start) keeps the system
-                    # definite without pulling a well-observed landmark.
-                    graph.add(gtsam.PriorFactorVector(lm.key, np.array([xi]), gtsam.noiseModel.Isotropic.Sigma(1, 2.0)))
+                # A landmark seen from two close keyframes (or whose factors the robust kernel has
+                # all but switched off) is barely constrained along its ray, and the smoother's
+                # marginalisation eliminates it without damping: a weak prior (sigma 2 m^-1 around
+                # its start) keeps that definite without pulling a well-observed landmark.
+                graph.add(gtsam.PriorFactorVector(lm.key, np.array([xi]), gtsam.noiseModel.Isotropic.Sigma(1, 2.0)))
             host_u = next(kf for kf in kfs if kf.serial == lm.host).features[f][0]
             for kf in where:
                 if kf.serial in lm.obs:
