@@ -4,9 +4,12 @@
 - :mod:`.factors`: the inverse-depth reprojection factor (eq. 8) and the host and projection
   depth factors (eq. 11-14) weighted by the stereo depth noise model.
 - :mod:`.tracker`: the KLT front end (OpenCV) and keyframe choice by parallax.
-- :mod:`.init`: the depth-enhanced SfM initialisation (eq. 1-5) and visual-inertial alignment.
+- :mod:`.init`: the depth-enhanced SfM initialisation (eq. 1-5), the gyroscope bias and the
+  visual-inertial alignment.
+- :mod:`.window`: the sliding-window estimator (eq. 6-15) with marginalisation.
+- :mod:`.pipeline`: the ``dvio`` and ``dvio-no-depth`` pipelines on the core protocol.
 
-The sliding-window estimator, the ``vio`` track and the pipeline registration are not here yet.
+The ``vio`` track and the pipelines' registration are not here.
 This package never imports the simulator (tests/test_import_rule.py).
 """
 
@@ -19,8 +22,17 @@ from .factors import (
     reprojection_factor,
 )
 from .imu import GRAVITY_MPS2, ImuNoise, ImuPreintegrator, combined_factor
-from .init import InitResult, KeyframeObs, align_visual_inertial, depth_sfm, initialise
+from .init import (
+    InitResult,
+    KeyframeObs,
+    align_visual_inertial,
+    corrected_deltas,
+    depth_sfm,
+    initialise,
+    solve_gyro_bias,
+)
 from .tracker import FeatureTracker, TrackedFrame, TrackerConfig, normalised
+from .window import SlidingWindow, WindowConfig
 
 __all__ = [
     "GRAVITY_MPS2",
@@ -31,10 +43,13 @@ __all__ = [
     "ImuPreintegrator",
     "InitResult",
     "KeyframeObs",
+    "SlidingWindow",
     "TrackedFrame",
     "TrackerConfig",
+    "WindowConfig",
     "align_visual_inertial",
     "combined_factor",
+    "corrected_deltas",
     "depth_sfm",
     "host_depth_factor",
     "initialise",
@@ -42,4 +57,5 @@ __all__ = [
     "normalised",
     "projection_depth_factor",
     "reprojection_factor",
+    "solve_gyro_bias",
 ]

@@ -25,8 +25,13 @@ visual-inertial alignment that follows it (VINS-Mono's ``LinearAlignment``).
    positions. The rotation that takes ``g_W`` to -z (no yaw: it is unobservable) gives the poses
    in the gravity-aligned frame G.
 
-The gyroscope bias is not estimated here (VINS-Mono's ``solveGyroscopeBias``): the caller gives the
-preintegrations with its bias guess. Faulty observations (non-finite bearings, depths the camera
+0. Gyroscope bias (:func:`solve_gyro_bias`, VINS-Mono's ``solveGyroscopeBias``), between SfM and
+   alignment: the SfM's relative rotations ``R_k^T R_{k+1}`` are compared with the preintegrated
+   ones ``gamma_k(b_g)``; the bias solves ``sum_k |Log(gamma_k(b_g)^T R_k^T R_{k+1})|^2`` by
+   Gauss-Newton with gamma's bias Jacobian (VINS-Mono takes one linear step from zero; two
+   steps here, so a bias guess far from the truth is also corrected). The alignment then uses
+   the preintegrations corrected to that bias (gtsam's first-order bias correction, which is
+   VINS-Mono's ``repropagate`` to first order; the window re-integrates the samples). Faulty observations (non-finite bearings, depths the camera
 cannot measure) are left out; too few landmarks for PnP or too few keyframes give an
 :class:`InitResult` with ``ok`` False and the reason, never an exception.
 """
@@ -43,7 +48,8 @@ import numpy as np
 from .factors import DepthNoise, Extrinsics, robust
 from .imu import GRAVITY_MPS2
 
-__all__ = ["InitResult", "KeyframeObs", "align_visual_inertial", "depth_sfm", "initialise"]
+__all__ = ["InitResult", "KeyframeObs", "align_visual_inertial", "corrected_deltas", "depth_sfm", "initialise",
+           "solve_gyro_bias"]
 
 # Landmark keys live above the pose keys (one pose per keyframe, far fewer than this).
 _L0 = 1_000_000
@@ -70,6 +76,8 @@ class InitResult:
         scale: the free alignment's scale of the SfM (1 for a perfect metric SfM; a check, the
             poses are the SfM's metric ones).
         landmarks_G: feature id -> position in G.
+        gyro_bias: gyroscope bias, rad/s (3,), from :func:`solve_gyro_bias` (the given guess when
+            not estimated).
     """
 
     ok: bool
@@ -79,6 +87,7 @@ class InitResult:
     gravity_W: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     scale: float = float("nan")
     landmarks_G: dict[int, np.ndarray] = field(default_factory=dict)
+    gyro_bias: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
 
 def _cam_point(T_WI: gtsam.Pose3, l_W: np.ndarray, ext: Extrinsics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -172,12 +181,56 @@ def depth_sfm(frames: Sequence[KeyframeObs], ext: Extrinsics, noise: DepthNoise,
             {fid: result.atPoint3(_L0 + fid) for fid in ids})
 
 
+def corrected_deltas(pim: gtsam.PreintegratedCombinedMeasurements, bias: gtsam.imuBias.ConstantBias | None = None,
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(gamma (3x3), alpha (3,), beta (3,))`` of eq. (7) corrected to ``bias`` (default: the
+    preintegration's own). gtsam's ``predict`` from the identity at rest adds gravity's terms to
+    the corrected deltas; its difference from the prediction at the preintegration's own bias is
+    the correction alone (the Python binding does not expose the gravity vector)."""
+    if bias is None:
+        return pim.deltaRij().matrix(), np.asarray(pim.deltaPij(), float), np.asarray(pim.deltaVij(), float)
+    rest = gtsam.NavState(gtsam.Pose3(), np.zeros(3))
+    nav, own = pim.predict(rest, bias), pim.predict(rest, pim.biasHat())
+    return (nav.attitude().matrix(), pim.deltaPij() + nav.position() - own.position(),
+            pim.deltaVij() + nav.velocity() - own.velocity())
+
+
+def solve_gyro_bias(poses_W: Sequence[gtsam.Pose3], pims: Sequence[gtsam.PreintegratedCombinedMeasurements],
+                    iterations: int = 2) -> np.ndarray:
+    """Gyroscope bias (3,), rad/s, from the SfM rotations against the preintegrated ones (step 0
+    of the module docstring); ``pims[k]`` spans ``poses_W[k]`` to ``poses_W[k+1]``."""
+    bg = np.array(pims[0].biasHat().gyroscope(), dtype=float) if pims else np.zeros(3)
+    eps = 1e-4
+    for _ in range(iterations):
+        JTJ, JTr = np.zeros((3, 3)), np.zeros(3)
+        for k, pim in enumerate(pims):
+            acc = pim.biasHat().accelerometer()
+            R_rel = gtsam.Rot3(poses_W[k].rotation().matrix().T @ poses_W[k + 1].rotation().matrix())
+
+            def err(b: np.ndarray, pim: gtsam.PreintegratedCombinedMeasurements = pim,
+                    acc: np.ndarray = acc, R_rel: gtsam.Rot3 = R_rel) -> np.ndarray:
+                gamma = gtsam.Rot3(corrected_deltas(pim, gtsam.imuBias.ConstantBias(acc, b))[0])
+                return gtsam.Rot3.Logmap(gamma.between(R_rel))
+
+            r = err(bg)
+            J = np.column_stack([(err(bg + eps * e) - r) / eps for e in np.eye(3)])
+            JTJ += J.T @ J
+            JTr += J.T @ r
+        if not np.all(np.isfinite(JTJ)) or np.linalg.cond(JTJ) > 1e12:
+            break
+        bg = bg - np.linalg.solve(JTJ, JTr)
+    return bg
+
+
 def align_visual_inertial(poses_W: Sequence[gtsam.Pose3], pims: Sequence[gtsam.PreintegratedCombinedMeasurements],
-                          gravity_mps2: float = GRAVITY_MPS2,
+                          gravity_mps2: float = GRAVITY_MPS2, gyro_bias: np.ndarray | None = None,
                           ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
     """The linear system of the docstring: the free solution's scale and gravity in W, then the
-    velocities (M, 3) and gravity in W with the scale 1 and gravity's magnitude imposed."""
+    velocities (M, 3) and gravity in W with the scale 1 and gravity's magnitude imposed. With
+    ``gyro_bias`` the preintegrations are taken corrected to it (accelerometer bias as held)."""
     M = len(poses_W)
+    deltas = [corrected_deltas(p, None if gyro_bias is None else
+                               gtsam.imuBias.ConstantBias(p.biasHat().accelerometer(), gyro_bias)) for p in pims]
     n = 3 * M + 4
 
     def solve(g_fixed: np.ndarray | None, s_fixed: float | None = None) -> np.ndarray:
@@ -195,7 +248,7 @@ def align_visual_inertial(poses_W: Sequence[gtsam.Pose3], pims: Sequence[gtsam.P
             A[3:, 3 * k + 3:3 * k + 6] = np.eye(3)
             A[3:, 3 * M:3 * M + 3] = -dt * np.eye(3)
             rows.append(A)
-            rhs.append(np.concatenate([R @ pim.deltaPij(), R @ pim.deltaVij()]))
+            rhs.append(np.concatenate([R @ deltas[k][1], R @ deltas[k][2]]))
         A, b = np.vstack(rows), np.concatenate(rhs)
         if s_fixed is not None:
             b = b - A[:, 3 * M + 3] * s_fixed
@@ -228,8 +281,9 @@ def _rotation_to_down(g_W: np.ndarray) -> np.ndarray:
 def initialise(frames: Sequence[KeyframeObs], pims: Sequence[gtsam.PreintegratedCombinedMeasurements],
                ext: Extrinsics, noise: DepthNoise, pixel_sigma: float = 1.5 / 424.0,
                gravity_mps2: float = GRAVITY_MPS2, max_scale_error: float = 0.1,
-               max_gravity_error_mps2: float = 1.0) -> InitResult:
-    """SfM then alignment over a window; ``pims[k]`` spans keyframes k to k+1."""
+               max_gravity_error_mps2: float = 1.0, estimate_gyro_bias: bool = True) -> InitResult:
+    """SfM, gyroscope bias (unless ``estimate_gyro_bias`` is False: the preintegrations' own),
+    then alignment over a window; ``pims[k]`` spans keyframes k to k+1."""
     if len(frames) < 3 or len(pims) != len(frames) - 1:
         return InitResult(False, f"{len(frames)} keyframes and {len(pims)} preintegrations; "
                                  "at least 3 keyframes and one preintegration between each pair")
@@ -237,7 +291,8 @@ def initialise(frames: Sequence[KeyframeObs], pims: Sequence[gtsam.Preintegrated
     if isinstance(sfm, str):
         return InitResult(False, sfm)
     poses_W, lms_W = sfm
-    v_W, g_W, s, g_free, _ = align_visual_inertial(poses_W, pims, gravity_mps2)
+    bg = solve_gyro_bias(poses_W, pims) if estimate_gyro_bias else np.array(pims[0].biasHat().gyroscope(), float)
+    v_W, g_W, s, g_free, _ = align_visual_inertial(poses_W, pims, gravity_mps2, bg)
     if not (np.all(np.isfinite(v_W)) and np.isfinite(s) and abs(s - 1.0) <= max_scale_error):
         return InitResult(False, f"visual-inertial alignment: scale {s:.3f} of the depth SfM, "
                                  f"allowed 1 +- {max_scale_error}", scale=s)
@@ -252,4 +307,4 @@ def initialise(frames: Sequence[KeyframeObs], pims: Sequence[gtsam.Preintegrated
         T[k, :3, 3] = R_GW @ (P.translation() - p0)
         T[k, 3, 3] = 1.0
     lms_G = {f: R_GW @ (p - p0) for f, p in lms_W.items()}
-    return InitResult(True, "", T, v_W @ R_GW.T, g_W, s, lms_G)
+    return InitResult(True, "", T, v_W @ R_GW.T, g_W, s, lms_G, bg)

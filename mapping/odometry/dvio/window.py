@@ -1,0 +1,509 @@
+"""D-VIO's sliding-window estimator (seeds/002 eq. 6-15) on gtsam's batch fixed-lag smoother.
+
+States per keyframe k (gtsam keys ``x``, ``v``, ``b`` with the keyframe's serial number): the
+IMU's pose ``T_GI`` in the gravity-aligned frame G, its velocity and the IMU biases. Factors:
+
+- eq. (7, 9): :func:`.imu.combined_factor` between consecutive keyframes (the bias random walk
+  inside it), preintegrated from the raw samples kept for each interval, so a new bias estimate
+  re-integrates them (VINS-Mono's ``repropagate``);
+- eq. (8, 10): :func:`.factors.reprojection_factor` of every landmark (an inverse depth ``l``,
+  hosted in the first window keyframe that saw it) in every other window keyframe that saw it;
+- eq. (11-14): the host and projection depth factors, weighted by the stereo depth noise
+  (:class:`.factors.DepthNoise`); off with ``depth_factors=False`` (the ``dvio-no-depth``
+  ablation: landmarks are then started by two-view triangulation, not from the depth image);
+- eq. (6): the marginalisation prior. gtsam's ``BatchFixedLagSmoother`` (in the installed gtsam
+  wheel; ``gtsam_unstable`` is not installed) keeps every key whose timestamp is within the lag
+  of the newest and folds the factors of older keys into a ``LinearContainerFactor`` of the
+  Schur complement at their linearisation point, which is VINS-Mono's marginalisation. The
+  timestamp of a key is its keyframe's serial (a landmark's: its host's), and the lag is
+  ``window - 0.5``: adding keyframe n marginalises keyframe ``n - window`` with the landmarks it
+  hosts, exactly VINS-Mono's MARGIN_OLD. A feature still seen afterwards is started again as a
+  landmark hosted in the oldest window keyframe that saw it (VINS-Mono shifts its depth
+  likewise). Non-keyframes never enter the window (motion-only tracking instead, below), so
+  VINS-Mono's MARGIN_SECOND_NEW (dropping a non-keyframe newest frame) does not arise.
+
+Robust kernel: Cauchy of scale 1 on whitened residuals, VINS-Mono's ``CauchyLoss(1.0)`` on its
+projection factors (the paper names a robust kernel ``rho`` without saying which).
+
+Non-keyframes (motion-only): the pose is the IMU propagation of the newest window state, refined
+by a PnP of the frame's features on the window's landmarks (``cv2.solvePnPRansac`` started at
+the propagation), kept only when enough inliers agree. The IMU-rate pose
+(:meth:`SlidingWindow.imu_pose`) propagates the newest window state with every sample.
+
+Failure (VINS-Mono's ``failureDetection``): an optimisation that raises, a speed or bias beyond
+the config's bounds, or too few features tracked. The window is then cleared; the caller
+re-initialises (:mod:`.init`) and the new segment is anchored (position and yaw; the gravity
+direction is the new initialisation's) on the last good state propagated by the IMU through the
+loss to the first keyframe of the new initialisation (on the last good pose when the loss lasted
+longer than ``_MAX_DEAD_RECKON_S``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import gtsam
+import numpy as np
+
+from exobench.core.errors import ConfigError, check_int, check_range
+
+from .factors import (
+    KERNELS,
+    DepthNoise,
+    Extrinsics,
+    host_depth_factor,
+    projection_depth_factor,
+    reprojection_factor,
+)
+from .imu import ImuNoise, ImuPreintegrator, combined_factor
+from .init import InitResult, KeyframeObs, initialise
+
+__all__ = ["SlidingWindow", "WindowConfig"]
+
+X, V, B, L = (gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.V, gtsam.symbol_shorthand.B,
+              gtsam.symbol_shorthand.L)
+Sample = tuple[float, np.ndarray, np.ndarray]
+# Longest IMU-only propagation a re-initialised segment is anchored on [A]: a walking person's IMU
+# with a calibrated bias stays within centimetres for a few seconds.
+_MAX_DEAD_RECKON_S = 3.0
+
+
+@dataclass(frozen=True)
+class WindowConfig:
+    """Back-end parameters (VINS-Mono's values where it has them).
+
+    Attributes:
+        window: keyframes in the window (the paper and VINS-Mono: 10).
+        init_keyframes: keyframes the initialisation takes (at most ``window``).
+        pixel_sigma_px: reprojection sigma, px (VINS-Mono: 1.5 at 460 px focal length).
+        kernel / kernel_k: robust kernel of every visual and depth factor and its scale.
+        depth_factors: host and projection depth factors on (``dvio``) or off (``dvio-no-depth``).
+        max_iterations: Levenberg-Marquardt iterations per keyframe (VINS-Mono: 8).
+        min_features: fewer tracked features than this is a tracking loss.
+        max_speed_mps / max_accel_bias / max_gyro_bias: failure bounds (VINS-Mono: 2.5 m/s^2
+            and 1 rad/s biases; the speed bound is a walking person's, [A]).
+        bias_sigma_acc / bias_sigma_gyro: prior sigma of the initial biases (m/s^2, rad/s).
+    """
+
+    window: int = 10
+    init_keyframes: int = 10
+    pixel_sigma_px: float = 1.5
+    kernel: str = "cauchy"
+    kernel_k: float = 1.0
+    depth_factors: bool = True
+    max_iterations: int = 8
+    min_features: int = 10
+    max_speed_mps: float = 8.0
+    max_accel_bias: float = 2.5
+    max_gyro_bias: float = 1.0
+    bias_sigma_acc: float = 0.2
+    bias_sigma_gyro: float = 0.02
+
+    def __post_init__(self) -> None:
+        check_int("window", self.window, 3, 50)
+        check_int("init_keyframes", self.init_keyframes, 3, self.window)
+        check_range("pixel_sigma_px", self.pixel_sigma_px, 0.0, 50.0, low_open=True)
+        if self.kernel not in KERNELS:
+            raise ConfigError("kernel", self.kernel, "one of " + ", ".join(KERNELS))
+        check_range("kernel_k", self.kernel_k, 0.0, 100.0, low_open=True)
+        check_int("max_iterations", self.max_iterations, 1, 100)
+        check_int("min_features", self.min_features, 0, 1000)
+        check_range("max_speed_mps", self.max_speed_mps, 0.0, 100.0, low_open=True)
+        check_range("max_accel_bias", self.max_accel_bias, 0.0, 50.0, low_open=True)
+        check_range("max_gyro_bias", self.max_gyro_bias, 0.0, 10.0, low_open=True)
+        check_range("bias_sigma_acc", self.bias_sigma_acc, 0.0, 10.0, low_open=True)
+        check_range("bias_sigma_gyro", self.bias_sigma_gyro, 0.0, 1.0, low_open=True)
+
+
+@dataclass(eq=False)
+class _Keyframe:
+    serial: int
+    stamp_s: float
+    features: dict[int, tuple[np.ndarray, float]]
+    samples: list[Sample]  # IMU samples from the previous keyframe to this one (camera clock)
+    dead_reckoned: np.ndarray | None = None  # T_G_imu from the last good state, while lost
+
+
+@dataclass(eq=False)
+class _Landmark:
+    key: int
+    host: int  # serial of the host keyframe
+    obs: set[int] = field(default_factory=set)  # serials with factors in the graph (host included)
+
+
+class SlidingWindow:
+    """The estimator: :meth:`add_imu` for every sample, :meth:`add_frame` for every frame (features
+    on the normalised plane with their depths); see the module docstring."""
+
+    def __init__(self, config: WindowConfig, ext: Extrinsics, imu: ImuNoise, depth: DepthNoise,
+                 focal_px: float) -> None:
+        self.config, self.ext, self.imu, self.depth = config, ext, imu, depth
+        self.sigma = config.pixel_sigma_px / focal_px
+        self._T_IC = gtsam.Pose3(gtsam.Rot3(ext.R_IC), ext.p_IC)
+        self.stats = {"keyframes": 0, "reinitialisations": 0, "init_attempts": 0, "optimisation_failures": 0,
+                      "pnp_refined": 0, "landmarks": 0,
+                      "lm_iterations": 0}
+        self.init_time_s: float | None = None  # stamp of the first pose
+        self._anchor: gtsam.Pose3 | None = None  # last good IMU pose, for a re-initialised segment
+        self.loss_reasons: dict[str, int] = {}
+        self.last_error = ""  # gtsam's message of the last failed optimisation
+        # While lost: the IMU propagation of the last good state (preintegrator, nav, bias).
+        self._lost: tuple[ImuPreintegrator, gtsam.NavState, gtsam.imuBias.ConstantBias] | None = None
+        self._clear()
+
+    # -- state --------------------------------------------------------------------------------
+    def _clear(self) -> None:
+        self._kfs: list[_Keyframe] = []
+        self._serial = 0
+        self._landmarks: dict[int, _Landmark] = {}
+        self._next_lm = 0
+        self._smoother: gtsam.BatchFixedLagSmoother | None = None
+        self._nav: gtsam.NavState | None = None
+        self._bias = gtsam.imuBias.ConstantBias()
+        self._pending: list[Sample] = []  # samples since the newest keyframe
+        self._last_sample: Sample | None = None
+        self._prop = ImuPreintegrator(self.imu)
+        self._estimate: gtsam.Values | None = None
+
+    @property
+    def tracking(self) -> bool:
+        return self._nav is not None
+
+    def add_imu(self, stamp_s: float, accel: np.ndarray, gyro: np.ndarray) -> bool:
+        """One IMU sample (camera clock); False when skipped (non-finite, not after the last)."""
+        a, w = np.asarray(accel, float).reshape(3), np.asarray(gyro, float).reshape(3)
+        if not (math.isfinite(stamp_s) and np.all(np.isfinite(a)) and np.all(np.isfinite(w))):
+            return False
+        if self._last_sample is not None and stamp_s <= self._last_sample[0]:
+            return False
+        s = (float(stamp_s), a, w)
+        self._pending.append(s)
+        self._last_sample = s
+        if self._nav is not None:
+            self._prop.add(*s)
+        elif self._lost is not None:
+            self._lost[0].add(*s)
+        return True
+
+    def imu_pose(self) -> tuple[float, np.ndarray] | None:
+        """(stamp, T_G_imu 4x4) propagated to the newest IMU sample, None when not tracking."""
+        if self._nav is None or self._prop.end_s is None:
+            return None
+        return self._prop.end_s, self._prop.predict(self._nav, self._bias).pose().matrix()
+
+    # -- frames -------------------------------------------------------------------------------
+    def add_frame(self, stamp_s: float, ids: Sequence[int], u: np.ndarray, depth_m: np.ndarray,
+                  is_keyframe: bool) -> tuple[str, np.ndarray | None]:
+        """Status ("ok", "initialising", "lost") and the camera's pose T_G_cam (None unless ok)."""
+        feats = {int(i): (np.asarray(uu, float), float(d)) for i, uu, d in zip(ids, u, depth_m, strict=True)}
+        if self._nav is None:
+            return self._initialising(stamp_s, feats, is_keyframe)
+        if len(feats) < self.config.min_features:
+            return self._fail("too few features")
+        self._prop.integrate_to(stamp_s)
+        if not is_keyframe:
+            return "ok", self._motion_only(stamp_s, feats).matrix()
+        try:
+            self._add_keyframe(stamp_s, feats)
+        except RuntimeError as err:  # gtsam: an indeterminant system, a singular marginal
+            self.stats["optimisation_failures"] += 1
+            self.last_error = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
+            return self._fail("optimisation")
+        if not self._healthy():
+            return self._fail("state out of bounds")
+        T = self._nav.pose()
+        self._anchor = T
+        return "ok", (T * self._T_IC).matrix()
+
+    def _fail(self, why: str) -> tuple[str, None]:
+        self.stats["reinitialisations"] += 1
+        self.loss_reasons[why] = self.loss_reasons.get(why, 0) + 1
+        lost = (self._prop, self._nav, self._bias) if self._nav is not None else None
+        self._clear()
+        self._lost = lost
+        return "lost", None
+
+    def _healthy(self) -> bool:
+        c = self.config
+        return bool(np.linalg.norm(self._nav.velocity()) <= c.max_speed_mps
+                    and np.linalg.norm(self._bias.accelerometer()) <= c.max_accel_bias
+                    and np.linalg.norm(self._bias.gyroscope()) <= c.max_gyro_bias
+                    and np.all(np.isfinite(self._nav.pose().matrix())))
+
+    # -- initialisation -------------------------------------------------------------------------
+    def _take_samples(self, stamp_s: float) -> list[Sample]:
+        """The pending samples up to ``stamp_s``, with the last one before the previous keyframe
+        held from it (so each interval is integrated from its first keyframe's time)."""
+        taken = [s for s in self._pending if s[0] <= stamp_s]
+        self._pending = [s for s in self._pending if s[0] > stamp_s]
+        if taken:  # the hold for the next interval
+            self._pending.insert(0, (stamp_s, taken[-1][1], taken[-1][2]))
+        return taken
+
+    def _dead_reckon(self, stamp_s: float) -> np.ndarray | None:
+        """T_G_imu at ``stamp_s`` propagated from the last good state; None when there is none or
+        it is older than ``_MAX_DEAD_RECKON_S`` (an IMU alone drifts quadratically)."""
+        if self._lost is None:
+            return None
+        prop, nav, bias = self._lost
+        prop.integrate_to(stamp_s)
+        if prop.start_s is None or prop.end_s is None or prop.end_s - prop.start_s > _MAX_DEAD_RECKON_S:
+            return None
+        return prop.predict(nav, bias).pose().matrix()
+
+    def _pim(self, kf: _Keyframe, bias: gtsam.imuBias.ConstantBias) -> gtsam.PreintegratedCombinedMeasurements:
+        pre = ImuPreintegrator(self.imu, bias)
+        for s in kf.samples:
+            pre.add(*s)
+        pre.integrate_to(kf.stamp_s)
+        return pre.pim
+
+    def _initialising(self, stamp_s: float, feats: dict, is_keyframe: bool) -> tuple[str, None]:
+        status = "lost" if self.stats["reinitialisations"] else "initialising"
+        if not is_keyframe:
+            return status, None
+        samples = self._take_samples(stamp_s)
+        self._kfs.append(_Keyframe(self._serial, stamp_s, feats, samples, self._dead_reckon(stamp_s)))
+        self._serial += 1
+        n = self.config.init_keyframes
+        if len(self._kfs) > n:
+            self._kfs.pop(0)
+        if len(self._kfs) < n:
+            return status, None
+        self.stats["init_attempts"] += 1
+        zero = gtsam.imuBias.ConstantBias()
+        pims = [self._pim(kf, zero) for kf in self._kfs[1:]]
+        # Both variants initialise with the depth-enhanced SfM (eq. 1-5): the ablation removes
+        # the window's depth factors, as Table IV's VINS-Mono row differs from D-VIO.
+        obs = [KeyframeObs(kf.stamp_s, kf.features) for kf in self._kfs]
+        if any(p.deltaTij() <= 0.0 for p in pims):
+            return status, None  # an interval without IMU samples: wait for the stream
+        res = initialise(obs, pims, self.ext, self.depth, self.sigma, self.imu.gravity_mps2)
+        if not res.ok:
+            return status, None
+        try:
+            self._start(res)
+        except RuntimeError:
+            self.stats["optimisation_failures"] += 1
+            self._clear()
+            return status, None
+        if self.init_time_s is None:
+            self.init_time_s = stamp_s
+        self._lost = None
+        self._anchor = self._nav.pose()
+        return "ok", (self._nav.pose() * self._T_IC).matrix()
+
+    def _start(self, res: InitResult) -> None:
+        c = self.config
+        T_G = res.T_G_imu
+        # Continue the last segment: position and yaw of the first keyframe from the IMU
+        # propagated through the loss (or, without it, the last good pose).
+        anchor = self._kfs[0].dead_reckoned
+        if anchor is None and self._anchor is not None:
+            anchor = self._anchor.matrix()
+        if anchor is not None:
+            T_G = _anchored(T_G, anchor)
+        bias = gtsam.imuBias.ConstantBias(np.zeros(3), res.gyro_bias)
+        lm_params = gtsam.LevenbergMarquardtParams()
+        lm_params.setMaxIterations(c.max_iterations)
+        # A keyframe's step changes the window little: stop once the cost moves by < 0.1 %
+        # (gtsam's default 1e-5 spends most iterations on digits no metric sees).
+        lm_params.setRelativeErrorTol(1e-3)
+        self._smoother = gtsam.BatchFixedLagSmoother(c.window - 0.5, lm_params)
+        graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), gtsam.FixedLagSmootherKeyTimestampMap()
+        for k, kf in enumerate(self._kfs):
+            n = kf.serial
+            values.insert(X(n), gtsam.Pose3(T_G[k]))
+            values.insert(V(n), np.asarray(res.v_G[k], float))
+            values.insert(B(n), bias)
+            for key in (X(n), V(n), B(n)):
+                stamps.insert((key, float(n)))
+            if k:
+                prev = self._kfs[k - 1].serial
+                graph.add(combined_factor(X(prev), V(prev), X(n), V(n), B(prev), B(n), self._pim(kf, bias)))
+        n0 = self._kfs[0].serial
+        # Gauge: yaw and position of G are unobservable; roll and pitch of the first pose come
+        # from the alignment's gravity and are held as firmly (a marginal prior takes over later).
+        graph.add(gtsam.PriorFactorPose3(X(n0), gtsam.Pose3(T_G[0]), gtsam.noiseModel.Isotropic.Sigma(6, 1e-3)))
+        graph.add(gtsam.PriorFactorVector(V(n0), np.asarray(res.v_G[0], float), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+        graph.add(gtsam.PriorFactorConstantBias(B(n0), bias, gtsam.noiseModel.Diagonal.Sigmas(
+            np.array([c.bias_sigma_acc] * 3 + [c.bias_sigma_gyro] * 3))))
+        poses = {kf.serial: gtsam.Pose3(T_G[k]) for k, kf in enumerate(self._kfs)}
+        self._landmarks = {}
+        self._add_landmarks(graph, values, stamps, poses)
+        self._update(graph, values, stamps)
+
+    # -- window ---------------------------------------------------------------------------------
+    def _add_keyframe(self, stamp_s: float, feats: dict) -> None:
+        prev = self._kfs[-1]
+        kf = _Keyframe(self._serial, stamp_s, feats, self._take_samples(stamp_s))
+        self._serial += 1
+        n, m = kf.serial, prev.serial
+        pim = self._pim(kf, self._bias)
+        nav = pim.predict(self._nav, self._bias)
+        self._kfs.append(kf)
+        graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), gtsam.FixedLagSmootherKeyTimestampMap()
+        values.insert(X(n), nav.pose())
+        values.insert(V(n), nav.velocity())
+        values.insert(B(n), self._bias)
+        for key in (X(n), V(n), B(n)):
+            stamps.insert((key, float(n)))
+        graph.add(combined_factor(X(m), V(m), X(n), V(n), B(m), B(n), pim))
+        # Keyframes and landmarks the smoother is about to marginalise take no new factors.
+        oldest = n - self.config.window + 1
+        self._kfs = [k for k in self._kfs if k.serial >= oldest]
+        self._landmarks = {f: lm for f, lm in self._landmarks.items() if lm.host >= oldest}
+        poses = {k.serial: self._estimate.atPose3(X(k.serial)) for k in self._kfs[:-1]}
+        poses[n] = nav.pose()
+        self._add_landmarks(graph, values, stamps, poses)
+        self._update(graph, values, stamps)
+
+    def _add_landmarks(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
+                       stamps: gtsam.FixedLagSmootherKeyTimestampMap, poses: Mapping[int, gtsam.Pose3]) -> None:
+        """Factors of every observation in the window not yet in the graph; new landmarks for
+        features seen twice or more in the window."""
+        c, kfs = self.config, self._kfs
+        seen: dict[int, list[_Keyframe]] = {}
+        for kf in kfs:
+            for f, (uu, _) in kf.features.items():
+                if np.all(np.isfinite(uu)):
+                    seen.setdefault(f, []).append(kf)
+        for f, where in seen.items():
+            lm = self._landmarks.get(f)
+            if lm is None:
+                if len(where) < 2:
+                    continue
+                host = where[0]
+                xi = self._start_depth(host, where[1:], f, poses)
+                if xi is None:
+                    continue
+                lm = self._landmarks[f] = _Landmark(L(self._next_lm), host.serial, {host.serial})
+                self._next_lm += 1
+                self.stats["landmarks"] += 1
+                values.insert(lm.key, np.array([xi]))
+                stamps.insert((lm.key, float(host.serial)))
+                if c.depth_factors:
+                    fac = host_depth_factor(lm.key, host.features[f][1], self.depth, c.kernel, c.kernel_k)
+                    if fac is not None:
+                        graph.add(fac)
+                # A landmark seen from two close keyframes (or whose factors the robust kernel has
+                # all but switched off) is barely constrained along its ray, and the smoother's
+                # marginalisation eliminates it without damping: a weak prior (sigma 2 m^-1 around
+                # its start) keeps that definite without pulling a well-observed landmark.
+                graph.add(gtsam.PriorFactorVector(lm.key, np.array([xi]), gtsam.noiseModel.Isotropic.Sigma(1, 2.0)))
+            host_u = next(kf for kf in kfs if kf.serial == lm.host).features[f][0]
+            for kf in where:
+                if kf.serial in lm.obs:
+                    continue
+                lm.obs.add(kf.serial)
+                uu, d = kf.features[f]
+                fac = reprojection_factor(X(lm.host), X(kf.serial), lm.key, host_u, uu, self.ext, self.sigma,
+                                          c.kernel, c.kernel_k)
+                if fac is not None:
+                    graph.add(fac)
+                if c.depth_factors:
+                    fac = projection_depth_factor(X(lm.host), X(kf.serial), lm.key, host_u, d, self.ext, self.depth,
+                                                  c.kernel, c.kernel_k)
+                    if fac is not None:
+                        graph.add(fac)
+
+    def _start_depth(self, host: _Keyframe, others: Sequence[_Keyframe], f: int,
+                     poses: Mapping[int, gtsam.Pose3]) -> float | None:
+        """Start value of a landmark's inverse depth: its host depth (with depth factors), else
+        the two-view midpoint triangulation with the farthest other keyframe."""
+        uu, d = host.features[f]
+        if self.config.depth_factors and self.depth.valid(d):
+            return 1.0 / d
+        T_h = poses[host.serial] * self._T_IC
+        best = None
+        for o in others:
+            T_o = poses[o.serial] * self._T_IC
+            base = T_o.translation() - T_h.translation()
+            r1 = T_h.rotation().matrix() @ np.array([uu[0], uu[1], 1.0])
+            r2 = T_o.rotation().matrix() @ np.array([*o.features[f][0], 1.0])
+            A = np.column_stack([r1, -r2])
+            st, *_ = np.linalg.lstsq(A, base, rcond=None)
+            cos = r1 @ r2 / (np.linalg.norm(r1) * np.linalg.norm(r2))
+            # Rays closer than 1 deg do not fix a depth; the same bound as VINS-Mono's parallax.
+            if st[0] > 0.1 and st[1] > 0.1 and cos < math.cos(math.radians(1.0)):
+                if best is None or cos < best[1]:
+                    best = (st[0], cos)
+        if best is None or best[0] > 50.0:
+            return None
+        return 1.0 / best[0]
+
+    def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
+                stamps: gtsam.FixedLagSmootherKeyTimestampMap) -> None:
+        result = self._smoother.update(graph, values, stamps)
+        self.stats["lm_iterations"] += int(result.getIterations())
+        est = self._smoother.calculateEstimate()
+        newest = self._kfs[-1].serial
+        self._estimate = est
+        self._nav = gtsam.NavState(est.atPose3(X(newest)), est.atVector(V(newest)))
+        self._bias = est.atConstantBias(B(newest))
+        self.stats["keyframes"] += 1
+        # IMU-rate propagation restarts at the newest keyframe with the new bias.
+        self._prop = ImuPreintegrator(self.imu, self._bias)
+        for s in self._pending:
+            self._prop.add(*s)
+
+    # -- non-keyframes --------------------------------------------------------------------------
+    def landmarks_G(self) -> dict[int, np.ndarray]:
+        """Feature id -> landmark position in G, from the window's estimate."""
+        out = {}
+        est = self._estimate
+        if est is None:
+            return out
+        for f, lm in self._landmarks.items():
+            if not est.exists(lm.key) or not est.exists(X(lm.host)):
+                continue
+            xi = float(est.atVector(lm.key)[0])
+            host = next((kf for kf in self._kfs if kf.serial == lm.host), None)
+            if host is None or xi <= 1e-3:
+                continue
+            uu = host.features[f][0]
+            T_GC = est.atPose3(X(lm.host)) * self._T_IC
+            out[f] = T_GC.transformFrom(np.array([uu[0], uu[1], 1.0]) / xi)
+        return out
+
+    def _motion_only(self, stamp_s: float, feats: dict) -> gtsam.Pose3:
+        """T_G_cam of a non-keyframe (module docstring)."""
+        T_pred = self._prop.predict(self._nav, self._bias).pose() * self._T_IC
+        lms = self.landmarks_G()
+        pairs = [(lms[f], uu) for f, (uu, _) in feats.items() if f in lms and np.all(np.isfinite(uu))]
+        if len(pairs) < 8:
+            return T_pred
+        obj = np.array([p for p, _ in pairs], dtype=np.float64)
+        img = np.array([uu for _, uu in pairs], dtype=np.float64)
+        T_CG = T_pred.inverse()
+        rvec = cv2.Rodrigues(T_CG.rotation().matrix())[0]
+        tvec = T_CG.translation().reshape(3, 1).copy()
+        ok, rvec, tvec, inl = cv2.solvePnPRansac(obj, img, np.eye(3), None, rvec, tvec, useExtrinsicGuess=True,
+                                                 reprojectionError=3.0 * self.sigma, flags=cv2.SOLVEPNP_ITERATIVE)
+        if not ok or inl is None or len(inl) < max(8, len(pairs) // 2):
+            return T_pred
+        T = gtsam.Pose3(gtsam.Rot3(cv2.Rodrigues(rvec)[0]), tvec.ravel()).inverse()
+        # A PnP far from the propagation is a wrong minimum, not a correction.
+        if (np.linalg.norm(T.translation() - T_pred.translation()) > 0.2
+                or np.linalg.norm(gtsam.Rot3.Logmap(T.rotation().between(T_pred.rotation()))) > 0.2):
+            return T_pred
+        self.stats["pnp_refined"] += 1
+        return T
+
+
+def _anchored(T_G: np.ndarray, T_anchor: np.ndarray) -> np.ndarray:
+    """``T_G`` (M, 4, 4) moved by the yaw and translation that put its first pose's position and
+    heading on ``T_anchor``'s (gravity stays -z)."""
+
+    def yaw(R: np.ndarray) -> float:
+        return math.atan2(R[1, 0], R[0, 0])
+
+    dy = yaw(T_anchor[:3, :3]) - yaw(T_G[0, :3, :3])
+    c, s = math.cos(dy), math.sin(dy)
+    M = np.eye(4)
+    M[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    M[:3, 3] = T_anchor[:3, 3] - M[:3, :3] @ T_G[0, :3, 3]
+    return np.einsum("ij,njk->nik", M, T_G)
