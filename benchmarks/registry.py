@@ -38,6 +38,13 @@ from .entry_points import EntryPointRegistry
 
 ENTRY_POINT_GROUP = "exobench.pipelines"
 
+# ORB-SLAM3 (GPL-3.0, optional extra `orbslam3`), run in a worker process: its entry point and
+# needs (the module it requires, the extra that installs it, the setup that builds its vocabulary)
+ORB_SLAM3_ENTRY_POINT = "exobench.mapping.odometry.orbslam3.adapter:OrbSlam3Pipeline"
+ORB_SLAM3_NEEDS: dict[str, str] = {"requires": "pyorbslam3", "extra": "orbslam3",
+                                   "setup": "exobench.benchmarks.orbvoc:setup_pipeline"}  # fmt: skip
+
+
 # name -> (entry point, track); the track tag lets `exobench run` pick a track's pipelines
 # without importing them
 # an optional third item: what the entry needs (``requires``, ``extra``, ``setup``; module docstring)
@@ -58,14 +65,10 @@ BUILTIN_PIPELINES: dict[str, tuple[Any, ...]] = {
     "gsc-intensity": ("exobench.perception.place_recognition.pipelines:GscIntensityPipeline", "loop-closure"),
     "terrain-recon": ("exobench.mapping.locomotion.pipelines:TerrainReconstructionPipeline", "locomotion"),
     "single-frame": ("exobench.mapping.locomotion.pipelines:SingleFramePipeline", "locomotion"),
+    "dvio": ("exobench.mapping.odometry.dvio.pipeline:DvioPipeline", "vio"),
+    "dvio-no-depth": ("exobench.mapping.odometry.dvio.pipeline:DvioNoDepthPipeline", "vio"),
+    "orb-slam3": (ORB_SLAM3_ENTRY_POINT, "vio", ORB_SLAM3_NEEDS),
 }
-
-
-# ORB-SLAM3 (GPL-3.0, optional extra `orbslam3`), run in a worker process: its entry point and
-# needs, to be registered under the `vio` track with the track (`"orb-slam3": (*ORB_SLAM3, ...)`)
-ORB_SLAM3_ENTRY_POINT = "exobench.mapping.odometry.orbslam3.adapter:OrbSlam3Pipeline"
-ORB_SLAM3_NEEDS: dict[str, str] = {"requires": "pyorbslam3", "extra": "orbslam3",
-                                   "setup": "exobench.benchmarks.orbvoc:setup_pipeline"}  # fmt: skip
 
 
 @dataclass(frozen=True)
