@@ -81,8 +81,8 @@ GYM_IDS = sorted(k for k in gymnasium.registry if k.startswith("exobench/"))
 REASON = "conformance: pipeline raised RuntimeError: boom"
 
 # What the harness gives a pipeline in place of a default that takes long to build, and nothing
-# else: orb-slam3's default vocabulary is rendered and clustered from 510 images on first use (about
-# 2 min, benchmarks/orbvoc.py); a small one of another walk (tests/orbslam3_support.py, about 60
+# else: orb-slam3's default vocabulary is rendered and clustered from 510 images on first use (30 s
+# to 2 min here, by the load; benchmarks/orbvoc.py); a small one of another walk (tests/orbslam3_support.py, about 60
 # images) serves a 3 s episode, as frame-to-frame tracking does not use the vocabulary.
 _VOCAB_DIR = tempfile.TemporaryDirectory(prefix="exobench-conformance-")
 HARNESS_CONFIG = {"orb-slam3": lambda: {"vocabulary": str(small_orb_vocabulary(_VOCAB_DIR.name))}}
