@@ -72,7 +72,7 @@ from exobench.envs.sensors.kinds import SENSOR_KINDS, registration_problems
 # picked up.
 PIPELINE_REGISTRY = build_registry()
 PIPELINE_REGISTRY.register("toy-scale", ToyScale)
-PIPELINE_REGISTRY.register("vio-still", StillCamera)  # the vio track has no registered pipeline of its own yet
+PIPELINE_REGISTRY.register("vio-still", StillCamera)  # the zero-motion vio pipeline of the track's tests (tests/vio_pipeline.py)
 TRACK_REGISTRY = build_track_registry()
 TRACK_REGISTRY.register("toy-scale", ToyScaleTrack)
 PIPELINES = PIPELINE_REGISTRY.names()
