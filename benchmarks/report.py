@@ -185,6 +185,10 @@ def _write_report(out: Path) -> Path:
         format_markdown(summary_rows(records, track, pipelines, terminal=False, episode_order=order)) if records else "no finished episodes",
         "",
     ]
+    loose = [p["name"] for p in config["pipelines"] if p.get("deterministic") is False]
+    if loose:
+        lines += [f"Not bit-reproducible (a second run of the same episodes may give other figures): "
+                  f"{', '.join(loose)}.", ""]
     if records:
         lines += track_sections(track, records, pipelines, out)
     fails = _failures(records)

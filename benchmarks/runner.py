@@ -14,7 +14,9 @@ Two steps, so that nothing touches the disk until everything is valid:
   too, and its record carries the reason in ``harness_error`` (see :func:`harness_errors`).
   Every record of a pipeline that returned an estimate with input counters also holds them,
   as ``frames.<kind>.<counter>`` for every kind the track streams
-  (:func:`exobench.core.counters.count_metrics`), the same in every track.
+  (:func:`exobench.core.counters.count_metrics`), the same in every track. The records (and
+  the run configuration's entry) of a pipeline that is not deterministic
+  (:func:`exobench.core.pipeline.is_deterministic`) hold ``"deterministic": false``.
   With ``resume=True`` finished episodes are skipped; Ctrl-C keeps them. The worker pool
   (:mod:`.pool`) retries the episode of a worker that died once, then records it as failed.
   An ``executor`` (:class:`.ray_executor.RayExecutor`) runs the same unit of work elsewhere
@@ -42,7 +44,7 @@ import numpy as np
 from exobench.core.counters import count_metrics
 from exobench.core.episode import EpisodeStream
 from exobench.core.errors import ConfigError, FolderError, UnknownNameError
-from exobench.core.pipeline import coerce_like
+from exobench.core.pipeline import coerce_like, is_deterministic
 
 from .entry_points import load_entry_point
 from .out_paths import LOCK_FILE, exclusive_lock, probe_appendable, probe_writable
@@ -76,6 +78,7 @@ class PipelineRun:
     entry_point: str
     config: Any
     setup: str | None = None  # "module:function" run once with the config before the episodes
+    deterministic: bool = True  # False: two runs may differ (core.pipeline.is_deterministic)
 
     def config_dict(self) -> dict[str, Any]:
         return json_safe(dataclasses.asdict(self.config))
@@ -100,7 +103,8 @@ class RunPlan:
             "version": 1,
             "track": self.track.name,
             "suite": self.suite,
-            "pipelines": [{"name": p.name, "entry_point": p.entry_point, "config": p.config_dict()} for p in self.pipelines],
+            "pipelines": [{"name": p.name, "entry_point": p.entry_point, "config": p.config_dict(),
+                           **({} if p.deterministic else {"deterministic": False})} for p in self.pipelines],
             "seeds": list(self.seeds),
             "overrides": dict(self.scenario_overrides),
             "pipeline_overrides": self.pipeline_overrides,
@@ -189,7 +193,8 @@ def plan_run(
 
     scen_raw, pipe_raw = split_overrides(overrides or {}, names)
     scen = check_scenario_overrides(trk, scen_raw)
-    runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n)), reg.spec(n).setup) for n in names]
+    runs = [PipelineRun(n, reg.spec(n).entry_point, reg.make_config(n, pipe_raw.get(n)), reg.spec(n).setup,
+                        is_deterministic(reg.load(n))) for n in names]
 
     # case-major order (each case with every seed); a drawn suite has its own cases per seed
     planned: list[tuple[int, int, EpisodePlan]] = []
@@ -420,6 +425,7 @@ def _records(
             "versions": job.versions,
             "wall_s": walls[p.name],
             "sim_wall_s": sim_wall,
+            **({} if p.deterministic else {"deterministic": False}),
             **({"harness_error": harness[p.name]} if p.name in harness else {}),
         }
         for p in job.pipelines

@@ -39,6 +39,10 @@ class Pipeline(Protocol):
         name: registry name, e.g. ``"rtls"``.
         track: the track whose estimate type it returns, e.g. ``"stairs"``.
         Config: dataclass of its parameters (every field has a default).
+        deterministic: optional, True when absent (:func:`is_deterministic`): the same frames
+            give bit-identical estimates. A pipeline that cannot promise it (ORB-SLAM3 maps in
+            threads of its own) sets it False; the conformance tests then do not compare two
+            runs, and the run's configuration, records and report mark it not bit-reproducible.
     """
 
     name: ClassVar[str]
@@ -52,6 +56,12 @@ class Pipeline(Protocol):
 
     def finalize(self) -> Any:
         """Return the final estimate of the episode."""
+
+
+def is_deterministic(pipeline: object) -> bool:
+    """Whether a pipeline class (or instance) promises bit-identical estimates for the same
+    frames: its ``deterministic`` class attribute, True when it has none."""
+    return bool(getattr(pipeline, "deterministic", True))
 
 
 def check_frame(pipeline: object, frame: object, was_reset: bool) -> None:

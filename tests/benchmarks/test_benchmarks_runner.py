@@ -263,3 +263,23 @@ def test_a_killed_worker_is_retried_then_recorded_as_failed_and_the_run_finishes
     b = [r for r in out.records if r["case"] == "B"]
     assert len(b) == 1 and b[0]["metrics"]["failed"] and "killed (SIGKILL) twice, likely out of memory" in b[0]["harness_error"]
     assert not any(r["metrics"]["failed"] for r in out.records if r["case"] != "B")
+
+
+class LooseStairs(FakeStairs):
+    """A fake that declares its results not bit-reproducible (as orb-slam3 does)."""
+
+    name: ClassVar[str] = "fake-loose"
+    deterministic: ClassVar[bool] = False
+
+
+def test_a_pipeline_not_deterministic_is_marked_so_in_config_records_and_report(reg, tmp_path):
+    from exobench.benchmarks.report import write_report
+
+    reg.register("fake-loose", LooseStairs)
+    out = execute(_plan(reg, pipelines=["fake", "fake-loose"]), tmp_path / "run")
+    marks = {(r["pipeline"], r.get("deterministic", True)) for r in out.records}
+    assert marks == {("fake", True), ("fake-loose", False)}
+    config = json.loads((tmp_path / "run" / RUN_CONFIG_FILE).read_text())
+    assert {p["name"]: p.get("deterministic", True) for p in config["pipelines"]} == {"fake": True, "fake-loose": False}
+    report = write_report(tmp_path / "run").read_text()
+    assert "Not bit-reproducible (a second run of the same episodes may give other figures): fake-loose." in report

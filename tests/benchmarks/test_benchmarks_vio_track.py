@@ -345,20 +345,25 @@ def test_delivery_fault_rates_and_independent_draws():
     assert 0.07 < np.mean(np.diff(stamps) < 0) < 0.11
 
 
-def test_a_run_of_every_track_skips_the_vio_track_while_no_pipeline_serves_it(tmp_path, monkeypatch):
-    """Planned, not run: the runner's loop is replaced by one that keeps the plans it is given."""
+def test_a_run_of_every_track_runs_the_vio_track_with_its_pipelines(tmp_path, monkeypatch):
+    """Planned, not run: the runner's loop is replaced by one that keeps the plans it is given.
+    (Before dvio, dvio-no-depth and orb-slam3 were registered, such a run skipped vio.)"""
     from click.testing import CliRunner
 
     from exobench.benchmarks import cli as cli_module
     from exobench.benchmarks.registry import default_registry
 
-    assert not default_registry().names(track="vio")
-    planned = []
-    monkeypatch.setattr(cli_module, "_run_all", lambda plans, *a, **k: planned.extend(p.track.name for p in plans) or [])
+    reg = default_registry()
+    want = [n for n in reg.names(track="vio") if not reg.unavailable(n)]
+    assert {"dvio", "dvio-no-depth"} <= set(want)
+    planned = {}
+    monkeypatch.setattr(cli_module, "_run_all",
+                        lambda plans, *a, **k: planned.update({p.track.name: [r.name for r in p.pipelines] for p in plans}) or [])
     result = CliRunner().invoke(cli_module.cli, ["run", "--out", str(tmp_path / "all")])
     assert result.exit_code == 0, result.output
-    assert "vio" not in planned and {"stairs", "odometry", "locomotion"} <= set(planned)
-    assert "skipping track vio: no registered pipeline serves it" in result.stderr
+    assert {"vio", "stairs", "odometry", "locomotion"} <= set(planned)
+    assert planned["vio"] == want
+    assert "skipping track vio" not in result.stderr
 
 
 def test_the_recording_holds_the_images_and_the_estimate_against_the_truth(tmp_path):

@@ -21,7 +21,10 @@ returns the IMU-rate pose (:class:`ImuRatePose`) while tracking.
 
 Faults are counted (:mod:`exobench.core.counters`) and survived: repeated or out-of-order
 frames and samples are refused by the counters, gaps count as dropped, NaN depth pixels and
-non-finite IMU samples as NaN; a depth of 0 or NaN at a feature gives no depth factor.
+non-finite IMU samples as NaN, depth pixels beyond what the camera can report
+(:func:`exobench.core.limits.max_depth_m`) and IMU samples no IMU reports
+(:func:`exobench.core.limits.imu_absurd`) as absurd; an absurd IMU sample is skipped, and a
+depth of 0, NaN or absurd at a feature gives no depth factor.
 """
 
 from __future__ import annotations
@@ -38,6 +41,8 @@ from exobench.core.counters import StreamCounters, nan_values
 from exobench.core.errors import ConfigError, check_range
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import Frame, ImuSample, RgbdFrame
+from exobench.core.limits import absurd_depth, imu_absurd
+from exobench.core.limits import max_depth_m as reportable_depth_m
 from exobench.core.pipeline import check_frame
 
 from .factors import KERNELS, DepthNoise, Extrinsics
@@ -162,6 +167,7 @@ class DvioPipeline:
         self._shift = check_range("calibration.extra.timeshift_cam_imu_s", extra.get("timeshift_cam_imu_s", 0.0),
                                   -0.1, 0.1)
         self._cam_id, self._imu_id = cam_id, imu_id
+        self._depth_hi_m = reportable_depth_m(cam)  # beyond it a depth is absurd (core.limits)
         self._counters = StreamCounters.of(calibration)
         self._tracker = FeatureTracker(self.config.tracker())
         self._window = SlidingWindow(c.window_config(), self._ext, imu_noise, self._depth, float(self._K[0]))
@@ -183,6 +189,12 @@ class DvioPipeline:
             c = self._counters.admit(frame, consumed=frame.sensor_id == self._imu_id)
             if c is None:
                 return None
+            if nan_values(frame):
+                c.add_nan(nan_values(frame))
+                return None
+            if imu_absurd(frame):  # a rate or force no IMU reports: skipped, as a NaN one
+                c.add_absurd()
+                return None
             t0 = time.perf_counter()
             if not self._window.add_imu(float(frame.stamp_s) - self._shift, frame.accel_m_s2, frame.gyro_rad_s):
                 c.add_nan(nan_values(frame))
@@ -197,6 +209,7 @@ class DvioPipeline:
         if c is None:
             return None
         c.add_nan(nan_values(frame))
+        c.add_absurd(self._absurd_pixels(frame.depth_m))
         c.used += 1
         self._queue.append(frame)
         # A silent IMU must not hold images without bound: the oldest goes after max_wait_s.
@@ -228,6 +241,14 @@ class DvioPipeline:
         self._times.append(time.perf_counter() - t0 + self._imu_cost_s)
         self._imu_cost_s = 0.0
 
+    def _absurd_pixels(self, depth: object) -> int:
+        """How many depth pixels no camera of this mount can report (0 if unreadable); they are
+        left out of the features' depths by :meth:`_depth_at`."""
+        try:
+            return int(np.count_nonzero(absurd_depth(np.asarray(depth, dtype=float), self._depth_hi_m)))
+        except (TypeError, ValueError):
+            return 0
+
     def _depth_at(self, depth_m: np.ndarray, pts_px: np.ndarray) -> np.ndarray:
         """Depth at each feature, bilinear between the four pixels around it; NaN where one of
         them has no depth or they differ by more than ``_EDGE_REL`` (a corner on a depth edge:
@@ -244,7 +265,7 @@ class DvioPipeline:
         q = np.stack([d[y0, x0], d[y0, x0 + 1], d[y0 + 1, x0], d[y0 + 1, x0 + 1]], axis=1)
         wts = np.stack([(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy], axis=1)
         with np.errstate(invalid="ignore"):
-            good = np.all(np.isfinite(q) & (q > 0.0), axis=1)
+            good = np.all(np.isfinite(q) & (q > 0.0) & (q <= self._depth_hi_m), axis=1)
             good &= (q.max(axis=1) - q.min(axis=1)) <= _EDGE_REL * q.min(axis=1)
         out = np.where(good, np.sum(np.where(np.isfinite(q), q, 0.0) * wts, axis=1), np.nan)
         if not np.any(np.isfinite(out)):

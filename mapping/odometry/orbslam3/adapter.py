@@ -109,6 +109,11 @@ class OrbSlam3Pipeline:
 
     name: ClassVar[str] = "orb-slam3"
     track: ClassVar[str] = "vio"
+    # ORB-SLAM3 runs local mapping and loop closing in threads of its own, started by its System
+    # constructor, with no setting (nor pyorbslam3 option) to run them in the tracking thread: what
+    # the local mapping has done when a frame is tracked depends on the scheduler, so two runs
+    # differ (docs/orbslam3.md).
+    deterministic: ClassVar[bool] = False
     Config = OrbSlam3Config
 
     def __init__(self, config: OrbSlam3Config | None = None) -> None:
