@@ -23,7 +23,9 @@ from .frames import (
     JointState,
     LidarScan,
     OdometrySample,
+    PlaceLabel,
     RgbdFrame,
+    SessionStart,
     ToFReading,
     TofStatus,
 )
@@ -185,6 +187,21 @@ def _odometry_rule(calibration: Calibration | None) -> Callable[[OdometrySample]
     return _guard(lambda f: int(odometry_absurd(f)))
 
 
+# --- episode marks: session starts and place labels ----------------------------------------------
+# They measure nothing a driver could write NaN into: their NaN form is the frame itself (a mark
+# or label is there or absent), and what no session or building can be is absurd.
+def _session_absurd(f: SessionStart, variant: int) -> SessionStart:
+    return replace(f, session=-1, day=-1)
+
+
+def _session_rule(calibration: Calibration | None) -> Callable[[SessionStart], int]:
+    return _guard(lambda f: int(int(f.session) < 0 or int(f.day) < 0))
+
+
+def _label_rule(calibration: Calibration | None) -> Callable[[PlaceLabel], int]:
+    return lambda f: int(not isinstance(f.label, str))
+
+
 TOF = FrameKind(
     "tof", ToFReading,
     nan=lambda f: replace(f, range_m=float("nan"), status=int(TofStatus.VALID)),
@@ -220,6 +237,16 @@ ODOMETRY = FrameKind(
     nan_values=_guard(_odometry_nan_values), absurd=_odometry_absurd, absurd_values=_odometry_rule,
 )  # fmt: skip
 
+SESSION = FrameKind(
+    "session", SessionStart, nan=lambda f: f, nan_values=lambda f: 0, absurd=_session_absurd,
+    absurd_values=_session_rule,
+)  # fmt: skip
+PLACE_LABEL = FrameKind(
+    "place_label", PlaceLabel, nan=lambda f: f, nan_values=lambda f: 0,
+    absurd=lambda f, variant: replace(f, label=ABSURD_VALUE), absurd_values=_label_rule,
+    no_return=lambda f: replace(f, label=""),
+)  # fmt: skip
+
 # the table of shipped kinds: one line each (the order is that of the counters in a record)
 register_kind(TOF)
 register_kind(IMU)
@@ -228,3 +255,5 @@ register_kind(CONTACT)
 register_kind(LIDAR)
 register_kind(RGBD)
 register_kind(ODOMETRY)
+register_kind(SESSION)
+register_kind(PLACE_LABEL)
