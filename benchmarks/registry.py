@@ -46,6 +46,8 @@ BUILTIN_PIPELINES: dict[str, tuple[str, str]] = {
     "gsc-intensity": ("exobench.perception.place_recognition.pipelines:GscIntensityPipeline", "loop-closure"),
     "terrain-recon": ("exobench.mapping.locomotion.pipelines:TerrainReconstructionPipeline", "locomotion"),
     "single-frame": ("exobench.mapping.locomotion.pipelines:SingleFramePipeline", "locomotion"),
+    "lt-exosense": ("exobench.mapping.multisession.pipeline:LtExosense", "multisession"),
+    "lt-exosense-dufomap": ("exobench.mapping.multisession.pipeline:LtExosenseDufomap", "multisession"),
 }
 
 

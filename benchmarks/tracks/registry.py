@@ -32,6 +32,8 @@ BUILTIN_TRACKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "odometry": ("exobench.benchmarks.tracks.odometry:OdometryTrack", ("lidar", "imu", "joints", "contact")),
     "locomotion": ("exobench.benchmarks.tracks.locomotion:LocomotionTrack", ("rgbd", "imu", "contact", "odometry")),
     "loop-closure": ("exobench.benchmarks.tracks.loop_closure:LoopClosureTrack", ("lidar", "imu", "joints", "contact")),
+    "multisession": ("exobench.benchmarks.tracks.multisession:MultisessionTrack",
+                     ("session", "place_label", "rgbd", "imu", "odometry")),
 }
 
 

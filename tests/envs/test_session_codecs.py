@@ -5,9 +5,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from exobench.envs.sensors.kinds import EPISODE_KINDS
-
 from exobench.core import FRAME_TYPES, Calibration, Episode, EpisodeTruth, SceneTruth, SessionError
+from exobench.envs.sensors.kinds import EPISODE_KINDS
 from exobench.envs.session import (
     CODECS,
     FrameCodec,
