@@ -188,18 +188,23 @@ def _odometry_rule(calibration: Calibration | None) -> Callable[[OdometrySample]
 
 
 # --- episode marks: session starts and place labels ----------------------------------------------
-# They measure nothing a driver could write NaN into: their NaN form is the frame itself (a mark
-# or label is there or absent), and what no session or building can be is absurd.
-def _session_absurd(f: SessionStart, variant: int) -> SessionStart:
-    return replace(f, session=-1, day=-1)
+# A faulty driver writes NaN where the session, day or label should be (one value per frame, as
+# the other scalar kinds count); absurd is what no session or building can be: a negative
+# session or day, a label that is a number.
+def _isnan(v: Any) -> bool:
+    return isinstance(v, float) and math.isnan(v)
+
+
+def _session_nan_values(f: SessionStart) -> int:
+    return int(_isnan(f.session) or _isnan(f.day))
 
 
 def _session_rule(calibration: Calibration | None) -> Callable[[SessionStart], int]:
-    return _guard(lambda f: int(int(f.session) < 0 or int(f.day) < 0))
+    return _guard(lambda f: int(not _session_nan_values(f) and (float(f.session) < 0 or float(f.day) < 0)))
 
 
 def _label_rule(calibration: Calibration | None) -> Callable[[PlaceLabel], int]:
-    return lambda f: int(not isinstance(f.label, str))
+    return lambda f: int(not isinstance(f.label, str) and not _isnan(f.label))
 
 
 TOF = FrameKind(
@@ -238,11 +243,12 @@ ODOMETRY = FrameKind(
 )  # fmt: skip
 
 SESSION = FrameKind(
-    "session", SessionStart, nan=lambda f: f, nan_values=lambda f: 0, absurd=_session_absurd,
+    "session", SessionStart, nan=lambda f: replace(f, session=float("nan"), day=float("nan")),
+    nan_values=_guard(_session_nan_values), absurd=lambda f, variant: replace(f, session=-1, day=-1),
     absurd_values=_session_rule,
 )  # fmt: skip
 PLACE_LABEL = FrameKind(
-    "place_label", PlaceLabel, nan=lambda f: f, nan_values=lambda f: 0,
+    "place_label", PlaceLabel, nan=lambda f: replace(f, label=float("nan")), nan_values=lambda f: int(_isnan(f.label)),
     absurd=lambda f, variant: replace(f, label=ABSURD_VALUE), absurd_values=_label_rule,
     no_return=lambda f: replace(f, label=""),
 )  # fmt: skip

@@ -180,8 +180,8 @@ class LtExosense:
         check_frame(self, frame, self._was_reset)
         if isinstance(frame, SessionStart):
             c = self._counters.admit(frame)
-            if c is not None and c.judge(frame, not (isinstance(frame.session, int) and frame.session >= 0
-                                                     and isinstance(frame.day, int) and frame.day >= 0)):
+            ok = all(isinstance(v, (int, np.integer)) and v >= 0 for v in (frame.session, frame.day))
+            if c is not None and c.judge(frame, not ok):
                 self._counters.restart()
                 self._sessions.append(_Session(int(frame.session), int(frame.day)))
                 self._odom, self._label = [], ""

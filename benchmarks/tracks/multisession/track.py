@@ -39,7 +39,7 @@ from exobench.core.estimates import MultiSessionEstimate
 
 from ..office_walks import office_params, validate_office_scenario
 from ..spec import Case, ParamInfo, Reference, SummaryRow
-from .episodes import EXTRA, check_sessions, scenario_class, stream_sessions
+from .episodes import EXTRA, check_sessions, parse_sessions, scenario_class, stream_sessions
 from .report import figure_arrays
 from .scoring import failure_metrics, score_multisession
 
@@ -133,7 +133,10 @@ class MultisessionTrack:
         return office_params(EXTRA, scenario_class())
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        out = validate_office_scenario(dict(values), EXTRA, scenario_class())
+        # the office row `day` is the last session's (each session's own is set per session):
+        # a drawn script (change_seed) is checked over all its days
+        plans = parse_sessions(str(values.get("sessions", EXTRA["sessions"].default)))
+        out = validate_office_scenario({**dict(values), "day": plans[-1].day}, EXTRA, scenario_class())
         check_sessions(out)  # every session's office, script and regions, before anything runs
         return out
 
