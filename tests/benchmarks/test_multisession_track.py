@@ -85,7 +85,8 @@ def test_scorer_against_an_independent_computation():
     box = np.array([[1.0, 1.0, z] for z in np.arange(0.0, 0.5, 0.01)])  # appeared on day 1
     extra = {
         "sessions": ({"session": 0, "day": 0, "camera_w": rows(0.0)}, {"session": 1, "day": 1, "camera_w": rows(10.0)}),
-        "changes": {1: {"appeared": box + T_we[:3, 3], "disappeared": np.zeros((0, 3)), "objects": []}},
+        # the disappeared sample is 2 m above anything mapped: unobserved, scored nowhere
+        "changes": {1: {"appeared": box + T_we[:3, 3], "disappeared": np.array([[1.5, 1.5, 2.0]]) + T_we[:3, 3], "objects": []}},
         "surface_last_day": floor + T_we[:3, 3],
         "surfaces_by_day": {0: floor + T_we[:3, 3], 1: np.concatenate([floor, box]) + T_we[:3, 3]},
     }

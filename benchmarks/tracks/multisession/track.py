@@ -10,10 +10,9 @@ merged map against the last day's true surfaces (Table III).
 
 Suites (the run seed drives the sensor noise; the building is ``office_seed``):
 
-- ``quick``: the small office (8 m corridors, one office, a 2.5 m meeting room), walked from
-  the start towards the south corridor (4 m down the west corridor) on day 0 and on day 1, when
-  a stack of boxes stands against the corridor's wall on the way (and a plant is gone from the
-  meeting room, out of sight), 10 Hz.
+- ``quick``: the small office (8 m corridors, one office, a 2.5 m meeting room), 4 m of the
+  walk from the start towards the office along the north corridor, on day 0 and on day 1, when
+  a stack of boxes stands against the corridor's south wall on the way; 10 Hz.
 - ``paper``: *Human* (two areas of the default office, two days, two sessions a day),
   *Exo* (five sessions over overlapping region sets of the lab-furnished office, days 0-2), and
   the Table I alignment set (three sessions of one area on one day).
@@ -45,8 +44,8 @@ from .scoring import failure_metrics, score_multisession
 
 SMALL = {"n_offices": 1, "corridor_length_m": 8.0, "meeting_room_m": 2.5}
 QUICK = {
-    **SMALL, "max_distance_m": 4.0, "sessions": "0:corridor_s;1:corridor_s",
-    "changes": "1 obstacle boxes/2 box9 0.45 3.6 0; 1 remove plant0", "surfaces": "textured",
+    **SMALL, "max_distance_m": 4.0, "sessions": "0:office0;1:office0", "changes": "1 obstacle boxes/2 box9 4.4 6.25 0",
+    "surfaces": "textured",
 }  # fmt: skip
 HUMAN = {"max_distance_m": 12.0, "surfaces": "textured", "change_seed": 3}
 PAPER = {
