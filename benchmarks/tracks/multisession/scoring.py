@@ -28,7 +28,14 @@ import numpy as np
 from exobench.core.episode import Episode
 from exobench.core.estimates import MultiSessionEstimate
 
-from .metrics import ASSOCIATION_M, ChangeConfusion, change_chamfer_m, change_confusion, map_error_metrics, map_errors
+from .metrics import (
+    ASSOCIATION_M,
+    ChangeConfusion,
+    change_chamfer_m,
+    change_confusion,
+    map_error_metrics,
+    map_errors,
+)
 
 METRICS = (
     "ate_m", "rpe_1m_m", "change_precision", "change_recall", "change_f1", "change_chamfer_m",
