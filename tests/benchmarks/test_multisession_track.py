@@ -3,6 +3,7 @@ scorer's wiring against an independent computation, and a run through ``exobench
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -13,6 +14,7 @@ from exobench.benchmarks.cli import cli
 from exobench.benchmarks.tracks.multisession import MultisessionTrack
 from exobench.benchmarks.tracks.multisession.episodes import parse_sessions
 from exobench.core import Calibration, Episode, EpisodeTruth, SceneTruth
+from exobench.core.counters import StreamCounters
 from exobench.core.errors import ConfigError
 from exobench.core.estimates import MultiSessionEstimate
 from exobench.core.faults import swap_place_labels
@@ -124,6 +126,25 @@ def test_scorer_against_an_independent_computation():
     assert m["change_chamfer_m"] == pytest.approx(0.5 * d.mean())
     assert m["merge_time_s"] == 1.5 and m["peak_memory_mb"] == 12.0
     assert m["n_separate_sessions"] == 0 and m["n_change_runs"] == 1
+    # session 1 overlapping nothing: its own map, reported, out of the ATE
+    apart = dataclasses.replace(est, map_of_session=(0, 1), separate_sessions=(1,), change_pairs=(), removed_points=(),
+                                added_points=(), static_points=())  # fmt: skip
+    m = MultisessionTrack().score(ep, apart)
+    assert m["n_separate_sessions"] == 1 and m["separate_sessions"] == [1]
+    assert m["ate_m"] == pytest.approx(0.0, abs=1e-12) and m["n_change_runs"] == 0 and np.isnan(m["change_precision"])
+
+
+def test_counters_restart_at_a_session_start_counts_no_drop_over_the_gap():
+    c = StreamCounters({"imu_thigh_r": 10.0})
+    imu = lambda t: ImuSample(t, "imu_thigh_r", np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3))  # noqa: E731
+    for t in (0.0, 0.1, 0.2):
+        c.admit(imu(t))
+    c.restart()
+    for t in (5.0, 5.1):
+        c.admit(imu(t))
+    assert c.snapshot()["imu"].dropped == 0 and c.snapshot()["imu"].used == 0 and c.snapshot()["imu"].seen == 5
+    c.admit(imu(5.5))  # a gap inside a session is still a drop
+    assert c.snapshot()["imu"].dropped == 3
 
 
 def test_scorer_fails_well_formed_on_a_malformed_estimate():
