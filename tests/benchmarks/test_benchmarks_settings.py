@@ -33,12 +33,18 @@ CONTEXT = {
     ("loop-closure", "corridor_length_m"): {"n_offices": "1", "meeting_room_m": "1.5"},
     ("loop-closure", "meeting_room_m"): {"corridor_length_m": "80"},
     **{(t, "change_seed"): {"day": "1"} for t in ("odometry", "lidar-filter", "loop-closure")},  # it draws `day` days
+    # multisession: the quick case's small office and written script (a script is written or drawn)
+    ("multisession", "n_offices"): {"corridor_length_m": "80", "changes": ""},
+    ("multisession", "corridor_length_m"): {"n_offices": "1", "meeting_room_m": "1.5"},
+    ("multisession", "meeting_room_m"): {"corridor_length_m": "80", "changes": ""},
+    ("multisession", "change_seed"): {"changes": ""},
+    ("multisession", "room_depth_m"): {"changes": ""},
 }
 
 
 # free-string parameters and values of them to try (the presets of extra_sensors: see below)
 FREE_STRINGS = {"extra_sensors": ("",), "changes": ("", "1 remove chair0; 2 move chair1 1.0 1.0 0; 1 remove bin0"),
-                "route_regions": ("", "corridor_s,office0")}
+                "route_regions": ("", "corridor_s,office0"), "sessions": ("0:corridor_s;1:corridor_s", "0:office0;0:meeting;2:office0")}
 
 
 def _number_text(x: float | int) -> str:
@@ -101,7 +107,7 @@ def test_boolean_parameters_refuse_other_words():
             plan_run(track_name, "quick", None, [0], {name: "2"})
 
 
-@pytest.mark.parametrize("track_name", track_names())
+@pytest.mark.parametrize("track_name", [t for t in track_names() if "extra_sensors" in {p.name for p in get_track(t).params()}])
 def test_each_sensor_preset_is_accepted_unless_its_sensors_are_on_the_rig(track_name):
     """A preset whose sensor ids the track's rig already has is refused at plan time naming
     extra_sensors; every other preset is accepted. The rig's ids: the default scenario's rig."""

@@ -160,7 +160,9 @@ def test_quick_suite_through_exobench_run_on_the_smoke_scenario(tmp_path):
     track = MultisessionTrack()
     sets = [a for k, v in track.smoke_scenario.items() for a in ("--set", f"{k}={v}")]
     out = tmp_path / "run"
-    result = CliRunner().invoke(cli, ["run", "--track", "multisession", *sets, "--out", str(out)], catch_exceptions=False)
+    rrd = tmp_path / "ms.rrd"
+    result = CliRunner().invoke(cli, ["run", "--track", "multisession", *sets, "--out", str(out), "--rerun", str(rrd)],
+                                catch_exceptions=False)  # fmt: skip
     assert result.exit_code == 0, result.output
     records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert sorted(r["pipeline"] for r in records) == ["lt-exosense", "lt-exosense-dufomap"]
@@ -173,6 +175,7 @@ def test_quick_suite_through_exobench_run_on_the_smoke_scenario(tmp_path):
         assert m["n_sessions"] == 2 and m["n_separate_sessions"] == len(m["separate_sessions"])
         assert m["ate_m"] < 0.5
     assert "Table II" in (out / "report.md").read_text()
+    assert rrd.stat().st_size > 10_000  # sessions, pose graph edges, map and changes
 
 
 def test_invalid_change_script_is_refused_before_anything_runs(tmp_path):

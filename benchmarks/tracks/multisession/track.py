@@ -58,6 +58,13 @@ PAPER = {
                         "sessions": "0:corridor_s,meeting;0:meeting,corridor_s;0:corridor_s,meeting"},
 }  # fmt: skip
 GENERAL_CASES = 4
+PER_SESSION = ("day", "route", "route_regions")  # office rows that `sessions` sets for each session
+NOT_ON_THE_RIG = ("extra_sensors", "segmentation_truth", "encoder_noise_rad", "imu_noise_scale")  # the trunk rig's rows
+
+
+def _not_a_row(name: str) -> bool:
+    """Office rows this track does not take: set per session, or of the LiDAR rig it does not use."""
+    return name in PER_SESSION or name in NOT_ON_THE_RIG or name.startswith("lidar")
 
 # Table I (ATE / RPE 1 m, m) of LT-Exosense and ov_maplab on EuRoC; Table II; Table III
 TABLE_I = {"V1_01": (0.056, 0.107), "V1_02": (0.043, 0.049), "V1_03": (0.08, 0.053), "V2_01": (0.04, 0.044),
@@ -129,9 +136,13 @@ class MultisessionTrack:
     )
 
     def params(self) -> list[ParamInfo]:
-        return office_params(EXTRA, scenario_class())
+        return [p for p in office_params(EXTRA, scenario_class()) if not _not_a_row(p.name)]
 
     def validate_scenario(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        for k in values:
+            if _not_a_row(k):
+                raise UnknownNameError("multisession scenario parameter (day and regions are set per session in "
+                                       "`sessions`; the rig is the camera's)", k, [p.name for p in self.params()])  # fmt: skip
         # the office row `day` is the last session's (each session's own is set per session):
         # a drawn script (change_seed) is checked over all its days
         plans = parse_sessions(str(values.get("sessions", EXTRA["sessions"].default)))
