@@ -16,6 +16,7 @@ from exobench.benchmarks.tracks import get_track, track_names
 from exobench.core.estimates import (
     FilterEstimate,
     LocomotionEstimate,
+    MultiSessionEstimate,
     PlaceRecognitionEstimate,
     StaircaseEstimate,
     TrajectoryEstimate,
@@ -28,6 +29,7 @@ EMPTY = {
     "lidar-filter": FilterEstimate(E, (), E),
     "odometry": TrajectoryEstimate(E, np.zeros((0, 4, 4)), E),
     "loop-closure": PlaceRecognitionEstimate(E, E.astype(int), E, E, E),
+    "multisession": MultiSessionEstimate((), (), (), (), ()),
 }
 
 

@@ -146,8 +146,11 @@ def _shifted(frame: Any, dt: float) -> Any:
     return dataclasses.replace(frame, stamp_s=float(frame.stamp_s) + dt)
 
 
-def stream_sessions(scenario: Mapping[str, Any], seed: int) -> EpisodeStream:
-    """The episode of a validated scenario as a stream (module docstring)."""
+def stream_sessions(scenario: Mapping[str, Any], seed: int, *, whole: bool = False) -> EpisodeStream:
+    """The episode of a validated scenario as a stream (module docstring); with ``whole`` each
+    session is recorded whole before its frames are handed out (``simulate``: the office's
+    ``record``, as every world's ``simulate_*`` does)."""
+    from exobench.envs.sim import scenarios
     from exobench.envs.sim.calibration import build_calibration
     from exobench.envs.sim.pose import pose_rows
     from exobench.envs.sim.recorder import TRACKED_BODIES, stream_record
@@ -165,15 +168,21 @@ def stream_sessions(scenario: Mapping[str, Any], seed: int) -> EpisodeStream:
     def session_frames(plan: SessionPlan, offset: float) -> Iterator[Any]:
         office = session_scenario(scenario, plan)
         scene, motion = plan_office_walk(office, rig)
-        srec = stream_record(scene.model, scene.truth, office.exo_spec(), motion, rig, int(seed) * 1000 + plan.session,
-                             track_bodies=TRACKED_BODIES)  # fmt: skip
-        truth = srec.small.outputs[odom].truth  # the odometry's instants are the camera's
+        args = (scene.model, scene.truth, office.exo_spec(), motion, rig, int(seed) * 1000 + plan.session)
+        if whole:
+            rec = scenarios.office.record(*args, track_bodies=TRACKED_BODIES)
+            items: Iterator[tuple[Any, Any]] = ((f, None) for f in rec.frames)
+            truth = rec.outputs[odom].truth
+        else:
+            srec = stream_record(*args, track_bodies=TRACKED_BODIES)
+            items = srec.items()
+            truth = srec.small.outputs[odom].truth  # the odometry's instants are the camera's
         t_cam, T_cam = np.asarray(truth["t_s"], dtype=float), np.asarray(truth["T_world_tracked"], dtype=float)
         kept.append({"session": plan.session, "day": plan.day, "camera_w": pose_rows(t_cam + offset, T_cam),
                      "T_world_odom": np.asarray(truth["T_world_odom"], dtype=float)})  # fmt: skip
         labels = _labels(scenario, office.office_params(), T_cam, seed, plan.session)
         yield SessionStart(offset, "session", plan.session, plan.day)
-        for f, _ in srec.items():
+        for f, _ in items:
             if isinstance(f, RgbdFrame):  # the label of the camera instant nearest in time
                 k = int(np.argmin(np.abs(t_cam - float(f.stamp_s))))
                 yield PlaceLabel(float(f.stamp_s) + offset, "place_label", labels[k])

@@ -163,7 +163,7 @@ class MultisessionTrack:
         raise UnknownNameError("suite", suite, self.suites)
 
     def simulate(self, scenario: dict[str, Any], seed: int) -> Episode:
-        stream = stream_sessions(scenario, seed)
+        stream = stream_sessions(scenario, seed, whole=True)
         frames = tuple(stream.frames)
         ep = stream.finish()
         return Episode(ep.scenario, ep.seed, ep.calibration, frames, ep.truth)
