@@ -47,7 +47,7 @@ CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
     (None, "texture_seed"): {"surfaces": "textured"},  # the seed of the textures that setting draws
     (None, "change_seed"): {"day": 1},  # it draws a script of `day` days
     ("multisession", "change_seed"): {"changes": ""},  # of the last session's day; written or drawn, not both
-    ("multisession", "max_turn_deg"): {"max_distance_m": 6.0},  # the corner into the south corridor (routes are per session)
+    ("multisession", "furnish"): {"changes": ""},  # the lab has no plant0 to remove
 }
 
 # free-string keys: values to try
