@@ -68,6 +68,8 @@ BUILTIN_PIPELINES: dict[str, tuple[Any, ...]] = {
     "dvio": ("exobench.mapping.odometry.dvio.pipeline:DvioPipeline", "vio"),
     "dvio-no-depth": ("exobench.mapping.odometry.dvio.pipeline:DvioNoDepthPipeline", "vio"),
     "orb-slam3": (ORB_SLAM3_ENTRY_POINT, "vio", ORB_SLAM3_NEEDS),
+    "lt-exosense": ("exobench.mapping.multisession.pipeline:LtExosense", "multisession"),
+    "lt-exosense-dufomap": ("exobench.mapping.multisession.pipeline:LtExosenseDufomap", "multisession"),
 }
 
 

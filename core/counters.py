@@ -190,6 +190,11 @@ class StreamCounters:
         self._sensors.setdefault(kind, {})[sid] = None
         return c
 
+    def restart(self) -> None:
+        """Forget each stream's last measurement time: a new session of a multi-session episode
+        starts, and the gap before its first frames is no drop, nor are its frames late."""
+        self._last.clear()
+
     def snapshot(self) -> dict[str, FrameCounts]:
         """A copy of the counters by kind (for an estimate: later frames do not change it)."""
         sensors = self._sensors

@@ -197,3 +197,52 @@ class PlaceRecognitionEstimate:
     time_per_keyframe_s: np.ndarray
     stats: dict[str, Any] = field(default_factory=dict)
     counts: dict[str, FrameCounts] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class MultiSessionEstimate:
+    """Sessions merged into one map, with the changes found between them (track ``multisession``).
+
+    Attributes:
+        sessions: session ids in episode order.
+        days: the day of each session (from its mark).
+        keyframe_stamps_s: per session, the stamps of its keyframes, (K_s,).
+        T_map_cam: per session, its keyframes' camera poses in the frame of the map it belongs
+            to, (K_s, 4, 4); the main map's frame is session ``sessions[0]``'s odometry frame.
+        map_of_session: per session, the index of its map (0: the main map, anchored at the
+            first session; others: sessions that overlap none of the main map's).
+        separate_sessions: the sessions outside the main map (kept as their own maps, never
+            forced into it).
+        inter_edges: inter-session edges ``(session_a, keyframe_a, session_b, keyframe_b)``.
+        change_pairs: ``(prior_last_session, session)`` of each change detection run: the
+            session against the main map updated by the sessions before it.
+        removed_points / added_points: per change pair, the points found removed (prior points
+            where the session saw free space) and added (map frame, m), (N, 3) each.
+        static_points: per change pair, the points of the updated map not flagged (m).
+        merged_map_points: the final map after change detection (eq. 3), (N, 3) m.
+        map_points_no_change_detection: every session's points at the merged poses, unfiltered.
+        map_points_single_session: the last session of the main map alone, at its merged poses.
+        merge_time_s: place recognition, merging and change detection, s (wall time).
+        peak_memory_mb: the pipeline's peak traced allocations while merging, MB.
+        stats: diagnostics (keyframes, edges, vocabulary size, ...).
+        counts: the input counters by frame kind (:mod:`exobench.core.counters`).
+    """
+
+    sessions: tuple[int, ...]
+    days: tuple[int, ...]
+    keyframe_stamps_s: tuple[np.ndarray, ...]
+    T_map_cam: tuple[np.ndarray, ...]
+    map_of_session: tuple[int, ...]
+    separate_sessions: tuple[int, ...] = ()
+    inter_edges: tuple[tuple[int, int, int, int], ...] = ()
+    change_pairs: tuple[tuple[int, int], ...] = ()
+    removed_points: tuple[np.ndarray, ...] = ()
+    added_points: tuple[np.ndarray, ...] = ()
+    static_points: tuple[np.ndarray, ...] = ()
+    merged_map_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    map_points_no_change_detection: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    map_points_single_session: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    merge_time_s: float = float("nan")
+    peak_memory_mb: float = float("nan")
+    stats: dict[str, Any] = field(default_factory=dict)
+    counts: dict[str, FrameCounts] = field(default_factory=dict)

@@ -138,3 +138,28 @@ def inject_stream_faults(
         if i in after:
             out.append(frames[after[i]])
     return tuple(out), injected
+
+
+def swap_place_labels(frames: Sequence[Frame], fraction: float, seed: int,
+                      labels: Sequence[str] | None = None) -> tuple[Frame, ...]:
+    """The frames with ``round(fraction * n)`` of their ``n`` place labels wrong: those labels,
+    drawn with ``seed``, are each replaced by another of ``labels`` (default: the labels of the
+    stream) drawn uniformly, as a user or a room classifier that mistakes the room. Nothing else
+    changes. With fewer than two labels to choose from there is nothing to swap to: the frames
+    are returned as they are."""
+    from .errors import check_range
+    from .frames import PlaceLabel
+
+    check_range("place_label_error_fraction", fraction, 0.0, 1.0)
+    at = [i for i, f in enumerate(frames) if isinstance(f, PlaceLabel)]
+    pool = sorted(set(labels) if labels is not None else {frames[i].label for i in at})  # type: ignore[union-attr]
+    if len(pool) < 2 or not at:
+        return tuple(frames)
+    rng = np.random.default_rng([int(seed), 0x1AB])
+    wrong = rng.choice(len(at), size=int(round(fraction * len(at))), replace=False)
+    out = list(frames)
+    for k in wrong:
+        f = out[at[k]]
+        others = [lab for lab in pool if lab != f.label]  # type: ignore[union-attr]
+        out[at[k]] = replace(f, label=others[int(rng.integers(len(others)))])  # type: ignore[type-var]
+    return tuple(out)

@@ -23,7 +23,9 @@ from .frames import (
     JointState,
     LidarScan,
     OdometrySample,
+    PlaceLabel,
     RgbdFrame,
+    SessionStart,
     ToFReading,
     TofStatus,
 )
@@ -185,6 +187,26 @@ def _odometry_rule(calibration: Calibration | None) -> Callable[[OdometrySample]
     return _guard(lambda f: int(odometry_absurd(f)))
 
 
+# --- episode marks: session starts and place labels ----------------------------------------------
+# A faulty driver writes NaN where the session, day or label should be (one value per frame, as
+# the other scalar kinds count); absurd is what no session or building can be: a negative
+# session or day, a label that is a number.
+def _isnan(v: Any) -> bool:
+    return isinstance(v, float) and math.isnan(v)
+
+
+def _session_nan_values(f: SessionStart) -> int:
+    return int(_isnan(f.session) or _isnan(f.day))
+
+
+def _session_rule(calibration: Calibration | None) -> Callable[[SessionStart], int]:
+    return _guard(lambda f: int(not _session_nan_values(f) and (float(f.session) < 0 or float(f.day) < 0)))
+
+
+def _label_rule(calibration: Calibration | None) -> Callable[[PlaceLabel], int]:
+    return lambda f: int(not isinstance(f.label, str) and not _isnan(f.label))
+
+
 TOF = FrameKind(
     "tof", ToFReading,
     nan=lambda f: replace(f, range_m=float("nan"), status=int(TofStatus.VALID)),
@@ -220,6 +242,17 @@ ODOMETRY = FrameKind(
     nan_values=_guard(_odometry_nan_values), absurd=_odometry_absurd, absurd_values=_odometry_rule,
 )  # fmt: skip
 
+SESSION = FrameKind(
+    "session", SessionStart, nan=lambda f: replace(f, session=float("nan"), day=float("nan")),
+    nan_values=_guard(_session_nan_values), absurd=lambda f, variant: replace(f, session=-1, day=-1),
+    absurd_values=_session_rule,
+)  # fmt: skip
+PLACE_LABEL = FrameKind(
+    "place_label", PlaceLabel, nan=lambda f: replace(f, label=float("nan")), nan_values=lambda f: int(_isnan(f.label)),
+    absurd=lambda f, variant: replace(f, label=ABSURD_VALUE), absurd_values=_label_rule,
+    no_return=lambda f: replace(f, label=""),
+)  # fmt: skip
+
 # the table of shipped kinds: one line each (the order is that of the counters in a record)
 register_kind(TOF)
 register_kind(IMU)
@@ -228,3 +261,5 @@ register_kind(CONTACT)
 register_kind(LIDAR)
 register_kind(RGBD)
 register_kind(ODOMETRY)
+register_kind(SESSION)
+register_kind(PLACE_LABEL)

@@ -171,4 +171,40 @@ class OdometrySample:
     v_odom_m_s: np.ndarray
 
 
-Frame = ToFReading | ImuSample | JointState | ContactSample | LidarScan | RgbdFrame | OdometrySample
+@dataclass(frozen=True, eq=False)
+class SessionStart:
+    """The start of one session of a multi-session episode (one building over several days):
+    every frame after it, up to the next mark, belongs to this session. Stamps keep increasing
+    across sessions; one calibration serves them all.
+
+    Attributes:
+        stamp_s: time of the mark, s (before the session's first frame).
+        sensor_id: ``"session"``.
+        session: session id, 0, 1, ... in episode order.
+        day: the day the building stands as (0 = as furnished; several sessions may share one).
+    """
+
+    stamp_s: float
+    sensor_id: str
+    session: int
+    day: int
+
+
+@dataclass(frozen=True, eq=False)
+class PlaceLabel:
+    """The type of place the walker is in (``"corridor"``, ``"office"``, ``"meeting"``, ...), as a
+    user or a room classifier gives it; it holds from its stamp until the next label. It may be
+    wrong (:func:`exobench.core.faults.swap_place_labels`).
+
+    Attributes:
+        stamp_s: time the label was given, s.
+        sensor_id: ``"place_label"``.
+        label: the place type; ``""`` when none was given.
+    """
+
+    stamp_s: float
+    sensor_id: str
+    label: str
+
+
+Frame = ToFReading | ImuSample | JointState | ContactSample | LidarScan | RgbdFrame | OdometrySample | SessionStart | PlaceLabel

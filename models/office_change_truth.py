@@ -246,4 +246,20 @@ def change_truth(params: OfficeParams, script: ChangeScript, day: int, spacing_m
     return WorldChanges(tuple(days), tuple(voxels))
 
 
-__all__ = ["DayChange", "ObjectChange", "VoxelSet", "WorldChanges", "change_truth", "mark_occupied"]
+def surface_samples(params: OfficeParams, script: ChangeScript | None, day: int, spacing_m: float = 0.01,
+                    region: np.ndarray | None = None) -> np.ndarray:
+    """Points on the grid of ``spacing_m`` on every surface of the office of ``day`` that is
+    exposed (the same rule as the change samples: solid just inside, free just outside), within
+    ``region`` ((2, 3) lower and upper corners; default the building): the true surfaces a
+    merged map is measured against (Table III)."""
+    layout = build_layout(params)
+    furniture = apply_changes(layout, script, day)[day] if script is not None else None
+    solids = layout.solids if furniture is None else _day_solids(layout, furniture)
+    if region is None:
+        x0, x1, y0, y1 = layout.extent
+        region = np.array([[x0, y0, -1.0], [x1, y1, params.ceiling_m + 1.0]])
+    p, n, _ = _samples(solids, [np.asarray(region, dtype=float)], spacing_m)
+    return p[_exists(SolidIndex(solids + _slabs(solids)), p, n)]
+
+
+__all__ = ["DayChange", "ObjectChange", "VoxelSet", "WorldChanges", "change_truth", "mark_occupied", "surface_samples"]

@@ -46,10 +46,13 @@ CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
     ("locomotion", "segmentation_truth"): {},  # which it has
     (None, "texture_seed"): {"surfaces": "textured"},  # the seed of the textures that setting draws
     (None, "change_seed"): {"day": 1},  # it draws a script of `day` days
+    ("multisession", "change_seed"): {"changes": ""},  # of the last session's day; written or drawn, not both
+    ("multisession", "furnish"): {"changes": ""},  # the lab has no plant0 to remove
 }
 
 # free-string keys: values to try
-FREE_STRINGS: dict[str, tuple[str, ...]] = {"changes": ("1 remove chair0",), "route_regions": ("corridor_s",)}
+FREE_STRINGS: dict[str, tuple[str, ...]] = {"changes": ("1 remove chair0",), "route_regions": ("corridor_s",),
+                                             "sessions": ("0:corridor_n;1:corridor_n",)}
 
 
 # a shorter course than the smoke scenario's, so that each of the ~15 courses is planned quickly

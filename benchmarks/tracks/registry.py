@@ -33,6 +33,8 @@ BUILTIN_TRACKS: dict[str, tuple[str, tuple[str, ...]]] = {
     "locomotion": ("exobench.benchmarks.tracks.locomotion:LocomotionTrack", ("rgbd", "imu", "contact", "odometry")),
     "loop-closure": ("exobench.benchmarks.tracks.loop_closure:LoopClosureTrack", ("lidar", "imu", "joints", "contact")),
     "vio": ("exobench.benchmarks.tracks.vio:VioTrack", ("rgbd", "imu")),
+    "multisession": ("exobench.benchmarks.tracks.multisession:MultisessionTrack",
+                     ("session", "place_label", "rgbd", "imu", "odometry")),
 }
 
 

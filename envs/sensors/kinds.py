@@ -103,8 +103,17 @@ def registration_problems() -> list[str]:
     out = [p for name in SENSOR_KINDS for p in kind_problems(name)]
     stored = {sk.codec.kind for sk in SENSOR_KINDS.values() if isinstance(sk.codec, FrameCodec)}
     out += [f"frame kind {k!r}: no adapter and no session codec (no register_sensor_kind line in "
-            "envs/sensors/kinds.py)" for k in KINDS if k not in stored]  # fmt: skip
+            "envs/sensors/kinds.py)" for k in KINDS if k not in stored and k not in EPISODE_KINDS]  # fmt: skip
+    for k in EPISODE_KINDS:
+        codec = codecs.CODECS.get(k)
+        if k not in KINDS or codec is None or codec.frame_type is not KINDS[k].frame_type:
+            out.append(f"episode frame kind {k!r}: needs a core record and a session codec of the same frame type")
     return out
+
+
+EPISODE_KINDS = ("session", "place_label")
+"""Frame kinds no sensor measures: the episode composer writes them (session starts, place labels
+as a user gives them), so they have a core record and a session codec but no adapter."""
 
 
 # the table of shipped sensor kinds: one line each

@@ -34,8 +34,10 @@ from exobench.core import (
     JointState,
     LidarScan,
     OdometrySample,
+    PlaceLabel,
     RgbdFrame,
     SessionError,
+    SessionStart,
     ToFReading,
     TofStatus,
 )
@@ -129,6 +131,7 @@ ARRAY: FieldCodec = (enc_array, dec_array)
 INT: FieldCodec = (int, int)
 BOOL: FieldCodec = (bool, bool)
 NAMES: FieldCodec = (list, tuple)
+TEXT: FieldCodec = (str, str)
 
 
 def line_codec(
@@ -173,6 +176,13 @@ ODOMETRY = line_codec(
     "odometry", OdometrySample,
     lambda rng: OdometrySample(0.1, "odom_head", rng.normal(size=(4, 4)), _nan_at(rng.normal(size=3))),
     T_odom_body=ARRAY, v_odom_m_s=ARRAY,
+)  # fmt: skip
+
+SESSION = line_codec(
+    "session", SessionStart, lambda rng: SessionStart(12.5, "session", 2, 1), session=INT, day=INT,
+)  # fmt: skip
+PLACE_LABEL = line_codec(
+    "place_label", PlaceLabel, lambda rng: PlaceLabel(12.6, "place_label", "meeting"), label=TEXT,
 )  # fmt: skip
 
 
@@ -276,5 +286,5 @@ LIDAR = FrameCodec("lidar", LidarScan, _lidar_encode, _lidar_decode, _lidar_exam
 RGBD = FrameCodec("rgbd", RgbdFrame, _rgbd_encode, _rgbd_decode, _rgbd_example, binary=True)
 
 
-for _codec in (TOF, IMU, JOINTS, CONTACT, ODOMETRY, LIDAR, RGBD):  # the shipped kinds
+for _codec in (TOF, IMU, JOINTS, CONTACT, ODOMETRY, LIDAR, RGBD, SESSION, PLACE_LABEL):  # the shipped kinds
     register_codec(_codec)

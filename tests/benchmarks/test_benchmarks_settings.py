@@ -35,12 +35,18 @@ CONTEXT = {
     ("loop-closure", "corridor_length_m"): {"n_offices": "1", "meeting_room_m": "1.5"},
     ("loop-closure", "meeting_room_m"): {"corridor_length_m": "80"},
     **{(t, "change_seed"): {"day": "1"} for t in ("odometry", "lidar-filter", "loop-closure", "vio")},  # it draws `day` days
+    # multisession: the quick case's small office and written script (a script is written or drawn)
+    ("multisession", "n_offices"): {"corridor_length_m": "80", "changes": ""},
+    ("multisession", "corridor_length_m"): {"n_offices": "1", "meeting_room_m": "1.5"},
+    ("multisession", "meeting_room_m"): {"corridor_length_m": "80", "changes": ""},
+    ("multisession", "change_seed"): {"changes": ""},
+    ("multisession", "room_depth_m"): {"changes": ""},
 }
 
 
 # free-string parameters and values of them to try (the presets of extra_sensors: see below)
 FREE_STRINGS = {"extra_sensors": ("",), "changes": ("", "1 remove chair0; 2 move chair1 1.0 1.0 0; 1 remove bin0"),
-                "route_regions": ("", "corridor_s,office0")}
+                "route_regions": ("", "corridor_s,office0"), "sessions": ("0:corridor_s;1:corridor_s", "0:office0;0:meeting;2:office0")}
 
 
 def _vio_context() -> dict[tuple[str, str], dict[str, str]]:
@@ -60,7 +66,7 @@ def _vio_context() -> dict[tuple[str, str], dict[str, str]]:
 
 
 CONTEXT.update(_vio_context())
-# the vio track has no pipeline of its own until D-VIO lands: its plans are made with the test one
+# the vio track's plans here are made with a test pipeline (cheap; the registered ones are in conformance)
 REGISTRY = build_registry()
 REGISTRY.register("vio-still", StillCamera)
 

@@ -188,9 +188,10 @@ def toy_installed(monkeypatch):
 def test_builtin_tracks_are_registered_without_importing_them():
     before = "exobench.benchmarks.tracks.loop_closure.track" in sys.modules
     reg = track_registry.build_track_registry(entry_points=False)
-    assert reg.names() == ["stairs", "lidar-filter", "odometry", "locomotion", "loop-closure", "vio"]
+    assert reg.names() == ["stairs", "lidar-filter", "odometry", "locomotion", "loop-closure", "vio", "multisession"]
     assert reg.entry("stairs").entry_point == "exobench.benchmarks.tracks.stairs:StairsTrack"
     assert reg.names("lidar") == ["lidar-filter", "odometry", "loop-closure"]
+    assert reg.names("session") == ["multisession"]
     assert ("exobench.benchmarks.tracks.loop_closure.track" in sys.modules) == before
 
 

@@ -16,6 +16,7 @@ from exobench.benchmarks.tracks import get_track, track_names
 from exobench.core.estimates import (
     FilterEstimate,
     LocomotionEstimate,
+    MultiSessionEstimate,
     PlaceRecognitionEstimate,
     StaircaseEstimate,
     TrajectoryEstimate,
@@ -29,6 +30,7 @@ EMPTY = {
     "odometry": TrajectoryEstimate(E, np.zeros((0, 4, 4)), E),
     "loop-closure": PlaceRecognitionEstimate(E, E.astype(int), E, E, E),
     "vio": TrajectoryEstimate(E, np.zeros((0, 4, 4)), E),
+    "multisession": MultiSessionEstimate((), (), (), (), ()),
 }
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from exobench.core import FRAME_TYPES, Calibration, Episode, EpisodeTruth, SceneTruth, SessionError
+from exobench.envs.sensors.kinds import EPISODE_KINDS
 from exobench.envs.session import (
     CODECS,
     FrameCodec,
@@ -53,6 +54,8 @@ def test_every_registered_kind_round_trips_bit_exact(kind, tmp_path):
     for f in frames:
         assert isinstance(f, codec.frame_type)
         values = [getattr(f, fl.name) for fl in dataclasses.fields(f)]
+        if kind in EPISODE_KINDS:  # session marks and place labels hold no measured float
+            continue
         assert any(isinstance(v, float) and np.isnan(v) for v in values) or any(
             isinstance(v, np.ndarray) and v.dtype.kind == "f" and np.isnan(v).any() for v in values
         ), f"the example {kind} frame should carry a NaN"

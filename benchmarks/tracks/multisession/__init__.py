@@ -1,2 +1,10 @@
-"""The multisession track's scoring (seeds/000 Exp B-C): ``metrics``, pure functions over point
-sets. The track itself (world, episodes, registration) is built elsewhere (issue 28)."""
+"""The multisession track: one office over several days, sessions merged, changes found (seeds/000).
+
+``track`` (the spec: suites, references, summary rows), ``episodes`` (multi-session episodes and
+their compact truth), ``scoring`` (Tables I-III's metrics of an estimate), ``metrics`` (the point-set
+metrics), ``report`` (Tables I-III, Fig. 3 top views, rerun recording).
+"""
+
+from .track import MultisessionTrack
+
+__all__ = ["MultisessionTrack"]

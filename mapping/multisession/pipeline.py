@@ -1,0 +1,382 @@
+"""LT-Exosense as a pipeline (seeds/000 III-A/B): the building blocks of this package chained.
+
+Frames: a :class:`~exobench.core.frames.SessionStart` opens each session; within it the camera's
+odometry (:class:`~exobench.core.frames.OdometrySample`, the camera's optical-frame pose in the
+session's own odometry frame), RGB-D frames and place labels. The vertices of the pose graphs
+are camera poses (``T_base_cam`` is the identity): the odometry tracks the camera itself.
+
+Per session (``process``, online):
+
+- a keyframe when the camera has moved ``keyframe_distance_m`` or turned
+  ``keyframe_angle_deg`` since the last one (and at the session's first usable frame): its image
+  and depth go to the :class:`~.keyframes.KeyframeStore` (on disk, the pipeline's own temporary
+  folder), with its cloud (depth pixels every ``cloud_stride_px``, up to ``max_depth_m``, in the
+  camera frame); in memory only its pose, stamp and the place label in force.
+
+At the end (``finalize``, offline as the paper merges):
+
+1. **Vocabulary**: trained on the keyframe images of the first session only. The queries are the
+   later sessions' keyframes, never seen in training; the database holds the earlier sessions'
+   keyframes, which the vocabulary was made for, as a deployed system trains on the building it
+   mapped first. A vocabulary from another office (rendered by the track) would need images
+   through the calibration: the words of one office's textures serve its own images best, and
+   nothing from outside the episode reaches the pipeline.
+2. **Place recognition**: session ``k``'s keyframes are queries against all keyframes of sessions
+   before it (:class:`~.matching.PlaceMatcher`: ORB bag of words, SIFT + PnP with the depth).
+   With ``use_place_labels`` a candidate of another place type than the query is not verified
+   (the paper attaches place labels to vertices to restrict the search).
+3. **Merge**: :func:`~.merge.merge_sessions`, session 0 anchors; a session no edge joins to it
+   stays its own map (``separate_sessions``).
+4. **Changes**: the sessions of the main map in order, each against the map updated by those
+   before it (:func:`~.change.detect_changes`, ``change.kind`` octree or dufomap; eq. 2-3).
+
+``merge_time_s`` is the wall time of 1-4, ``peak_memory_mb`` the peak of the allocations traced
+by :mod:`tracemalloc` during them (NumPy's and Python's; OpenCV's and OctoMap's own heaps are not
+traced).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+import time
+import tracemalloc
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from exobench.core.calibration import Calibration
+from exobench.core.counters import FrameCounts, StreamCounters, nan_values
+from exobench.core.errors import ConfigError, check_range
+from exobench.core.estimates import MultiSessionEstimate
+from exobench.core.frames import Frame, OdometrySample, PlaceLabel, RgbdFrame, SessionStart
+from exobench.core.limits import absurd_depth, max_depth_m, odometry_absurd
+from exobench.core.pipeline import check_frame
+
+from .change import ChangeConfig, Scan, detect_changes, updated_scans
+from .keyframes import KeyframeStore
+from .matching import MatchConfig, PlaceMatcher
+from .merge import MergeConfig, PoseEdge, SessionGraph, merge_sessions
+
+__all__ = ["LtExosense", "LtExosenseConfig", "LtExosenseDufomap", "LtExosenseDufomapConfig"]
+
+ODOM_HISTORY = 64  # odometry samples kept to pair with images (a few seconds at camera rate)
+
+
+@dataclass
+class LtExosenseConfig:
+    """Settings of :class:`LtExosense` (module docstring).
+
+    Attributes:
+        keyframe_distance_m / keyframe_angle_deg: a new keyframe after this motion.
+        cloud_stride_px: a keyframe's cloud takes every this-many pixels in both directions.
+        max_depth_m: depth beyond this is left out of the clouds (the D435's useful range).
+        max_odometry_age_s: an image whose nearest odometry sample is further in time is skipped.
+        use_place_labels: verify only candidates of the query's place type (when both have one).
+        change: the change detection stage (``kind`` octree or dufomap).
+    """
+
+    keyframe_distance_m: float = 0.3
+    keyframe_angle_deg: float = 15.0
+    cloud_stride_px: int = 4
+    max_depth_m: float = 4.0
+    max_odometry_age_s: float = 0.06
+    use_place_labels: bool = True
+    change: ChangeConfig = field(default_factory=ChangeConfig)
+
+    def __post_init__(self) -> None:
+        check_range("keyframe_distance_m", self.keyframe_distance_m, 0.0, 100.0, low_open=True)
+        check_range("keyframe_angle_deg", self.keyframe_angle_deg, 0.0, 180.0, low_open=True)
+        check_range("cloud_stride_px", self.cloud_stride_px, 1, 64)
+        check_range("max_depth_m", self.max_depth_m, 0.0, 100.0, low_open=True)
+        check_range("max_odometry_age_s", self.max_odometry_age_s, 0.0, 10.0)
+
+
+@dataclass
+class _Session:
+    session: int
+    day: int
+    stamps: list[float] = field(default_factory=list)
+    poses: list[np.ndarray] = field(default_factory=list)
+    labels: list[str] = field(default_factory=list)
+
+
+def _finite(a: Any, shape: tuple[int, ...]) -> np.ndarray | None:
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return arr if arr.shape == shape and np.all(np.isfinite(arr)) else None
+
+
+def _angle_deg(R: np.ndarray) -> float:
+    return math.degrees(math.acos(max(-1.0, min(1.0, (float(np.trace(R)) - 1.0) / 2.0))))
+
+
+def depth_cloud(depth_m: np.ndarray, K: np.ndarray, stride: int, max_depth: float) -> np.ndarray:
+    """Points (camera frame, m) of the valid depth pixels every ``stride`` pixels."""
+    d = np.asarray(depth_m, dtype=float)[::stride, ::stride]
+    v, u = np.mgrid[0 : depth_m.shape[0] : stride, 0 : depth_m.shape[1] : stride]
+    ok = np.isfinite(d) & (d > 0) & (d <= max_depth)
+    z = d[ok]
+    x = (u[ok] - K[0, 2]) * z / K[0, 0]
+    y = (v[ok] - K[1, 2]) * z / K[1, 1]
+    return np.stack([x, y, z], axis=1)
+
+
+class LtExosense:
+    """LT-Exosense's multi-session merging with change detection (module docstring)."""
+
+    name: ClassVar[str] = "lt-exosense"
+    track: ClassVar[str] = "multisession"
+    Config: ClassVar[type] = LtExosenseConfig
+
+    def __init__(self, config: LtExosenseConfig | None = None) -> None:
+        self.config = config if config is not None else self.Config()
+        if not isinstance(self.config, LtExosenseConfig):
+            raise ConfigError(f"{self.name}.config", type(self.config).__name__, "an LtExosenseConfig")
+        self._was_reset = False
+        self._store: KeyframeStore | None = None
+        self._reset_state(None)
+
+    def _reset_state(self, calibration: Calibration | None) -> None:
+        if self._store is not None:
+            self._store.close()
+        self._store = None
+        self._counters = StreamCounters.of(calibration)
+        self._sessions: list[_Session] = []
+        self._label = ""
+        self._odom: list[tuple[float, np.ndarray]] = []
+        self._K: np.ndarray | None = None
+        self._stats: dict[str, Any] = {"n_images_without_odometry": 0, "n_frames_before_session": 0,
+                                       "n_bad_images": 0}  # fmt: skip
+        self._camera_id = ""
+        self._odom_id = ""
+        self._max_depth = self.config.max_depth_m
+        self._sensor_max_depth = max_depth_m(None)
+        self._result: MultiSessionEstimate | None = None
+
+    def reset(self, calibration: Calibration) -> None:
+        """Forget everything; find the camera and its odometry."""
+        self._reset_state(calibration)
+        self._was_reset = True
+        self._store = KeyframeStore()
+        extra = calibration.extra or {}
+        cams = [m for m in calibration.mounts_of_kind("rgbd") if m.sensor_id == extra.get("camera")]
+        cams = cams or list(calibration.mounts_of_kind("rgbd"))  # the calibration names the camera its odometry tracks
+        if cams:
+            self._camera_id = cams[0].sensor_id
+            self._sensor_max_depth = max_depth_m(cams[0])
+            self._max_depth = min(self.config.max_depth_m, self._sensor_max_depth)
+        odom = extra.get("odometry")
+        if isinstance(odom, dict):
+            self._odom_id = str(odom.get("sensor_id", ""))
+        elif calibration.mounts_of_kind("odometry"):
+            self._odom_id = calibration.mounts_of_kind("odometry")[0].sensor_id
+
+    # --- frames ---------------------------------------------------------------------------------
+    def process(self, frame: Frame) -> MultiSessionEstimate | None:
+        check_frame(self, frame, self._was_reset)
+        if isinstance(frame, SessionStart):
+            c = self._counters.admit(frame)
+            ok = all(isinstance(v, (int, np.integer)) and v >= 0 for v in (frame.session, frame.day))
+            if c is not None and c.judge(frame, not ok):
+                self._counters.restart()
+                self._sessions.append(_Session(int(frame.session), int(frame.day)))
+                self._odom, self._label = [], ""
+            return None
+        if isinstance(frame, PlaceLabel):
+            c = self._counters.admit(frame)
+            if c is not None and c.judge(frame, not isinstance(frame.label, str)):
+                self._label = frame.label
+            return None
+        if isinstance(frame, OdometrySample):
+            c = self._counters.admit(frame, not self._odom_id or frame.sensor_id == self._odom_id)
+            if c is not None:
+                T = _finite(frame.T_odom_body, (4, 4))
+                if c.judge(frame, T is None or odometry_absurd(frame)):
+                    self._odom.append((float(frame.stamp_s), T))  # type: ignore[arg-type]
+                    del self._odom[:-ODOM_HISTORY]
+            return None
+        if isinstance(frame, RgbdFrame):
+            c = self._counters.admit(frame, not self._camera_id or frame.sensor_id == self._camera_id)
+            if c is not None:
+                self._on_rgbd(frame, c)
+            return None
+        self._counters.admit(frame, False)
+        return None
+
+    def _pose_at(self, t: float) -> np.ndarray | None:
+        if not self._odom:
+            return None
+        stamps = [o[0] for o in self._odom]
+        i = bisect.bisect_left(stamps, t)
+        j = min((k for k in (i - 1, i) if 0 <= k < len(stamps)), key=lambda k: abs(stamps[k] - t))
+        return self._odom[j][1] if abs(stamps[j] - t) <= self.config.max_odometry_age_s else None
+
+    def _on_rgbd(self, frame: RgbdFrame, c: FrameCounts) -> None:
+        try:
+            depth = np.asarray(frame.depth_m, dtype=float)
+            n_absurd = int(np.count_nonzero(absurd_depth(depth, self._sensor_max_depth)))
+        except (TypeError, ValueError):
+            depth, n_absurd = np.zeros(0), 0
+        c.add_nan(nan_values(frame))
+        c.add_absurd(n_absurd)
+        K = _finite(frame.K, (3, 3))
+        rgb = np.asarray(frame.rgb)
+        if depth.ndim != 2 or K is None or K[0, 0] <= 0 or rgb.shape[:2] != depth.shape or rgb.dtype != np.uint8:
+            self._stats["n_bad_images"] += 1
+            return
+        if not self._sessions:
+            self._stats["n_frames_before_session"] += 1
+            return
+        T = self._pose_at(float(frame.stamp_s))
+        if T is None:
+            self._stats["n_images_without_odometry"] += 1
+            return
+        c.used += 1
+        s = self._sessions[-1]
+        if s.poses:
+            rel = np.linalg.inv(s.poses[-1]) @ T
+            if np.linalg.norm(rel[:3, 3]) < self.config.keyframe_distance_m and _angle_deg(rel[:3, :3]) < self.config.keyframe_angle_deg:
+                return
+        depth = np.where(np.isfinite(depth) & (depth > 0) & (depth <= self._max_depth), depth, 0.0)
+        self._K = K
+        assert self._store is not None
+        self._store.put((s.session, len(s.poses)), image=rgb, depth=depth.astype(np.float32),
+                        cloud=depth_cloud(depth, K, self.config.cloud_stride_px, self._max_depth).astype(np.float32))
+        s.stamps.append(float(frame.stamp_s))
+        s.poses.append(T.copy())
+        s.labels.append(self._label)
+
+    # --- merging --------------------------------------------------------------------------------
+    def finalize(self) -> MultiSessionEstimate:
+        if self._result is None:
+            tracing = tracemalloc.is_tracing()
+            if not tracing:
+                tracemalloc.start()
+            tracemalloc.reset_peak()
+            t0 = time.perf_counter()
+            try:
+                self._result = self._merge(t0)
+            finally:
+                peak = tracemalloc.get_traced_memory()[1]
+                if not tracing:
+                    tracemalloc.stop()
+            self._result = _with(self._result, merge_time_s=time.perf_counter() - t0, peak_memory_mb=peak / 2**20)
+            if self._store is not None:
+                self._store.close()
+        return self._result
+
+    def _merge(self, t0: float) -> MultiSessionEstimate:
+        sessions = [s for s in self._sessions if s.poses]
+        stats = dict(self._stats, n_sessions=len(self._sessions), n_sessions_with_keyframes=len(sessions),
+                     keyframes=[len(s.poses) for s in sessions])  # fmt: skip
+        counts = self._counters.snapshot()
+        if not sessions:
+            return MultiSessionEstimate((), (), (), (), (), stats=stats, counts=counts)
+        graphs = [SessionGraph(s.session, np.stack(s.poses), s.labels) for s in sessions]
+        edges = self._inter_edges(sessions, stats)
+        merged = merge_sessions(graphs, edges, MergeConfig())
+        map_of = {sid: i for i, m in enumerate(merged.maps) for sid in m.sessions}
+        T_map = tuple(np.stack([merged.maps[map_of[s.session]].T_m_b[(s.session, k)] for k in range(len(s.poses))])
+                      for s in sessions)  # fmt: skip
+        main = [i for i, s in enumerate(sessions) if map_of[s.session] == 0]
+        scans = [self._scans(sessions[i], T_map[i]) for i in main]
+        pairs, removed, added, static = [], [], [], []
+        prior = list(scans[0])
+        for k in range(1, len(main)):
+            res = detect_changes(prior, scans[k], self.config.change)
+            pairs.append((sessions[main[k - 1]].session, sessions[main[k]].session))
+            removed.append(res.removed_points)
+            added.append(res.added_points)
+            flagged = np.concatenate([res.removed_points, res.added_points])
+            static.append(_without(res.updated_points, res.added_points) if len(flagged) else res.updated_points)
+            prior = updated_scans(prior, scans[k], res)
+        stats["time_place_recognition_s"] = stats.pop("_t_pr", float("nan"))
+        stats["vocabulary_words"] = stats.get("vocabulary_words", 0)
+        return MultiSessionEstimate(
+            sessions=tuple(s.session for s in sessions), days=tuple(s.day for s in sessions),
+            keyframe_stamps_s=tuple(np.asarray(s.stamps) for s in sessions), T_map_cam=T_map,
+            map_of_session=tuple(map_of[s.session] for s in sessions), separate_sessions=tuple(merged.separate_sessions),
+            inter_edges=tuple((e.a[0], e.a[1], e.b[0], e.b[1]) for e in edges), change_pairs=tuple(pairs),
+            removed_points=tuple(removed), added_points=tuple(added), static_points=tuple(static),
+            merged_map_points=_points(prior),
+            map_points_no_change_detection=np.concatenate([_points(sc) for sc in scans]),
+            map_points_single_session=_points(scans[-1]), stats=stats, counts=counts,
+        )  # fmt: skip
+
+    def _inter_edges(self, sessions: list[_Session], stats: dict[str, Any]) -> list[PoseEdge]:
+        t0 = time.perf_counter()
+        if len(sessions) < 2 or self._K is None:
+            return []
+        assert self._store is not None
+        first = [self._store.get((sessions[0].session, k), "image") for k in range(len(sessions[0].poses))]
+        try:
+            vocabulary = PlaceMatcher.train_vocabulary(first, MatchConfig())
+        except ConfigError:  # too few keyframes or features in the first session to train on
+            stats["vocabulary_error"] = "too few training descriptors"
+            return []
+        stats["vocabulary_words"] = int(vocabulary.n_words)
+        matcher = PlaceMatcher(self._store, self._K, np.eye(4), vocabulary, MatchConfig())
+        labels = {(s.session, k): lab for s in sessions for k, lab in enumerate(s.labels)}
+        use_labels = self.config.use_place_labels
+
+        def accept(cand: tuple[int, int], query: tuple[int, int]) -> bool:
+            if cand[0] == query[0]:
+                return False
+            a, b = labels.get(cand, ""), labels.get(query, "")
+            return not (use_labels and a and b and a != b)
+
+        edges: list[PoseEdge] = []
+        for i, s in enumerate(sessions):
+            if i:
+                edges += matcher.edges([(s.session, k) for k in range(len(s.poses))], accept)
+            matcher.add([(s.session, k) for k in range(len(s.poses))])
+        stats["_t_pr"] = time.perf_counter() - t0
+        stats["n_inter_edges"] = len(edges)
+        return edges
+
+    def _scans(self, s: _Session, T_map: np.ndarray) -> list[Scan]:
+        assert self._store is not None
+        out = []
+        for k in range(len(s.poses)):
+            p = self._store.get((s.session, k), "cloud").astype(float)
+            T = T_map[k]
+            out.append(Scan(p @ T[:3, :3].T + T[:3, 3], T[:3, 3].copy()))
+        return out
+
+
+@dataclass
+class LtExosenseDufomapConfig(LtExosenseConfig):
+    """:class:`LtExosenseConfig` with DUFOMap as the default change stage."""
+
+    change: ChangeConfig = field(default_factory=lambda: ChangeConfig(kind="dufomap"))
+
+
+class LtExosenseDufomap(LtExosense):
+    """:class:`LtExosense` with DUFOMap as the change stage (``change.kind = dufomap``), so that
+    one run shows both stages on the same merged clouds."""
+
+    name: ClassVar[str] = "lt-exosense-dufomap"
+    Config: ClassVar[type] = LtExosenseDufomapConfig
+
+
+def _points(scans: list[Scan]) -> np.ndarray:
+    return np.concatenate([s.points_m for s in scans]) if scans else np.zeros((0, 3))
+
+
+def _without(points: np.ndarray, flagged: np.ndarray) -> np.ndarray:
+    """``points`` less the rows equal to a row of ``flagged`` (the added points are a subset)."""
+    if not len(flagged):
+        return points
+    a = np.ascontiguousarray(points).view([("", points.dtype)] * 3).ravel()
+    b = np.ascontiguousarray(flagged.astype(points.dtype)).view([("", points.dtype)] * 3).ravel()
+    return points[~np.isin(a, b)]
+
+
+def _with(est: MultiSessionEstimate, **values: Any) -> MultiSessionEstimate:
+    from dataclasses import replace
+
+    return replace(est, **values)

@@ -1,0 +1,186 @@
+"""The multisession track (issue 28): episode frame kinds on disk, the wrong-label fault, the
+scorer's wiring against an independent computation, and a run through ``exobench run``."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from exobench.benchmarks.cli import cli
+from exobench.benchmarks.tracks.multisession import MultisessionTrack
+from exobench.benchmarks.tracks.multisession.episodes import parse_sessions
+from exobench.core import Calibration, Episode, EpisodeTruth, SceneTruth
+from exobench.core.counters import StreamCounters
+from exobench.core.errors import ConfigError
+from exobench.core.estimates import MultiSessionEstimate
+from exobench.core.faults import swap_place_labels
+from exobench.core.frames import ImuSample, PlaceLabel, SessionStart
+from exobench.envs.session import iter_frames, write_session
+
+
+def _episode(frames, extra=None, T_we=None) -> Episode:
+    calib = Calibration(robot_urdf="<robot name='x'/>", base_link="pelvis", joint_names=(), mounts=(),
+                        sole_height_m=0.068, foot_length_m=0.26, heel_to_ankle_m=0.065)  # fmt: skip
+    truth = EpisodeTruth(scene=SceneTruth((), {}), T_world_estimator=np.eye(4) if T_we is None else T_we, extra=extra or {})
+    return Episode({}, 0, calib, tuple(frames), truth)
+
+
+def test_session_marks_and_place_labels_round_trip_through_a_recorded_session(tmp_path):
+    frames = [
+        SessionStart(0.0, "session", 0, 0), PlaceLabel(0.05, "place_label", "corridor"),
+        ImuSample(0.1, "imu_thigh_r", np.array([1.0, 0, 0, 0]), np.zeros(3), np.array([0, 0, 9.81])),
+        SessionStart(5.0, "session", 1, 2), PlaceLabel(5.05, "place_label", "meeting"),
+    ]  # fmt: skip
+    write_session(_episode(frames), tmp_path / "s")
+    back = list(iter_frames(tmp_path / "s"))
+    assert [type(f) for f in back] == [type(f) for f in frames]
+    marks = [(f.stamp_s, f.session, f.day) for f in back if isinstance(f, SessionStart)]
+    assert marks == [(0.0, 0, 0), (5.0, 1, 2)]
+    assert [f.label for f in back if isinstance(f, PlaceLabel)] == ["corridor", "meeting"]
+
+
+def test_wrong_label_fault_changes_labels_at_the_stated_rate():
+    truth = ["corridor", "office", "meeting"] * 40
+    frames = [PlaceLabel(0.1 * k, "place_label", lab) for k, lab in enumerate(truth)]
+    for fraction in (0.0, 0.1, 0.25, 1.0):
+        out = swap_place_labels(frames, fraction, seed=4)
+        wrong = [a.label != b for a, b in zip(out, truth)]
+        assert sum(wrong) == round(fraction * len(truth))
+        assert all(f.label in {"corridor", "office", "meeting"} for f in out)
+        assert [f.stamp_s for f in out] == [f.stamp_s for f in frames]
+    again = [[f.label for f in swap_place_labels(frames, 0.25, seed=s)] for s in (4, 4, 5)]
+    assert again[0] == again[1] != again[2]  # seeded
+    # one room only: labels to swap to are given by the building's kinds
+    one = [PlaceLabel(0.1 * k, "place_label", "corridor") for k in range(20)]
+    out = swap_place_labels(one, 0.5, seed=1, labels=("corridor", "office"))
+    assert sum(f.label == "office" for f in out) == 10
+    with pytest.raises(ConfigError, match="place_label_error_fraction"):
+        swap_place_labels(frames, 1.5, seed=0)
+
+
+def test_sessions_row_is_parsed_and_refused_when_malformed():
+    plans = parse_sessions("0:corridor_s,meeting; 2:office0")
+    assert [(p.session, p.day, p.regions) for p in plans] == [(0, 0, ("corridor_s", "meeting")), (1, 2, ("office0",))]
+    for bad in ("", "corridor_s", "1:a;0:b", "x:a"):
+        with pytest.raises(ConfigError, match="sessions"):
+            parse_sessions(bad)
+
+
+def _plane(z: float, n: int = 41) -> np.ndarray:
+    g = np.linspace(0.0, 2.0, n)
+    X, Y = np.meshgrid(g, g)
+    return np.stack([X.ravel(), Y.ravel(), np.full(X.size, z)], axis=1)
+
+
+def test_scorer_against_an_independent_computation():
+    """Two sessions with known errors: ATE, map error and change counts computed by hand."""
+    T_we = np.eye(4)
+    T_we[:3, 3] = [10.0, 0.0, 0.0]  # session 0's frame in the world
+    t = np.arange(0.0, 3.01, 0.1)
+    path = np.stack([t, np.zeros_like(t), np.ones_like(t)], axis=1)  # 1 m/s along x, world - T_we
+    rows = lambda off: np.column_stack([t + off, path + T_we[:3, 3], np.tile([1.0, 0, 0, 0], (len(t), 1))])  # noqa: E731
+    floor = _plane(0.0)
+    box = np.array([[1.0, 1.0, z] for z in np.arange(0.0, 0.5, 0.01)])  # appeared on day 1
+    extra = {
+        "sessions": ({"session": 0, "day": 0, "camera_w": rows(0.0)}, {"session": 1, "day": 1, "camera_w": rows(10.0)}),
+        # the disappeared sample is 2 m above anything mapped: unobserved, scored nowhere
+        "changes": {1: {"appeared": box + T_we[:3, 3], "disappeared": np.array([[1.5, 1.5, 2.0]]) + T_we[:3, 3], "objects": []}},
+        "surface_last_day": floor + T_we[:3, 3],
+        "surfaces_by_day": {0: floor + T_we[:3, 3], 1: np.concatenate([floor, box]) + T_we[:3, 3]},
+    }
+    ep = _episode((), extra, T_we)
+    k = np.arange(0, len(t), 5)
+    poses = np.tile(np.eye(4), (len(k), 1, 1))
+    poses[:, :3, 3] = path[k]
+    poses1 = poses.copy()
+    poses1[:, 1, 3] += 0.03  # session 1 merged 3 cm off in y
+    map_pts = _plane(0.02, 21)  # 2 cm above the floor
+    added = box[::2]  # half of the box's samples found added ...
+    static = np.concatenate([map_pts, box[1::2][:5]])  # ... five of the others left static
+    est = MultiSessionEstimate(
+        sessions=(0, 1), days=(0, 1), keyframe_stamps_s=(t[k], t[k] + 10.0), T_map_cam=(poses, poses1),
+        map_of_session=(0, 0), change_pairs=((0, 1),), removed_points=(np.zeros((0, 3)),), added_points=(added,),
+        static_points=(static,), merged_map_points=map_pts, map_points_no_change_detection=_plane(0.05, 21),
+        map_points_single_session=_plane(0.01, 21), merge_time_s=1.5, peak_memory_mb=12.0,
+    )  # fmt: skip
+    m = MultisessionTrack().score(ep, est)
+    assert not m["failed"], m.get("failed_reason")
+    n0, n1 = len(k), len(k)
+    assert m["ate_m"] == pytest.approx(np.sqrt(n1 * 0.03**2 / (n0 + n1)))
+    assert m["rpe_1m_m"] == pytest.approx(0.0, abs=1e-9)  # the offset is the same for every keyframe of a session
+    assert m["map_error_mean_m"] == pytest.approx(0.02)
+    assert m["map_error_max_m"] == pytest.approx(0.02)
+    assert m["map_error_mean_m_no_change_detection"] == pytest.approx(0.05)
+    assert m["map_error_mean_m_single_session"] == pytest.approx(0.01)
+    # every added point is on the box (TP); the five static box points are FN
+    tp, fn = len(added), 5 + 1  # and the map point at (1, 1, 0.02), within 5 cm of the box's foot
+    assert m["change_precision"] == pytest.approx(1.0)
+    assert m["change_recall"] == pytest.approx(tp / (tp + fn))
+    assert m["change_f1"] == pytest.approx(2 * tp / (2 * tp + fn))
+    # Chamfer: detected->true 0 (on samples); true->detected: odd samples 1 cm from the nearest even one
+    d = np.abs(box[:, 2][:, None] - added[:, 2][None, :]).min(axis=1)
+    assert m["change_chamfer_m"] == pytest.approx(0.5 * d.mean())
+    assert m["merge_time_s"] == 1.5 and m["peak_memory_mb"] == 12.0
+    assert m["n_separate_sessions"] == 0 and m["n_change_runs"] == 1
+    # session 1 overlapping nothing: its own map, reported, out of the ATE
+    apart = dataclasses.replace(est, map_of_session=(0, 1), separate_sessions=(1,), change_pairs=(), removed_points=(),
+                                added_points=(), static_points=())  # fmt: skip
+    m = MultisessionTrack().score(ep, apart)
+    assert m["n_separate_sessions"] == 1 and m["separate_sessions"] == [1]
+    assert m["ate_m"] == pytest.approx(0.0, abs=1e-12) and m["n_change_runs"] == 0 and np.isnan(m["change_precision"])
+
+
+def test_counters_restart_at_a_session_start_counts_no_drop_over_the_gap():
+    c = StreamCounters({"imu_thigh_r": 10.0})
+    imu = lambda t: ImuSample(t, "imu_thigh_r", np.array([1.0, 0, 0, 0]), np.zeros(3), np.zeros(3))  # noqa: E731
+    for t in (0.0, 0.1, 0.2):
+        c.admit(imu(t))
+    c.restart()
+    for t in (5.0, 5.1):
+        c.admit(imu(t))
+    assert c.snapshot()["imu"].dropped == 0 and c.snapshot()["imu"].used == 0 and c.snapshot()["imu"].seen == 5
+    c.admit(imu(5.5))  # a gap inside a session is still a drop
+    assert c.snapshot()["imu"].dropped == 3
+
+
+def test_scorer_fails_well_formed_on_a_malformed_estimate():
+    ep = _episode((), {"sessions": ({"session": 0, "day": 0, "camera_w": np.zeros((3, 8))},)})
+    est = MultiSessionEstimate(sessions=(0,), days=(), keyframe_stamps_s=(), T_map_cam=(), map_of_session=())
+    m = MultisessionTrack().score(ep, est)
+    assert m["failed"] and "days" in m["failed_reason"] and np.isnan(m["ate_m"])
+
+
+def test_quick_suite_through_exobench_run_on_the_smoke_scenario(tmp_path):
+    """`exobench run --track multisession` on the smoke scenario: every pipeline scored, the
+    trajectory and map metrics finite, the sessions kept apart reported."""
+    track = MultisessionTrack()
+    sets = [a for k, v in track.smoke_scenario.items() for a in ("--set", f"{k}={v}")]
+    out = tmp_path / "run"
+    rrd = tmp_path / "ms.rrd"
+    result = CliRunner().invoke(cli, ["run", "--track", "multisession", *sets, "--out", str(out), "--rerun", str(rrd)],
+                                catch_exceptions=False)  # fmt: skip
+    assert result.exit_code == 0, result.output
+    records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert sorted(r["pipeline"] for r in records) == ["lt-exosense", "lt-exosense-dufomap"]
+    for r in records:
+        m = r["metrics"]
+        assert not m["failed"], m.get("failed_reason")
+        for key in ("ate_m", "rpe_1m_m", "map_error_mean_m", "map_error_p90_m", "map_error_mean_m_single_session",
+                    "merge_time_s", "peak_memory_mb"):
+            assert np.isfinite(m[key]), key
+        assert m["n_sessions"] == 2 and m["n_separate_sessions"] == len(m["separate_sessions"])
+        assert m["ate_m"] < 0.5
+    assert "Table II" in (out / "report.md").read_text()
+    assert rrd.stat().st_size > 10_000  # sessions, pose graph edges, map and changes
+
+
+def test_invalid_change_script_is_refused_before_anything_runs(tmp_path):
+    result = CliRunner().invoke(cli, ["run", "--track", "multisession", "--set", "changes=1 remove nosuchthing",
+                                      "--out", str(tmp_path / "run")])  # fmt: skip
+    assert result.exit_code == 2
+    assert "day 1" in result.output and "nosuchthing" in result.output
+    assert not (tmp_path / "run" / "results.jsonl").exists()
