@@ -42,6 +42,7 @@ the camera's clock (``t - timeshift_cam_imu_s``).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import shutil
 import tempfile
@@ -216,10 +217,8 @@ class OrbSlam3Pipeline:
         )
 
     def __del__(self) -> None:  # a pipeline dropped without finalize must not leave its process behind
-        try:
+        with contextlib.suppress(Exception):  # interpreter shutdown: nothing left to report to
             self._stop()
-        except Exception:  # noqa: BLE001 - interpreter shutdown: nothing left to report to
-            pass
 
     # ------------------------------------------------------------------ frames
 

@@ -9,6 +9,7 @@ in the pipeline's temporary folder; the last lines of it are the failure's reaso
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import select
@@ -118,10 +119,8 @@ class OrbSlam3Worker:
         """End the process (this one only) and wait for it."""
         if self.proc.poll() is None:
             self.proc.kill()
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):  # a process the kernel has not reaped yet
             self.proc.wait(timeout=5.0)
-        except subprocess.TimeoutExpired:  # a process the kernel has not reaped yet: nothing more to do
-            pass
 
     def finish(self, trajectory: Path, timeout_s: float) -> str:
         """Shut ORB-SLAM3 down and save its trajectory export (EuRoC format) to ``trajectory``;
@@ -132,14 +131,10 @@ class OrbSlam3Worker:
     def close(self, timeout_s: float = 10.0) -> None:
         """Ask the worker to shut ORB-SLAM3 down (when it still runs); kill it when it does not in time."""
         if self.proc.poll() is None:
-            try:
+            with contextlib.suppress(WorkerError):
                 self.request({"op": "close"}, timeout_s=timeout_s)
-            except WorkerError:
-                pass
         self.kill()
         for f in (self.proc.stdin, self.proc.stdout):
-            try:
+            with contextlib.suppress(OSError):
                 f.close()
-            except OSError:
-                pass
         self._log.close()
