@@ -137,7 +137,7 @@ def _top_view(plt: Any, key: str, data: dict[str, np.ndarray], folder: Path, tra
     lo, hi = truth[:, 1:3].min(axis=0) - 0.5 * span - 1.0, truth[:, 1:3].max(axis=0) + 0.5 * span + 1.0
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
-    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_aspect("equal", adjustable="box")  # "datalim" would override the limits set above, with a warning
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.legend(fontsize=8)
