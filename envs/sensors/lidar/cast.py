@@ -115,10 +115,10 @@ class RayCaster:
         starts, o_cast = starts[keep], o_cast[keep]
         ends = np.append(starts[1:], n)
         max_r = self.config.pattern.max_range_m + 1.0
-        jobs = [(o, int(s), int(e)) for o, s, e in zip(o_cast, starts, ends)]
         o_ray = np.repeat(o_cast, ends - starts, axis=0)
         parts = self._bvh(model, data)
         if parts is None:
+            jobs = [(o, int(s), int(e)) for o, s, e in zip(o_cast, starts, ends)]
             gid, dist, nrm = self._multi_ray(model, data, jobs, dirs_w, n, max_r)
         else:
             # static boxes and planes by Embree, the rest (moving, curved) by MuJoCo: the nearer hit

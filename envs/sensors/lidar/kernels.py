@@ -234,6 +234,51 @@ def seams(same_start, same_geom, opp_start, opp_geom, in_start, in_geom, pos, ma
 
 
 @_jit
+def tube_pairs(rows, splits, prim, t, span, owner, h_out, q_out):  # noqa: ANN001, ANN201
+    """``EdgeTubes.crossed``'s (ray, geom) pairs from the listed intersections of the rays ``rows``
+    (``splits``: CSR; ``prim``: triangle, 12 per tube; ``t``: distance): the owners of each tube
+    met within the ray's ``span`` or met an odd number of times (the ray starts in it), each pair
+    once, sorted by ray then geom. Returns the number of pairs written to ``h_out, q_out``."""
+    m = 0
+    for i in range(len(rows)):
+        a0, a1 = splits[i], splits[i + 1]
+        start = m
+        for a in range(a0, a1):
+            tube = prim[a] // 12
+            seen = False
+            for b in range(a0, a):  # each tube once per ray: at its first listing
+                if prim[b] // 12 == tube:
+                    seen = True
+                    break
+            if seen:
+                continue
+            count, first = 0, np.inf
+            for b in range(a, a1):
+                if prim[b] // 12 == tube:
+                    count += 1
+                    first = min(first, np.float64(t[b]))
+            if not (first <= span[rows[i]] or count % 2 == 1):
+                continue
+            for c in range(2):
+                q = owner[tube, c]
+                dup = False
+                for e in range(start, m):
+                    if q_out[e] == q:
+                        dup = True
+                        break
+                if not dup:
+                    e = m  # insert in order
+                    while e > start and q_out[e - 1] > q:
+                        q_out[e] = q_out[e - 1]
+                        e -= 1
+                    q_out[e] = q
+                    m += 1
+        for e in range(start, m):
+            h_out[e] = rows[i]
+    return m
+
+
+@_jit
 def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom, hit, tol, out):  # noqa: ANN001, ANN201
     """``labels.label_surfaces`` point by point: of the geom's surfaces whose plane passes within
     ``tol`` of the hit and whose polygon contains it, the nearest plane, the last listed of ties."""
@@ -262,4 +307,4 @@ def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom,
         out[i] = sid[best] if best >= 0 else -1
 
 
-__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "seams"]
+__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "seams", "tube_pairs"]
