@@ -55,7 +55,9 @@ def _scene(boxes: list[tuple[np.ndarray, np.ndarray]]) -> object:
     return scene
 
 
-def _rays(o: np.ndarray, u: np.ndarray) -> object:
+def embree_rays(o: np.ndarray, u: np.ndarray) -> object:
+    """The rays (origins, directions) as Embree takes them (float32), for :meth:`StaticBvh.cast` and
+    :meth:`Proxies.may_hit_before` of the same rays."""
     import open3d as o3d
 
     r = np.empty((len(o), 6), dtype=np.float32)
@@ -207,7 +209,7 @@ class StaticBvh:
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
-        inside: bool = False, skip: np.ndarray | None = None,
+        inside: bool = False, skip: np.ndarray | None = None, rays: object | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(original geom or -1, distance or -1, normal) per ray, as ``mj_ray`` on these geoms alone.
 
@@ -216,13 +218,14 @@ class StaticBvh:
         geoms as the MuJoCo reference visits them: of two faces on one plane hit at the same
         distance (a seam), the first visited is reported, as MuJoCo keeps the first of equal hits.
         ``inside``: rays may start inside a geom (see :meth:`_seams`). ``skip`` (per BVH geom):
-        geoms not to hit (the sensor's own body, when it is welded to the world).
+        geoms not to hit (the sensor's own body, when it is welded to the world). ``rays``: the
+        rays' :func:`embree_rays`, if already made.
         """
         n = len(o)
         if n == 0 or len(self.geom) == 0:
             return np.full(n, -1, dtype=np.int32), np.full(n, -1.0), np.zeros((n, 3))
         o, u = _f64(o), _f64(u)
-        rays = _rays(o, u)
+        rays = embree_rays(o, u) if rays is None else rays
         ans = self.scene.cast_rays(rays, nthreads=nthreads)
         gid, x, nrm = np.full(n, -1, dtype=np.int64), np.full(n, -1.0), np.zeros((n, 3))
         face, state = np.full(n, -1, dtype=np.int64), np.zeros(n, dtype=np.int8)
@@ -381,11 +384,14 @@ class Proxies:
         overlapping = touch.sum(axis=1) > 1
         self._lo, self._hi = lo[overlapping], hi[overlapping]
 
-    def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int) -> np.ndarray:
-        """Rays that may reach one of the geoms nearer than ``dist`` (-1: no hit)."""
+    def may_hit_before(
+        self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int, rays: object | None = None
+    ) -> np.ndarray:
+        """Rays that may reach one of the geoms nearer than ``dist`` (-1: no hit); ``rays``: their
+        :func:`embree_rays`, if already made."""
         if self.scene is None or len(o) == 0:
             return np.zeros(len(o), dtype=bool)
-        ans = self.scene.cast_rays(_rays(o, u), nthreads=nthreads)
+        ans = self.scene.cast_rays(embree_rays(o, u) if rays is None else rays, nthreads=nthreads)
         t = ans["t_hit"].numpy().astype(float)
         slack = 1e-4 * (1.0 + np.abs(dist))
         out = np.isfinite(t) & ((dist < 0) | (t <= dist + slack))
@@ -443,4 +449,4 @@ def _in_any_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return out
 
 
-__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "exact_hits"]
+__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "embree_rays", "exact_hits"]
