@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .edges import TUBE_M, EdgeTubes
-from .kernels import MJMINVAL, exact_hits_into, face_hits_into, first_hits, seams
+from .kernels import MJMINVAL, exact_hits_into, face_hits_into, first_hits, odd_crossings, seams
 
 _PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
 
@@ -270,27 +270,24 @@ class StaticBvh:
             nu = nrm[:, 0] * u[:, 0] + nrm[:, 1] * u[:, 1] + nrm[:, 2] * u[:, 2]
             back = np.flatnonzero((state == 1) & (nu < 1e-12) & (start[f + 1] > start[f]))
             if len(back):
-                h_in, q_in = self._containing(o[back])
-                order = np.argsort(back[h_in], kind="stable")
-                in_geom = q_in[order]
-                in_start[1:] = np.cumsum(np.bincount(back[h_in], minlength=n))
+                in_start, in_geom = self._containing(o, back)
         (s0, g0), (s1, g1) = self.same_face, self.opposite_face
         seams(s0, g0, s1, g1, in_start, in_geom, self.pos, self.mat, self.size, self.plane, self.rbound, self.lo,
               self.hi, skip, _i64(rk), o, u, cut, gid, x, nrm, face, state)  # fmt: skip
 
-    def _containing(self, o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(ray, geom) pairs of the boxes each point lies in: a probe ray from inside a closed box
-        crosses its surface an odd number of times (along a direction no wall is aligned with)."""
+    def _containing(self, o: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The boxes each ray of ``rays`` (ascending) starts in, as CSR over all rays (start (N + 1),
+        geoms): a probe ray from inside a closed box crosses its surface an odd number of times
+        (along a direction no wall is aligned with)."""
         import open3d as o3d
 
-        probe = np.broadcast_to(_PROBE, o.shape)
-        li = self.scene.list_intersections(o3d.core.Tensor(np.hstack([o, probe]).astype(np.float32)))
-        splits = li["ray_splits"].numpy().astype(np.int64)
-        k = li["geometry_ids"].numpy().astype(np.int64)
-        which = np.repeat(np.arange(len(o)), np.diff(splits))
-        pair, count = np.unique(which * len(self.geom) + k, return_counts=True)
-        odd = pair[(count % 2 == 1) & ~self.plane[pair % len(self.geom)]]
-        return odd // len(self.geom), odd % len(self.geom)
+        p = np.empty((len(rays), 6), dtype=np.float32)
+        p[:, :3], p[:, 3:] = o[rays], _PROBE
+        li = self.scene.list_intersections(o3d.core.Tensor(p))
+        ids = li["geometry_ids"].numpy()
+        start, geoms = np.empty(len(o) + 1, dtype=np.int64), np.empty(len(ids), dtype=np.int64)
+        m = odd_crossings(_i64(rays), li["ray_splits"].numpy().astype(np.int64), ids, self.plane, len(o), start, geoms)
+        return start, geoms[:m]
 
     def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
         out = np.zeros(len(k), dtype=bool)

@@ -279,6 +279,45 @@ def tube_pairs(rows, splits, prim, t, span, owner, h_out, q_out):  # noqa: ANN00
 
 
 @_jit
+def odd_crossings(rays, splits, ids, plane, n, in_start, in_geom):  # noqa: ANN001, ANN201
+    """``StaticBvh._containing``'s boxes: for each ray ``rays[i]`` (ascending) whose probe listed the
+    geoms ``ids[splits[i]:splits[i + 1]]``, the boxes (not planes) crossed an odd number of times,
+    ascending, as CSR over all ``n`` rays (``in_start`` (n + 1), ``in_geom``). Returns their count."""
+    m = 0
+    at = 0  # next ray whose start is not yet written
+    for i in range(len(rays)):
+        r = rays[i]
+        while at <= r:
+            in_start[at] = m
+            at += 1
+        a0, a1 = splits[i], splits[i + 1]
+        start = m
+        for a in range(a0, a1):
+            g = ids[a]
+            seen = False
+            for b in range(a0, a):
+                if ids[b] == g:
+                    seen = True
+                    break
+            if seen or plane[g]:
+                continue
+            count = 0
+            for b in range(a, a1):
+                count += ids[b] == g
+            if count % 2 == 1:
+                e = m  # insert in order
+                while e > start and in_geom[e - 1] > g:
+                    in_geom[e] = in_geom[e - 1]
+                    e -= 1
+                in_geom[e] = g
+                m += 1
+    while at <= n:
+        in_start[at] = m
+        at += 1
+    return m
+
+
+@_jit
 def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom, hit, tol, out):  # noqa: ANN001, ANN201
     """``labels.label_surfaces`` point by point: of the geom's surfaces whose plane passes within
     ``tol`` of the hit and whose polygon contains it, the nearest plane, the last listed of ties."""
@@ -307,4 +346,4 @@ def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom,
         out[i] = sid[best] if best >= 0 else -1
 
 
-__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "seams", "tube_pairs"]
+__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "odd_crossings", "seams", "tube_pairs"]
