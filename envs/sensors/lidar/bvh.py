@@ -203,7 +203,6 @@ class StaticBvh:
         # each geom's world box, a little larger (the hit points of nearly coplanar faces, rounded)
         self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - TUBE_M
         self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + TUBE_M
-        self._loT, self._hiT = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
         self.edges = EdgeTubes(self.pos, self.mat, self.size, self.plane, far_m)
         self._no_skip = np.zeros(len(self.geom), dtype=bool)
 
