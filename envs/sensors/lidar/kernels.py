@@ -24,8 +24,9 @@ import numpy as np
 MJMINVAL = 1e-15  # MuJoCo's mjMINVAL (double precision)
 
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
-# The per-ray helpers take scalars only: a compiled call (even one inlined by numba) that passes
-# arrays reference-counts them, which cost more than the arithmetic in the loops below.
+# The helpers called for every ray take scalars only: a compiled call (even one inlined by numba)
+# that passes arrays reference-counts them, which cost more than the arithmetic in the loops below;
+# those taking arrays (_geom_hit, _normal, _seam_ray) run for the few rays that need them.
 
 
 @_jit
