@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 
 from .edges import TUBE_M, EdgeTubes
+from .kernels import MJMINVAL, exact_hits_into, face_hits_into, first_hits, odd_crossings, seams
 
-MJMINVAL = 1e-15  # MuJoCo's mjMINVAL (double precision)
 _PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
 
 _BOX_VERTS = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
@@ -55,7 +55,9 @@ def _scene(boxes: list[tuple[np.ndarray, np.ndarray]]) -> object:
     return scene
 
 
-def _rays(o: np.ndarray, u: np.ndarray) -> object:
+def embree_rays(o: np.ndarray, u: np.ndarray) -> object:
+    """The rays (origins, directions) as Embree takes them (float32), for :meth:`StaticBvh.cast` and
+    :meth:`Proxies.may_hit_before` of the same rays."""
     import open3d as o3d
 
     r = np.empty((len(o), 6), dtype=np.float32)
@@ -98,76 +100,34 @@ def face_hits(table: np.ndarray, row: np.ndarray, pnt: np.ndarray, vec: np.ndarr
 
     ``ray_map``'s products and sums in MuJoCo's order, for the face's three axes only.
     """
-    c = [table[q][row] for q in range(15)]
-    d0, d1, d2 = pnt[:, 0] - c[9], pnt[:, 1] - c[10], pnt[:, 2] - c[11]
-    v0, v1, v2 = vec[:, 0], vec[:, 1], vec[:, 2]
-    lp = [c[3 * a] * d0 + c[3 * a + 1] * d1 + c[3 * a + 2] * d2 for a in range(3)]
-    lv = [c[3 * a] * v0 + c[3 * a + 1] * v1 + c[3 * a + 2] * v2 for a in range(3)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        sol = (c[12] - lp[0]) / lv[0]
-        sure = np.abs(lv[0]) > MJMINVAL
-        sure &= sol >= 0
-        sure &= np.abs(lp[1] + sol * lv[1]) <= c[13]
-        sure &= np.abs(lp[2] + sol * lv[2]) <= c[14]
-    return sol, sure
+    n = len(row)
+    x, sure = np.empty(n), np.empty(n, dtype=bool)
+    face_hits_into(np.ascontiguousarray(table), _i64(row), _f64(pnt), _f64(vec), x, sure)
+    return x, sure
 
 
 def exact_hits(
     pos: np.ndarray, mat: np.ndarray, size: np.ndarray, plane: np.ndarray, pnt: np.ndarray, vec: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """MuJoCo's ``ray_box`` / ``ray_plane`` per ray on its own geom (rows): distance (-1 none), world
-    normal, and the face hit (``2 axis + (side > 0)``, a plane's is 5; -1 none).
+    normal, and the face hit (``2 axis + (side > 0)``, a plane's 5; -1 none).
 
-    Operation for operation as ``engine_ray.c`` (``ray_map``'s sums in its order; numpy neither
-    fuses nor reorders elementwise products and sums), on contiguous columns for speed.
+    Operation for operation as ``engine_ray.c`` (``ray_map``'s sums in its order), compiled
+    (:mod:`~exobench.envs.sensors.lidar.kernels`).
     """
     n = len(pnt)
-    M = np.ascontiguousarray(mat.T)  # (9, n)
-    S = np.ascontiguousarray(size.T)  # (3, n)
-    dif = np.ascontiguousarray((pnt - pos).T)
-    v = np.ascontiguousarray(vec.T)
-    lp = [M[i] * dif[0] + M[3 + i] * dif[1] + M[6 + i] * dif[2] for i in range(3)]
-    lv = [M[i] * v[0] + M[3 + i] * v[1] + M[6 + i] * v[2] for i in range(3)]
-    x = np.full(n, -1.0)
-    face = np.full(n, -1)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        # box: bounding sphere test, then the six faces in MuJoCo's order (axis, then side -1, +1)
-        ssz = S[0] * S[0] + S[1] * S[1] + S[2] * S[2]
-        a = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
-        b = v[0] * dif[0] + v[1] * dif[1] + v[2] * dif[2]
-        c = dif[0] * dif[0] + dif[1] * dif[1] + dif[2] * dif[2] - ssz
-        det = b * b - a * c
-        sq = np.sqrt(np.maximum(det, 0.0))
-        box = ~plane & (det >= MJMINVAL) & (((-b - sq) / a >= 0) | ((-b + sq) / a >= 0))
-        faces = ((1, 2), (0, 2), (0, 1))
-        for i in range(3):
-            j, k = faces[i]
-            ok_axis = box & (np.abs(lv[i]) > MJMINVAL)
-            for side in (-1.0, 1.0):
-                sol = (side * S[i] - lp[i]) / lv[i]
-                ok = ok_axis & (sol >= 0)
-                ok &= np.abs(lp[j] + sol * lv[j]) <= S[j]
-                ok &= np.abs(lp[k] + sol * lv[k]) <= S[k]
-                ok &= (x < 0) | (sol < x)
-                x[ok] = sol[ok]
-                face[ok] = 2 * i + (side > 0)
-        # plane: front face only, within the rendered rectangle (size <= 0: infinite)
-        pl = np.flatnonzero(plane)
-        if len(pl):
-            lp0, lp1, lp2, lv0, lv1, lv2 = lp[0][pl], lp[1][pl], lp[2][pl], lv[0][pl], lv[1][pl], lv[2][pl]
-            s0, s1 = S[0][pl], S[1][pl]
-            sol = -lp2 / lv2
-            p0 = lp0 + sol * lv0
-            p1 = lp1 + sol * lv1
-            inside = ((s0 <= 0) | (np.abs(p0) <= s0)) & ((s1 <= 0) | (np.abs(p1) <= s1))
-            ok = (lv2 <= -MJMINVAL) & (sol >= 0) & inside
-            x[pl[ok]] = sol[ok]
-            face[pl[ok]] = 5
-    nrm = np.zeros((n, 3))
-    rows = np.flatnonzero(face >= 0)
-    ax, sg = face[rows] // 2, np.where(face[rows] % 2 == 1, 1.0, -1.0)
-    nrm[rows] = sg[:, None] * np.stack([mat[rows, ax], mat[rows, 3 + ax], mat[rows, 6 + ax]], axis=1)
+    x, nrm, face = np.empty(n), np.empty((n, 3)), np.empty(n, dtype=np.int64)
+    exact_hits_into(_f64(pos), _f64(mat), _f64(size), np.ascontiguousarray(plane, dtype=bool), np.arange(n),
+                    _f64(pnt), _f64(vec), x, nrm, face)  # fmt: skip
     return x, nrm, face
+
+
+def _f64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _i64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.int64)
 
 
 def _coplanar_partners(
@@ -243,12 +203,12 @@ class StaticBvh:
         # each geom's world box, a little larger (the hit points of nearly coplanar faces, rounded)
         self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - TUBE_M
         self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + TUBE_M
-        self._loT, self._hiT = np.ascontiguousarray(self.lo.T), np.ascontiguousarray(self.hi.T)
         self.edges = EdgeTubes(self.pos, self.mat, self.size, self.plane, far_m)
+        self._no_skip = np.zeros(len(self.geom), dtype=bool)
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
-        inside: bool = False, skip: np.ndarray | None = None,
+        inside: bool = False, skip: np.ndarray | None = None, rays: object | None = None,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(original geom or -1, distance or -1, normal) per ray, as ``mj_ray`` on these geoms alone.
 
@@ -257,58 +217,41 @@ class StaticBvh:
         geoms as the MuJoCo reference visits them: of two faces on one plane hit at the same
         distance (a seam), the first visited is reported, as MuJoCo keeps the first of equal hits.
         ``inside``: rays may start inside a geom (see :meth:`_seams`). ``skip`` (per BVH geom):
-        geoms not to hit (the sensor's own body, when it is welded to the world).
+        geoms not to hit (the sensor's own body, when it is welded to the world). ``rays``: the
+        rays' :func:`embree_rays`, if already made.
         """
         n = len(o)
-        gid = np.full(n, -1, dtype=np.int64)
-        dist = np.full(n, -1.0)
-        nrm = np.zeros((n, 3))
         if n == 0 or len(self.geom) == 0:
-            return gid.astype(np.int32), dist, nrm
-        rays = _rays(o, u)
+            return np.full(n, -1, dtype=np.int32), np.full(n, -1.0), np.zeros((n, 3))
+        o, u = _f64(o), _f64(u)
+        rays = embree_rays(o, u) if rays is None else rays
         ans = self.scene.cast_rays(rays, nthreads=nthreads)
-        k = ans["geometry_ids"].numpy().astype(np.int64)
-        rows = np.flatnonzero(k < len(self.geom))
-        kk = k[rows]
+        gid, x, nrm = np.full(n, -1, dtype=np.int64), np.full(n, -1.0), np.zeros((n, 3))
+        face, state = np.full(n, -1, dtype=np.int64), np.zeros(n, dtype=np.int8)
+        cut = -1.0 if cutoff is None else float(cutoff)
+        skip = self._no_skip if skip is None else np.ascontiguousarray(skip, dtype=bool)
         # a box hit away from the face's edges: that face's distance; the rest: every face
-        face = _TRI_FACE[np.minimum(ans["primitive_ids"].numpy()[rows].astype(np.int64), 11)]
-        box = np.flatnonzero(~self.plane[kk])
-        x = np.full(len(rows), -1.0)
-        sure = np.zeros(len(rows), dtype=bool)
-        nv = np.zeros((len(rows), 3))
-        if len(box):
-            fr = 6 * kk[box] + face[box]
-            x[box], sure[box] = face_hits(self.faces, fr, o[rows[box]], u[rows[box]])
-            sb = box[sure[box]]
-            fs = fr[sure[box]]
-            for a in range(3):
-                nv[sb, a] = self.faces[15 + a][fs]
-        rest = np.flatnonzero(~sure)
-        if len(rest):
-            kr = kk[rest]
-            x[rest], nv[rest], face[rest] = exact_hits(self.pos[kr], self.mat[kr], self.size[kr], self.plane[kr],
-                                                       o[rows[rest]], u[rows[rest]])  # fmt: skip
-        if cutoff is not None:
-            x = np.where(self._culled(kk, o[rows], cutoff), -1.0, x)
-        if skip is not None:
-            x = np.where(skip[kk], -1.0, x)
-        good = x >= 0
+        first_hits(ans["geometry_ids"].numpy(), ans["primitive_ids"].numpy(), _TRI_FACE, len(self.geom), self.faces,
+                   self.pos, self.mat, self.size, self.plane, self.rbound, o, u, cut, skip,
+                   gid, x, nrm, face, state)  # fmt: skip
         rk = self.geom if rank is None else np.asarray(rank)[self.geom]
-        self._seams(rows, kk, x, nv, face, good, o, u, cutoff, rk, inside, skip)
-        gid[rows[good]], dist[rows[good]], nrm[rows[good]] = kk[good], x[good], nv[good]
-        redo = rows[~good]
+        self._seams(o, u, cut, rk, inside, skip, gid, x, nrm, face, state)
+        good = state == 1
+        gid = np.where(good, gid, -1)
+        dist = np.where(good, x, -1.0)
+        nrm[~good] = 0.0
+        redo = np.flatnonzero(state == 2)
         if len(redo):
-            self._listed(rays[redo], redo, o, u, cutoff, rk, gid, dist, nrm, skip)
-        self._grazed(o, u, nthreads, cutoff, rk, skip, gid, dist, nrm)
+            self._listed(rays[redo], redo, o, u, cutoff, rk, gid, dist, nrm, None if skip is self._no_skip else skip)
+        self._grazed(o, u, nthreads, cutoff, rk, None if skip is self._no_skip else skip, gid, dist, nrm)
         out = np.where(gid >= 0, self.geom[np.maximum(gid, 0)], -1).astype(np.int32)
         return out, dist, nrm
 
-    def _seams(self, rows: np.ndarray, kk: np.ndarray, x: np.ndarray, nv: np.ndarray, face: np.ndarray,
-               good: np.ndarray, o: np.ndarray, u: np.ndarray, cutoff: float | None, rk: np.ndarray,
-               inside: bool, skip: np.ndarray | None) -> None:  # fmt: skip
+    def _seams(self, o: np.ndarray, u: np.ndarray, cut: float, rk: np.ndarray, inside: bool, skip: np.ndarray,
+               gid: np.ndarray, x: np.ndarray, nrm: np.ndarray, face: np.ndarray, state: np.ndarray) -> None:  # fmt: skip
         """Where the face hit shares its plane with faces of other geoms, the hit MuJoCo reports:
-        the nearest exact one, of equal ones the first in ``rk`` (per BVH geom). ``kk, x, nv, face,
-        good`` are per hit ray (``rows``); ``kk, x, nv`` are updated in place.
+        the nearest exact one, of equal ones the first in ``rk`` (per BVH geom). ``gid, x, nrm``
+        (per ray, for the rays of ``state`` 1) are updated in place (:func:`kernels.seams`).
 
         Faces facing the same way meet at seams; a face facing the other way ties only where the
         ray leaves a box it started in (a beam crossing a pane) through a face another box is
@@ -317,70 +260,33 @@ class StaticBvh:
         ray starts in (:meth:`_containing`). Any geom added as a candidate is
         judged by its exact hit, so a candidate too many never changes a result.
         """
-        sel = np.flatnonzero(good)
-        ray = rows[sel]
-        # leaving or entering the face, each a little generous (a candidate too many changes nothing)
-        nu = nv[sel, 0] * u[ray, 0] + nv[sel, 1] * u[ray, 1] + nv[sel, 2] * u[ray, 2]
-        leaving = nu > -1e-12
-        fsel = 6 * kk[sel] + face[sel]
-        hs, qs = [], []
-        for (start, geoms), on in ((self.same_face, np.ones(len(sel), dtype=bool)), (self.opposite_face, leaving)):
-            f = fsel[on]
-            cnt = start[f + 1] - start[f]
-            h = np.repeat(sel[on], cnt)
-            first = np.repeat(start[f] - (np.cumsum(cnt) - cnt), cnt)
-            hs.append(h)
-            qs.append(geoms[first + np.arange(len(h))])
+        n = len(o)
+        in_start, in_geom = np.zeros(n + 1, dtype=np.int64), np.zeros(0, dtype=np.int64)
         if inside:
             start, _ = self.opposite_face
-            back = sel[(nu < 1e-12) & (start[fsel + 1] > start[fsel])]
+            f = 6 * np.maximum(gid, 0) + np.maximum(face, 0)
+            # entering a face another box leaves through (a little generous: a candidate too many changes nothing)
+            nu = nrm[:, 0] * u[:, 0] + nrm[:, 1] * u[:, 1] + nrm[:, 2] * u[:, 2]
+            back = np.flatnonzero((state == 1) & (nu < 1e-12) & (start[f + 1] > start[f]))
             if len(back):
-                h_in, q_in = self._containing(o[rows[back]])
-                hs.append(back[h_in])
-                qs.append(q_in)
-        h, q = np.concatenate(hs), np.concatenate(qs)
-        if len(h) == 0:
-            return
-        ray = rows[h]
-        xh = x[h]
-        near = np.ones(len(h), dtype=bool)
-        for c in range(3):  # the hit point on the partner's box, axis by axis
-            pc = o[ray, c] + xh * u[ray, c]
-            near &= (pc >= self._loT[c][q]) & (pc <= self._hiT[c][q])
-        if skip is not None:
-            near &= ~skip[q]
-        h, q, ray = h[near], q[near], ray[near]
-        x2, n2, _ = exact_hits(self.pos[q], self.mat[q], self.size[q], self.plane[q], o[ray], u[ray])
-        if cutoff is not None:
-            x2 = np.where(self._culled(q, o[ray], cutoff), -1.0, x2)
-        keep = x2 >= 0
-        h, q, x2, n2 = h[keep], q[keep], x2[keep], n2[keep]
-        if len(h) == 0:
-            return
-        # each ray's nearest hit, of equal ones the first visited: its own hit competes too
-        base = np.unique(h)
-        hh = np.concatenate([base, h])
-        qq = np.concatenate([kk[base], q])
-        xx = np.concatenate([x[base], x2])
-        order = np.lexsort((rk[qq], xx, hh))
-        win = order[np.append(True, hh[order][1:] != hh[order][:-1])]
-        moved = win[win >= len(base)] - len(base)
-        b = h[moved]
-        kk[b], x[b], nv[b] = q[moved], x2[moved], n2[moved]
+                in_start, in_geom = self._containing(o, back)
+        (s0, g0), (s1, g1) = self.same_face, self.opposite_face
+        seams(s0, g0, s1, g1, in_start, in_geom, self.pos, self.mat, self.size, self.plane, self.rbound, self.lo,
+              self.hi, skip, _i64(rk), o, u, cut, gid, x, nrm, face, state)  # fmt: skip
 
-    def _containing(self, o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(ray, geom) pairs of the boxes each point lies in: a probe ray from inside a closed box
-        crosses its surface an odd number of times (along a direction no wall is aligned with)."""
+    def _containing(self, o: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The boxes each ray of ``rays`` (ascending) starts in, as CSR over all rays (start (N + 1),
+        geoms): a probe ray from inside a closed box crosses its surface an odd number of times
+        (along a direction no wall is aligned with)."""
         import open3d as o3d
 
-        probe = np.broadcast_to(_PROBE, o.shape)
-        li = self.scene.list_intersections(o3d.core.Tensor(np.hstack([o, probe]).astype(np.float32)))
-        splits = li["ray_splits"].numpy().astype(np.int64)
-        k = li["geometry_ids"].numpy().astype(np.int64)
-        which = np.repeat(np.arange(len(o)), np.diff(splits))
-        pair, count = np.unique(which * len(self.geom) + k, return_counts=True)
-        odd = pair[(count % 2 == 1) & ~self.plane[pair % len(self.geom)]]
-        return odd // len(self.geom), odd % len(self.geom)
+        p = np.empty((len(rays), 6), dtype=np.float32)
+        p[:, :3], p[:, 3:] = o[rays], _PROBE
+        li = self.scene.list_intersections(o3d.core.Tensor(p))
+        ids = li["geometry_ids"].numpy()
+        start, geoms = np.empty(len(o) + 1, dtype=np.int64), np.empty(len(ids), dtype=np.int64)
+        m = odd_crossings(_i64(rays), li["ray_splits"].numpy().astype(np.int64), ids, self.plane, len(o), start, geoms)
+        return start, geoms[:m]
 
     def _culled(self, k: np.ndarray, o: np.ndarray, cutoff: float) -> np.ndarray:
         out = np.zeros(len(k), dtype=bool)
@@ -474,11 +380,14 @@ class Proxies:
         overlapping = touch.sum(axis=1) > 1
         self._lo, self._hi = lo[overlapping], hi[overlapping]
 
-    def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int) -> np.ndarray:
-        """Rays that may reach one of the geoms nearer than ``dist`` (-1: no hit)."""
+    def may_hit_before(
+        self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int, rays: object | None = None
+    ) -> np.ndarray:
+        """Rays that may reach one of the geoms nearer than ``dist`` (-1: no hit); ``rays``: their
+        :func:`embree_rays`, if already made."""
         if self.scene is None or len(o) == 0:
             return np.zeros(len(o), dtype=bool)
-        ans = self.scene.cast_rays(_rays(o, u), nthreads=nthreads)
+        ans = self.scene.cast_rays(embree_rays(o, u) if rays is None else rays, nthreads=nthreads)
         t = ans["t_hit"].numpy().astype(float)
         slack = 1e-4 * (1.0 + np.abs(dist))
         out = np.isfinite(t) & ((dist < 0) | (t <= dist + slack))
@@ -536,4 +445,4 @@ def _in_any_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return out
 
 
-__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "exact_hits"]
+__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "embree_rays", "exact_hits"]

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import Proxies, StaticBvh
+from .bvh import Proxies, StaticBvh, embree_rays
 from .config import LidarConfig
 from .optics import RayCastFn, cast_rays
 from .pattern import RayTable
@@ -115,19 +115,22 @@ class RayCaster:
         starts, o_cast = starts[keep], o_cast[keep]
         ends = np.append(starts[1:], n)
         max_r = self.config.pattern.max_range_m + 1.0
-        jobs = [(o, int(s), int(e)) for o, s, e in zip(o_cast, starts, ends)]
         o_ray = np.repeat(o_cast, ends - starts, axis=0)
         parts = self._bvh(model, data)
         if parts is None:
+            jobs = [(o, int(s), int(e)) for o, s, e in zip(o_cast, starts, ends)]
             gid, dist, nrm = self._multi_ray(model, data, jobs, dirs_w, n, max_r)
         else:
             # static boxes and planes by Embree, the rest (moving, curved) by MuJoCo: the nearer hit
             k = self._n_threads(model)
+            dirs_w = np.ascontiguousarray(dirs_w, dtype=float)
+            rays_f = embree_rays(o_ray, dirs_w)  # one float32 copy for the static and the proxy casts
             gid, dist, nrm = parts.static.cast(o_ray, dirs_w, k, cutoff=max_r, rank=parts.rank,
-                                               skip=parts.own if np.any(parts.own) else None)
+                                               skip=parts.own if np.any(parts.own) else None, rays=rays_f)
             if parts.rest is not None:
                 # only the rays that may meet a moving or curved geom before the static hit
-                need = np.flatnonzero(Proxies(model, data, parts.rest_geoms).may_hit_before(o_ray, dirs_w, dist, k))
+                proxies = Proxies(model, data, parts.rest_geoms)
+                need = np.flatnonzero(proxies.may_hit_before(o_ray, dirs_w, dist, k, rays=rays_f))
                 first = np.searchsorted(need, starts)
                 last = np.append(first[1:], len(need))
                 sub = [(o, int(a), int(b)) for o, a, b in zip(o_cast, first, last) if b > a]
@@ -223,10 +226,11 @@ class RayCaster:
                 proxies.append(Proxies(model, data, parts.others))
             o = np.ascontiguousarray(o, dtype=float)
             d = np.ascontiguousarray(d, dtype=float)
-            gid, r, nrm = parts.static.cast(o, d, k, inside=True)
+            rays_f = embree_rays(o, d)
+            gid, r, nrm = parts.static.cast(o, d, k, inside=True, rays=rays_f)
             gid = gid.astype(np.int64)
             # the few rays that may meet a moving or curved geom first: exactly as the reference
-            near = np.flatnonzero(proxies[0].may_hit_before(o, d, r, k))
+            near = np.flatnonzero(proxies[0].may_hit_before(o, d, r, k, rays=rays_f))
             if len(near):
                 r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
             return r, gid, nrm

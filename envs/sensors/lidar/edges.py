@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .kernels import tube_pairs
+
 TUBE_M = 1e-4  # half-width of an edge's tube: about 25 times float32's rounding at 100 m from the origin
 _UNIT = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
 # two orthonormal directions: of any two, one is at least 45 deg from any line (their squared cosines
@@ -127,57 +129,49 @@ class EdgeTubes:
         none = np.zeros(0, dtype=np.int64)
         if self.scene is None or len(o) == 0:
             return none, none
-        # the ray scaled to its reach (1 um and float32's rounding to spare): Embree's t = 1 there
+        # the ray scaled to its reach (1 um and float32's rounding to spare): Embree's t = 1 there;
+        # the probes of _in_tube in the same call (one call costs less than two)
         span = np.where(np.isfinite(reach), reach * (1.0 + 1e-6) + 1e-6, self.far_m)
-        r = np.empty((len(o), 6), dtype=np.float32)
-        r[:, :3], r[:, 3:] = o, u * span[:, None]
-        flag = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
-        flag |= self._in_tube(o, nthreads)
+        run = _runs(o)
+        heads = o[run]
+        k = len(self._probes)
+        r = np.empty((len(o) + k * len(heads), 6), dtype=np.float32)
+        r[: len(o), :3], r[: len(o), 3:] = o, u * span[:, None]
+        r[len(o) :, :3] = np.repeat(heads, k, axis=0)
+        r[len(o) :, 3:] = np.tile(self._probes * (10.0 * TUBE_M), (len(heads), 1))
+        hit = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
+        flag = hit[: len(o)] | self._in_tube(heads, hit[len(o) :].reshape(-1, k))[np.cumsum(run) - 1]
         rows = np.flatnonzero(flag)
         if len(rows) == 0:
             return none, none
         r = np.empty((len(rows), 6), dtype=np.float32)
         r[:, :3], r[:, 3:] = o[rows], u[rows]
         li = self.scene.list_intersections(o3d.core.Tensor(r), nthreads=nthreads)
-        splits = li["ray_splits"].numpy().astype(np.int64)
-        ray = rows[np.repeat(np.arange(len(rows)), np.diff(splits))]
-        tube = li["primitive_ids"].numpy().astype(np.int64) // 12
-        t = li["t_hit"].numpy().astype(float)
+        prim = li["primitive_ids"].numpy()
         # a tube met before the reach, or left an odd number of times (the ray starts in it)
-        nt = len(self.owner)
-        pair, at, count = np.unique(ray * nt + tube, return_inverse=True, return_counts=True)
-        first = np.full(len(pair), np.inf)
-        np.minimum.at(first, at, t)
-        p_ray = pair // nt
-        keep = (first <= span[p_ray]) | (count % 2 == 1)
-        ng = int(self.owner.max()) + 1
-        tk = pair[keep] % nt
-        rg = np.unique(np.concatenate([p_ray[keep] * ng + self.owner[tk, 0], p_ray[keep] * ng + self.owner[tk, 1]]))
-        return rg // ng, rg % ng
+        h, q = np.empty(2 * len(prim), dtype=np.int64), np.empty(2 * len(prim), dtype=np.int64)
+        m = tube_pairs(rows, li["ray_splits"].numpy().astype(np.int64), prim, li["t_hit"].numpy(), span, self.owner, h, q)
+        return h[:m], q[:m]
 
-    def _in_tube(self, o: np.ndarray, nthreads: int) -> np.ndarray:
-        """Origins that may lie in a tube: a short probe from inside meets the tube's surface along
-        one of two orthogonal directions, at least 45 deg from the tube's axis, within 4 half-widths
-        (probes 10 long; where every tube lies along a world axis, the first alone, 54.7 deg from
-        each); or in a crossing's zone (by its bounds). Each run of equal origins (a primary
-        window) is tested once."""
-        import open3d as o3d
-
-        # (column by column: numpy reduces a 3-long last axis slowly)
-        run = np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
-        heads = o[run]
-        k = len(self._probes)
-        r = np.empty((k * len(heads), 6), dtype=np.float32)
-        r[:, :3] = np.repeat(heads, k, axis=0)
-        r[:, 3:] = np.tile(self._probes * (10.0 * TUBE_M), (len(heads), 1))
-        hit = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
-        inside = hit.reshape(-1, k).any(axis=1)
+    def _in_tube(self, heads: np.ndarray, probed: np.ndarray) -> np.ndarray:
+        """Origins ``heads`` that may lie in a tube: a short probe from inside meets the tube's
+        surface along one of two orthogonal directions, at least 45 deg from the tube's axis, within
+        4 half-widths (probes 10 long, ``probed``: whether each met a tube; where every tube lies
+        along a world axis, the first alone, 54.7 deg from each); or in a crossing's zone (by its
+        bounds). Each run of equal origins (a primary window) is tested once."""
+        inside = probed.any(axis=1)
         for lo, hi in zip(self._zone_lo, self._zone_hi):  # zones are few (differently turned geoms that cross)
             within = np.ones(len(heads), dtype=bool)
             for c in range(3):
                 within &= (heads[:, c] >= lo[c]) & (heads[:, c] <= hi[c])
             inside |= within
-        return inside[np.cumsum(run) - 1]
+        return inside
+
+
+def _runs(o: np.ndarray) -> np.ndarray:
+    """The first of each run of equal rows of ``o`` (N, 3), column by column (numpy reduces a 3-long
+    last axis slowly)."""
+    return np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
 
 
 __all__ = ["TUBE_M", "EdgeTubes"]

@@ -8,6 +8,8 @@ import numpy as np
 
 from exobench.core import SceneTruth
 
+from .kernels import label_points
+
 
 @dataclass(frozen=True, eq=False)
 class SurfaceTable:
@@ -64,47 +66,7 @@ def label_surfaces(tab: SurfaceTable, geom: np.ndarray, hit_w: np.ndarray, tol_m
     polygon contains it qualify; the nearest plane wins, the last listed of equally near ones
     (the order ``surface_of_hit`` visits them in).
     """
-    n = len(geom)
-    out = np.full(n, -1, dtype=np.int64)
-    cnt = tab.count[geom]
-    pt = np.repeat(np.arange(n), cnt)  # one row per (point, candidate surface)
-    if len(pt) == 0:
-        return out
-    slot = np.arange(len(pt)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-    row = tab.cand[geom[pt], slot]
-    # column by column on 1-D arrays (gathers of (P, 3) rows and reductions over short axes cost
-    # more than the arithmetic); each dot product is summed (x0 y0 + x1 y1) + x2 y2, the order
-    # surface_of_hit's test is checked against, so the labels are the same
-    hc = np.ascontiguousarray(hit_w.T)
-    pnc = np.ascontiguousarray(tab.point_normal.transpose(1, 2, 0))  # (2, 3, S)
-    q = [hc[c][pt] - pnc[0, c][row] for c in range(3)]
-    d = np.abs(q[0] * pnc[1, 0][row] + q[1] * pnc[1, 1][row] + q[2] * pnc[1, 2][row])
-    near = np.flatnonzero(d <= tol_m)
-    pt, slot, row, d = pt[near], slot[near], row[near], d[near]
-    p = [hc[c][pt] for c in range(3)]
-    # the edge test of PlanarSurface.contains: the edges not within tol_m of the point must
-    # all see it on the same side (zero-length padding edges are always within)
-    ea = np.ascontiguousarray(tab.edge_a.transpose(1, 2, 0))  # (V, 3, S)
-    em = np.ascontiguousarray(tab.edge_m.transpose(1, 2, 0))
-    el = np.ascontiguousarray(tab.edge_len.T)  # (V, S)
-    above = np.zeros(len(pt), dtype=bool)
-    below = np.zeros(len(pt), dtype=bool)
-    for e in range(ea.shape[0]):
-        c = (p[0] - ea[e, 0][row]) * em[e, 0][row] + (p[1] - ea[e, 1][row]) * em[e, 1][row]
-        c += (p[2] - ea[e, 2][row]) * em[e, 2][row]
-        within = tol_m * el[e][row]
-        above |= c > within
-        below |= c < -within
-    ok = ~(above & below)
-    pt, slot, row, d = pt[ok], slot[ok], row[ok], d[ok]
-    single = np.bincount(pt, minlength=n)[pt] == 1
-    out[pt[single]] = tab.sid[row[single]]
-    multi = np.flatnonzero(~single)
-    if len(multi):  # several qualify: the nearest plane, the last listed of ties
-        pts, at = np.unique(pt[multi], return_inverse=True)
-        dd = np.full((len(pts), tab.cand.shape[1]), np.inf)
-        dd[at, slot[multi]] = d[multi]
-        best = dd.min(axis=1)
-        last = dd.shape[1] - 1 - np.argmax((dd == best[:, None])[:, ::-1], axis=1)
-        out[pts] = tab.sid[tab.cand[geom[pts], last]]
+    out = np.empty(len(geom), dtype=np.int64)
+    label_points(tab.cand, tab.count, tab.sid, tab.point_normal, tab.edge_a, tab.edge_m, tab.edge_len,
+                 np.ascontiguousarray(geom, dtype=np.int64), np.ascontiguousarray(hit_w, dtype=np.float64), float(tol_m), out)  # fmt: skip
     return out

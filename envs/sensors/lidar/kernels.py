@@ -1,0 +1,350 @@
+"""Compiled loops (numba) of the BVH caster and the surface labels: one pass per ray or point.
+
+After Embree names each ray's geom, the caster recomputes the hit with MuJoCo's arithmetic and
+judges the faces that share its plane (:mod:`~exobench.envs.sensors.lidar.bvh`); the labels test
+each hit against its geom's surfaces (:mod:`~exobench.envs.sensors.lidar.labels`). In numpy each of
+these is a few hundred operations on whole arrays, and a sweep spent more time in their per-call
+overhead and temporaries than in the arithmetic. Here each is one loop, with the same operations in
+the same order as before: products and sums as written (no fast-math: LLVM neither fuses a product
+and a sum into one rounding nor reorders them), IEEE division and square root, so every result is
+the numpy version's bit for bit (and so MuJoCo's, ``engine_ray.c``'s ``ray_box`` / ``ray_plane``).
+``error_model="numpy"``: a division by zero gives inf or nan as numpy's does (the tests after it
+reject those), never an exception.
+
+The functions are compiled on first use and cached on disk (``cache=True``: beside this file, or
+in the user's cache directory where that is not writable); ``nogil``: casting threads may run them
+side by side.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+MJMINVAL = 1e-15  # MuJoCo's mjMINVAL (double precision)
+
+_jit = numba.njit(cache=True, nogil=True, error_model="numpy")
+# The helpers called for every ray take scalars only: a compiled call (even one inlined by numba)
+# that passes arrays reference-counts them, which cost more than the arithmetic in the loops below;
+# those taking arrays (_geom_hit, _normal, _seam_ray) run for the few rays that need them.
+
+
+@_jit
+def _hit(p0, p1, p2, m0, m1, m2, m3, m4, m5, m6, m7, m8, s0, s1, s2, is_plane, o0, o1, o2, u0, u1, u2):  # noqa: ANN001, ANN202 - numba infers the types
+    """MuJoCo's ``ray_box`` / ``ray_plane`` of the ray (o, u) on a geom at p with frame m (row-major
+    ``geom_xmat``) and size s: (distance or -1, face: ``2 axis + (side > 0)``, a plane's 5, -1 none)."""
+    d0, d1, d2 = o0 - p0, o1 - p1, o2 - p2
+    lp0 = m0 * d0 + m3 * d1 + m6 * d2
+    lp1 = m1 * d0 + m4 * d1 + m7 * d2
+    lp2 = m2 * d0 + m5 * d1 + m8 * d2
+    lv0 = m0 * u0 + m3 * u1 + m6 * u2
+    lv1 = m1 * u0 + m4 * u1 + m7 * u2
+    lv2 = m2 * u0 + m5 * u1 + m8 * u2
+    if is_plane:  # front face only, within the rendered rectangle (size <= 0: infinite)
+        sol = -lp2 / lv2
+        q0 = lp0 + sol * lv0
+        q1 = lp1 + sol * lv1
+        inside = (s0 <= 0 or abs(q0) <= s0) and (s1 <= 0 or abs(q1) <= s1)
+        if lv2 <= -MJMINVAL and sol >= 0 and inside:
+            return sol, 5
+        return -1.0, -1
+    # box: the bounding sphere first, then the six faces in MuJoCo's order (axis, then side -1, +1)
+    ssz = s0 * s0 + s1 * s1 + s2 * s2
+    a = u0 * u0 + u1 * u1 + u2 * u2
+    b = u0 * d0 + u1 * d1 + u2 * d2
+    c = d0 * d0 + d1 * d1 + d2 * d2 - ssz
+    det = b * b - a * c
+    if not det >= MJMINVAL:
+        return -1.0, -1
+    sq = np.sqrt(det)
+    if not ((-b - sq) / a >= 0 or (-b + sq) / a >= 0):
+        return -1.0, -1
+    x, face = -1.0, -1
+    for i in range(3):
+        if i == 0:
+            lpi, lvi, si, lpj, lvj, sj, lpk, lvk, sk = lp0, lv0, s0, lp1, lv1, s1, lp2, lv2, s2
+        elif i == 1:
+            lpi, lvi, si, lpj, lvj, sj, lpk, lvk, sk = lp1, lv1, s1, lp0, lv0, s0, lp2, lv2, s2
+        else:
+            lpi, lvi, si, lpj, lvj, sj, lpk, lvk, sk = lp2, lv2, s2, lp0, lv0, s0, lp1, lv1, s1
+        if not abs(lvi) > MJMINVAL:
+            continue
+        for side in (-1.0, 1.0):
+            sol = (side * si - lpi) / lvi
+            if sol >= 0 and abs(lpj + sol * lvj) <= sj and abs(lpk + sol * lvk) <= sk and (x < 0 or sol < x):
+                x, face = sol, 2 * i + (1 if side > 0 else 0)
+    return x, face
+
+
+@_jit
+def _geom_hit(pos, mat, size, plane, g, o0, o1, o2, u0, u1, u2):  # noqa: ANN001, ANN202
+    """:func:`_hit` on geom ``g`` of the per-geom arrays."""
+    m = mat[g]
+    return _hit(pos[g, 0], pos[g, 1], pos[g, 2], m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8],
+                size[g, 0], size[g, 1], size[g, 2], plane[g], o0, o1, o2, u0, u1, u2)  # fmt: skip
+
+
+@_jit
+def _normal(mat, g, face, nrm, r):  # noqa: ANN001, ANN202
+    """The world normal of ``face`` of geom ``g`` into ``nrm[r]`` (zero for no face)."""
+    if face < 0:
+        nrm[r, 0] = nrm[r, 1] = nrm[r, 2] = 0.0
+        return
+    ax = face // 2
+    sg = 1.0 if face % 2 == 1 else -1.0
+    nrm[r, 0], nrm[r, 1], nrm[r, 2] = sg * mat[g, ax], sg * mat[g, 3 + ax], sg * mat[g, 6 + ax]
+
+
+@_jit
+def exact_hits_into(pos, mat, size, plane, geom, pnt, vec, x, nrm, face):  # noqa: ANN001, ANN201
+    """MuJoCo's hit of each ray (``pnt[r], vec[r]``) on geom ``geom[r]`` (rows of the per-geom
+    ``pos, mat, size, plane``) into ``x`` (-1 none), ``nrm``, ``face``."""
+    for r in range(len(geom)):
+        g = geom[r]
+        x[r], face[r] = _geom_hit(pos, mat, size, plane, g, pnt[r, 0], pnt[r, 1], pnt[r, 2], vec[r, 0], vec[r, 1], vec[r, 2])
+        _normal(mat, g, face[r], nrm, r)
+
+
+@_jit
+def _face_hit(c0, c1, c2, c3, c4, c5, c6, c7, c8, p0, p1, p2, s, hj, hk, o0, o1, o2, u0, u1, u2):  # noqa: ANN001, ANN202
+    """``bvh.face_hits`` of one ray on one face (the columns of its row of the face table: the
+    frame's rows for the face's axes i, j, k, the position, ``side size[i]`` and the shrunk half
+    sizes j, k): (distance, sure)."""
+    d0, d1, d2 = o0 - p0, o1 - p1, o2 - p2
+    lp0 = c0 * d0 + c1 * d1 + c2 * d2
+    lp1 = c3 * d0 + c4 * d1 + c5 * d2
+    lp2 = c6 * d0 + c7 * d1 + c8 * d2
+    lv0 = c0 * u0 + c1 * u1 + c2 * u2
+    lv1 = c3 * u0 + c4 * u1 + c5 * u2
+    lv2 = c6 * u0 + c7 * u1 + c8 * u2
+    sol = (s - lp0) / lv0
+    return sol, abs(lv0) > MJMINVAL and sol >= 0 and abs(lp1 + sol * lv1) <= hj and abs(lp2 + sol * lv2) <= hk
+
+
+@_jit
+def face_hits_into(t, row, pnt, vec, x, sure):  # noqa: ANN001, ANN201
+    for r in range(len(row)):
+        f = row[r]
+        x[r], sure[r] = _face_hit(t[0, f], t[1, f], t[2, f], t[3, f], t[4, f], t[5, f], t[6, f], t[7, f], t[8, f],
+                                  t[9, f], t[10, f], t[11, f], t[12, f], t[13, f], t[14, f],
+                                  pnt[r, 0], pnt[r, 1], pnt[r, 2], vec[r, 0], vec[r, 1], vec[r, 2])  # fmt: skip
+
+
+@_jit
+def _beyond(p0, p1, p2, rbound, o0, o1, o2, cutoff):  # noqa: ANN001, ANN202
+    """``mj_multiRay``'s cut-off: the geom's bounding sphere lies beyond ``cutoff`` (< 0: none) from the origin."""
+    e0, e1, e2 = p0 - o0, p1 - o1, p2 - o2
+    return cutoff >= 0 and np.sqrt(e0 * e0 + e1 * e1 + e2 * e2) > cutoff + rbound
+
+
+@_jit
+def first_hits(k, prim, tri_face, n_geom, t, pos, mat, size, plane, rbound, o, u, cutoff, skip,
+               gid, x, nrm, face, state):  # noqa: ANN001, ANN201
+    """Each ray's hit on the geom Embree names (``k``, ``prim``: its triangle): the sure face's
+    distance (``bvh.face_hits``), else the exact one (``exact_hits``); culled beyond ``cutoff``
+    (< 0: none) and on ``skip`` geoms. ``state``: 0 no Embree hit, 1 a hit (``gid, x, nrm, face``),
+    2 Embree's geom rejected (the ray's every intersection must be listed)."""
+    for r in range(len(k)):
+        if k[r] >= n_geom:
+            continue
+        g = np.int64(k[r])
+        gid[r] = g
+        o0, o1, o2, u0, u1, u2 = o[r, 0], o[r, 1], o[r, 2], u[r, 0], u[r, 1], u[r, 2]
+        fc = tri_face[min(np.int64(prim[r]), 11)]
+        f = 6 * g + fc
+        sure = False
+        if not plane[g]:
+            xs, sure = _face_hit(t[0, f], t[1, f], t[2, f], t[3, f], t[4, f], t[5, f], t[6, f], t[7, f], t[8, f],
+                                 t[9, f], t[10, f], t[11, f], t[12, f], t[13, f], t[14, f], o0, o1, o2, u0, u1, u2)  # fmt: skip
+        if sure:
+            x[r], face[r] = xs, fc
+            nrm[r, 0], nrm[r, 1], nrm[r, 2] = t[15, f], t[16, f], t[17, f]
+        else:
+            m = mat[g]
+            x[r], face[r] = _hit(pos[g, 0], pos[g, 1], pos[g, 2], m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8],
+                                 size[g, 0], size[g, 1], size[g, 2], plane[g], o0, o1, o2, u0, u1, u2)  # fmt: skip
+            _normal(mat, g, face[r], nrm, r)
+        if skip[g] or _beyond(pos[g, 0], pos[g, 1], pos[g, 2], rbound[g], o0, o1, o2, cutoff):
+            x[r] = -1.0
+        state[r] = 1 if x[r] >= 0 else 2
+
+
+@_jit
+def _in_box(lx, ly, lz, hx, hy, hz, px, py, pz):  # noqa: ANN001, ANN202
+    return lx <= px <= hx and ly <= py <= hy and lz <= pz <= hz
+
+
+@_jit
+def _seam_ray(r, f, leaving, same_start, same_geom, opp_start, opp_geom, in_start, in_geom, pos, mat, size, plane,
+              rbound, lo, hi, skip, rk, o, u, cutoff, gid, x, nrm, px, py, pz):  # noqa: ANN001, ANN202
+    """The seam candidates of ray ``r`` (hit point px, py, pz on face row ``f``), in the order the
+    numpy version listed them (the same way, the other way if leaving, the boxes it starts in):
+    each whose box holds the hit point is judged by its exact hit; the nearest wins, of equal
+    ones the first in ``rk``."""
+    g = gid[r]
+    o0, o1, o2, u0, u1, u2 = o[r, 0], o[r, 1], o[r, 2], u[r, 0], u[r, 1], u[r, 2]
+    bx, brank, bg, bf = x[r], rk[g], g, -1
+    for part in range(3):
+        if part == 0:
+            a0, a1, geoms = same_start[f], same_start[f + 1], same_geom
+        elif part == 1:
+            a0, a1, geoms = opp_start[f], opp_start[f + 1] if leaving else opp_start[f], opp_geom
+        else:
+            a0, a1, geoms = in_start[r], in_start[r + 1], in_geom
+        for a in range(a0, a1):
+            q = geoms[a]
+            if skip[q] or not _in_box(lo[q, 0], lo[q, 1], lo[q, 2], hi[q, 0], hi[q, 1], hi[q, 2], px, py, pz):
+                continue
+            x2, f2 = _geom_hit(pos, mat, size, plane, q, o0, o1, o2, u0, u1, u2)
+            if _beyond(pos[q, 0], pos[q, 1], pos[q, 2], rbound[q], o0, o1, o2, cutoff):
+                continue
+            if x2 >= 0 and (x2 < bx or (x2 == bx and rk[q] < brank)):
+                bx, brank, bg, bf = x2, rk[q], q, f2
+    if bf >= 0:
+        gid[r], x[r] = bg, bx
+        _normal(mat, bg, bf, nrm, r)
+
+
+@_jit
+def seams(same_start, same_geom, opp_start, opp_geom, in_start, in_geom, pos, mat, size, plane, rbound, lo, hi,
+          skip, rk, o, u, cutoff, gid, x, nrm, face, state):  # noqa: ANN001, ANN201
+    """``StaticBvh._seams`` for every ray with a hit (``state`` 1): the nearest exact hit of its geom
+    and the geoms with a face on the same plane (the same way; the other way where the ray leaves
+    through it) and the boxes it starts in (``in_start, in_geom``: per ray, CSR), of equal ones the
+    first in ``rk``, each judged only where the ray's hit point lies in its box: nearly no ray has
+    such a candidate, so the boxes are tested first, here. ``gid, x, nrm`` are updated."""
+    for r in range(len(gid)):
+        if state[r] != 1:
+            continue
+        xh = x[r]
+        px, py, pz = o[r, 0] + xh * u[r, 0], o[r, 1] + xh * u[r, 1], o[r, 2] + xh * u[r, 2]
+        f = 6 * gid[r] + face[r]
+        leaving = nrm[r, 0] * u[r, 0] + nrm[r, 1] * u[r, 1] + nrm[r, 2] * u[r, 2] > -1e-12
+        near = False
+        for a in range(same_start[f], same_start[f + 1]):
+            q = same_geom[a]
+            near |= _in_box(lo[q, 0], lo[q, 1], lo[q, 2], hi[q, 0], hi[q, 1], hi[q, 2], px, py, pz)
+        if leaving:
+            for a in range(opp_start[f], opp_start[f + 1]):
+                q = opp_geom[a]
+                near |= _in_box(lo[q, 0], lo[q, 1], lo[q, 2], hi[q, 0], hi[q, 1], hi[q, 2], px, py, pz)
+        near |= in_start[r + 1] > in_start[r]
+        if near:
+            _seam_ray(r, f, leaving, same_start, same_geom, opp_start, opp_geom, in_start, in_geom, pos, mat, size,
+                      plane, rbound, lo, hi, skip, rk, o, u, cutoff, gid, x, nrm, px, py, pz)  # fmt: skip
+
+
+@_jit
+def tube_pairs(rows, splits, prim, t, span, owner, h_out, q_out):  # noqa: ANN001, ANN201
+    """``EdgeTubes.crossed``'s (ray, geom) pairs from the listed intersections of the rays ``rows``
+    (``splits``: CSR; ``prim``: triangle, 12 per tube; ``t``: distance): the owners of each tube
+    met within the ray's ``span`` or met an odd number of times (the ray starts in it), each pair
+    once, sorted by ray then geom. Returns the number of pairs written to ``h_out, q_out``."""
+    m = 0
+    for i in range(len(rows)):
+        a0, a1 = splits[i], splits[i + 1]
+        start = m
+        for a in range(a0, a1):
+            tube = prim[a] // 12
+            seen = False
+            for b in range(a0, a):  # each tube once per ray: at its first listing
+                if prim[b] // 12 == tube:
+                    seen = True
+                    break
+            if seen:
+                continue
+            count, first = 0, np.inf
+            for b in range(a, a1):
+                if prim[b] // 12 == tube:
+                    count += 1
+                    first = min(first, np.float64(t[b]))
+            if not (first <= span[rows[i]] or count % 2 == 1):
+                continue
+            for c in range(2):
+                q = owner[tube, c]
+                dup = False
+                for e in range(start, m):
+                    if q_out[e] == q:
+                        dup = True
+                        break
+                if not dup:
+                    e = m  # insert in order
+                    while e > start and q_out[e - 1] > q:
+                        q_out[e] = q_out[e - 1]
+                        e -= 1
+                    q_out[e] = q
+                    m += 1
+        for e in range(start, m):
+            h_out[e] = rows[i]
+    return m
+
+
+@_jit
+def odd_crossings(rays, splits, ids, plane, n, in_start, in_geom):  # noqa: ANN001, ANN201
+    """``StaticBvh._containing``'s boxes: for each ray ``rays[i]`` (ascending) whose probe listed the
+    geoms ``ids[splits[i]:splits[i + 1]]``, the boxes (not planes) crossed an odd number of times,
+    ascending, as CSR over all ``n`` rays (``in_start`` (n + 1), ``in_geom``). Returns their count."""
+    m = 0
+    at = 0  # next ray whose start is not yet written
+    for i in range(len(rays)):
+        r = rays[i]
+        while at <= r:
+            in_start[at] = m
+            at += 1
+        a0, a1 = splits[i], splits[i + 1]
+        start = m
+        for a in range(a0, a1):
+            g = ids[a]
+            seen = False
+            for b in range(a0, a):
+                if ids[b] == g:
+                    seen = True
+                    break
+            if seen or plane[g]:
+                continue
+            count = 0
+            for b in range(a, a1):
+                count += ids[b] == g
+            if count % 2 == 1:
+                e = m  # insert in order
+                while e > start and in_geom[e - 1] > g:
+                    in_geom[e] = in_geom[e - 1]
+                    e -= 1
+                in_geom[e] = g
+                m += 1
+    while at <= n:
+        in_start[at] = m
+        at += 1
+    return m
+
+
+@_jit
+def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom, hit, tol, out):  # noqa: ANN001, ANN201
+    """``labels.label_surfaces`` point by point: of the geom's surfaces whose plane passes within
+    ``tol`` of the hit and whose polygon contains it, the nearest plane, the last listed of ties."""
+    n_edges = edge_a.shape[1]
+    for i in range(len(geom)):
+        g = geom[i]
+        p0, p1, p2 = hit[i, 0], hit[i, 1], hit[i, 2]
+        best_d, best = np.inf, -1
+        for s in range(count[g]):
+            row = cand[g, s]
+            q0, q1, q2 = p0 - point_normal[row, 0, 0], p1 - point_normal[row, 0, 1], p2 - point_normal[row, 0, 2]
+            d = abs(q0 * point_normal[row, 1, 0] + q1 * point_normal[row, 1, 1] + q2 * point_normal[row, 1, 2])
+            if not d <= tol:
+                continue
+            above, below = False, False
+            for e in range(n_edges):
+                c = (p0 - edge_a[row, e, 0]) * edge_m[row, e, 0] + (p1 - edge_a[row, e, 1]) * edge_m[row, e, 1]
+                c += (p2 - edge_a[row, e, 2]) * edge_m[row, e, 2]
+                within = tol * edge_len[row, e]
+                above |= c > within
+                below |= c < -within
+            if above and below:
+                continue
+            if d <= best_d:
+                best_d, best = d, row
+        out[i] = sid[best] if best >= 0 else -1
+
+
+__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "odd_crossings", "seams", "tube_pairs"]

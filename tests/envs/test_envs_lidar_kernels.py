@@ -1,0 +1,101 @@
+"""The compiled loops of the LiDAR (envs/sensors/lidar/kernels.py) against independent computations.
+
+The exact hits are checked against ``mj_ray`` in test_envs_lidar_bvh.py (``exact_hits`` and
+``face_hits`` run the compiled loops); here the surface labels against ``SceneTruth.surface_of_hit``
+point by point, and the grouping loops against numpy's ``np.unique`` on random listings.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from exobench.envs.sensors.lidar import kernels
+from exobench.envs.sensors.lidar.labels import SurfaceTable, label_surfaces
+
+
+def test_surface_labels_are_surface_of_hit_on_points_near_edges_and_planes():
+    """Points on and within a few tolerances of every surface's plane and polygon edges, the
+    decisions where a label could flip: the compiled labels equal SceneTruth.surface_of_hit's."""
+    from exobench.models.office import build_office
+    from exobench.models.office_params import OfficeParams
+
+    world = build_office(OfficeParams(facade="windows", glass_fraction=1.0))
+    truth = world.truth
+    names = sorted(truth.geom_surfaces)
+    rng = np.random.default_rng(7)
+    geom, pts = [], []
+    for g, name in enumerate(names):
+        for sid in truth.geom_surfaces[name]:
+            sf = truth.surface(sid)
+            poly, nv = np.asarray(sf.polygon_w, dtype=float), np.asarray(sf.normal_w, dtype=float)
+            for _ in range(3):  # a point on a random edge, moved in and out of the polygon and the plane
+                j = rng.integers(len(poly))
+                a, b = poly[j], poly[(j + 1) % len(poly)]
+                p = a + rng.uniform(-0.05, 1.05) * (b - a)
+                p = p + rng.choice([0.0, 1.0]) * rng.uniform(-3e-4, 3e-4, 3)
+                p = p + rng.choice([0.0, 1e-4, -1e-4, 5e-5, 2e-4]) * nv
+                geom.append(g)
+                pts.append(p)
+    geom, pts = np.array(geom), np.array(pts)
+    tab = SurfaceTable.build(truth, names)
+    got = label_surfaces(tab, geom, pts)
+    ref = np.array([truth.surface_of_hit(names[g], p) for g, p in zip(geom, pts)])
+    np.testing.assert_array_equal(got, ref)
+    assert np.count_nonzero(ref >= 0) > 0.2 * len(ref) and np.count_nonzero(ref < 0) > 0.05 * len(ref)
+
+
+def _grouped(rays, splits, key):
+    """(ray, key, count) of each distinct key of each ray's listing, sorted, by np.unique."""
+    which = np.repeat(rays, np.diff(splits))
+    big = int(key.max()) + 1 if len(key) else 1
+    pair, count = np.unique(which * big + key, return_counts=True)
+    return pair // big, pair % big, count
+
+
+def test_tube_pairs_equal_numpys_grouping():
+    rng = np.random.default_rng(3)
+    n_rays, n_tubes, n_geoms = 400, 60, 25
+    owner = rng.integers(0, n_geoms, (n_tubes, 2))
+    owner[: n_tubes // 2, 1] = owner[: n_tubes // 2, 0]  # an edge's tube names its geom twice
+    rows = np.sort(rng.choice(n_rays, 150, replace=False))
+    per = rng.integers(0, 9, len(rows))
+    splits = np.concatenate([[0], np.cumsum(per)])
+    prim = (12 * rng.integers(0, n_tubes, splits[-1]) + rng.integers(0, 12, splits[-1])).astype(np.uint32)
+    t = rng.uniform(0.0, 10.0, splits[-1]).astype(np.float32)
+    span = rng.uniform(0.0, 10.0, n_rays)
+    h, q = np.empty(2 * len(prim), dtype=np.int64), np.empty(2 * len(prim), dtype=np.int64)
+    m = kernels.tube_pairs(rows, splits, prim, t, span, owner, h, q)
+    # reference: the first meeting of each (ray, tube) within the span, or an odd count
+    ray, tube, count = _grouped(rows, splits, prim.astype(np.int64) // 12)
+    which = np.repeat(rows, np.diff(splits))
+    first = np.array([t[(which == r) & (prim // 12 == k)].astype(float).min() for r, k in zip(ray, tube)])
+    keep = (first <= span[ray]) | (count % 2 == 1)
+    ref = np.unique(np.concatenate([ray[keep] * n_geoms + owner[tube[keep], 0], ray[keep] * n_geoms + owner[tube[keep], 1]]))
+    np.testing.assert_array_equal(h[:m], ref // n_geoms)
+    np.testing.assert_array_equal(q[:m], ref % n_geoms)
+    assert 0 < m < 2 * len(prim)
+
+
+def test_odd_crossings_are_the_boxes_crossed_an_odd_number_of_times():
+    rng = np.random.default_rng(5)
+    n, n_geoms = 300, 30
+    plane = rng.random(n_geoms) < 0.2
+    rays = np.sort(rng.choice(n, 120, replace=False))
+    splits = np.concatenate([[0], np.cumsum(rng.integers(0, 7, len(rays)))])
+    ids = rng.integers(0, n_geoms, splits[-1]).astype(np.uint32)
+    start, geoms = np.empty(n + 1, dtype=np.int64), np.empty(len(ids), dtype=np.int64)
+    m = kernels.odd_crossings(rays, splits, ids, plane, n, start, geoms)
+    ray, g, count = _grouped(rays, splits, ids.astype(np.int64))
+    odd = (count % 2 == 1) & ~plane[g]
+    np.testing.assert_array_equal(geoms[:m], g[odd])
+    np.testing.assert_array_equal(np.diff(start), np.bincount(ray[odd], minlength=n))
+    assert start[0] == 0 and start[-1] == m > 0
+
+
+def test_kernels_are_cached_on_disk_and_release_the_gil():
+    """Compiled once per install (a fresh worker process loads them), callable from casting threads."""
+    for name in kernels.__all__:
+        fn = getattr(kernels, name)
+        if callable(fn):
+            assert fn._cache.__class__.__name__ == "FunctionCache", name
+            assert fn.targetoptions.get("nogil"), name
