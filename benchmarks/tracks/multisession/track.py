@@ -57,13 +57,13 @@ HUMAN = {"max_distance_m": 12.0, "surfaces": "textured_floors", "change_seed": 3
 # *Exo* (IV): five sequences of one day (E^{d1}_{a1..5}) "teleoperated through a mixed office and
 # lab environment. Each session covers a different portion of the space, with overlapping regions
 # between sessions": one building, offices in its west half and labs in its east half
-EXO = {"max_distance_m": 12.0, "surfaces": "textured_floors", "furnish": "mixed", "n_offices": 3,
+EXO = {"max_distance_m": 14.0, "surfaces": "textured_floors", "furnish": "mixed", "n_offices": 3,
        "corridor_length_m": 14.0, "meeting_room_m": 4.0}  # fmt: skip
 PAPER = {
     "human/area1": {**HUMAN, "sessions": "0:office1,corridor_w;0:corridor_w,office1;1:office1,corridor_w;1:corridor_w,office1"},
     "human/area2": {**HUMAN, "sessions": "0:office2;0:corridor_n,office2;1:office2;1:corridor_n,office2"},
-    "exo/mixed": {**EXO, "sessions": "0:office0,corridor_w;0:corridor_w,corridor_s;0:office1,office2;"
-                                     "0:corridor_n,corridor_e;0:office2,corridor_e"},
+    "exo/mixed": {**EXO, "sessions": "0:corridor_n,office1;0:office1,office2;0:corridor_w,corridor_s;"
+                                     "0:corridor_s,meeting;0:corridor_n,meeting"},
     "alignment/area1": {"max_distance_m": 12.0, "surfaces": "textured_floors",
                         "sessions": "0:office1,corridor_w;0:corridor_w,office1;0:office1,corridor_w"},
 }  # fmt: skip
