@@ -44,6 +44,8 @@ ORB_SLAM3_ENTRY_POINT = "exobench.mapping.odometry.orbslam3.adapter:OrbSlam3Pipe
 ORB_SLAM3_NEEDS: dict[str, str] = {"requires": "pyorbslam3", "extra": "orbslam3",
                                    "setup": "exobench.benchmarks.orbvoc:setup_pipeline"}  # fmt: skip
 
+# lt-exosense: the setup that renders and trains the other office's vocabulary (vocabulary=other)
+LT_EXOSENSE_NEEDS: dict[str, str] = {"setup": "exobench.benchmarks.ltvoc:setup_pipeline"}
 
 # name -> (entry point, track); the track tag lets `exobench run` pick a track's pipelines
 # without importing them
@@ -68,8 +70,9 @@ BUILTIN_PIPELINES: dict[str, tuple[Any, ...]] = {
     "dvio": ("exobench.mapping.odometry.dvio.pipeline:DvioPipeline", "vio"),
     "dvio-no-depth": ("exobench.mapping.odometry.dvio.pipeline:DvioNoDepthPipeline", "vio"),
     "orb-slam3": (ORB_SLAM3_ENTRY_POINT, "vio", ORB_SLAM3_NEEDS),
-    "lt-exosense": ("exobench.mapping.multisession.pipeline:LtExosense", "multisession"),
-    "lt-exosense-dufomap": ("exobench.mapping.multisession.pipeline:LtExosenseDufomap", "multisession"),
+    "lt-exosense": ("exobench.mapping.multisession.pipeline:LtExosense", "multisession", LT_EXOSENSE_NEEDS),
+    "lt-exosense-dufomap": ("exobench.mapping.multisession.pipeline:LtExosenseDufomap", "multisession",
+                            LT_EXOSENSE_NEEDS),
 }
 
 

@@ -40,7 +40,7 @@ from .office_furniture import (
     workstation,
 )
 
-FURNISHINGS = ("office", "lab")
+FURNISHINGS = ("office", "lab", "mixed")  # mixed: resolved per room by the layout
 LAB_CLASSES = ("bench", "shelf", "stool")
 OBSTACLE_CLASSES = ("trolley", "boxes")
 STOOL_W_M = 0.35

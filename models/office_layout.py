@@ -149,6 +149,9 @@ def build_layout(p: OfficeParams) -> Layout:
     w_min = p.office_min_width_m
     spare = X - (n - 1) * t - n * w_min
     widths = w_min + spare * rng.dirichlet(np.full(n, 4.0))
+    rep = p.repeated_rooms  # the first `rep` offices are one room repeated: the same width, door and partition
+    if rep:
+        widths[:rep] = widths[:rep].mean()
     ox = []
     x = 0.0
     for k in range(n):
@@ -159,6 +162,8 @@ def build_layout(p: OfficeParams) -> Layout:
     # meeting room's south partition, the one the "corridor" route passes, is glass first
     n_glass = int(round(p.glass_fraction * (n + 2)))
     glass = set(int(i) for i in _first(rng.permutation(n + 2), n + 1)[:n_glass])
+    if rep:
+        glass = (glass - set(range(rep))) | (set(range(rep)) if 0 in glass else set())
 
     regions = [{"name": "corridor_n", "kind": "corridor", "rect": [0.0, X, yc1 + t / 2, yn1 + t / 2]},
                {"name": "corridor_s", "kind": "corridor", "rect": [0.0, X, 0.0, W + t / 2]},
@@ -238,8 +243,11 @@ def build_layout(p: OfficeParams) -> Layout:
 
     keep: dict[str, list[Rect]] = {}
     door_x: dict[str, float] = {}
+    first_west = False
     for k, (a, b) in enumerate(ox):
         west = bool(rng.random() < 0.5)
+        first_west = west if k == 0 else first_west
+        west = first_west if k < rep else west
         clear0 = a + DOOR_JAMB_M + WOOD_LEAF_T_M if west else b - DOOR_JAMB_M - WOOD_LEAF_T_M - dw
         s, face, hinge, opening = partition(k, f"wall_office{k}", a, b, (yn1, yo0), clear0, west, +1)
         solids += s
@@ -267,11 +275,20 @@ def build_layout(p: OfficeParams) -> Layout:
     n_static = len(solids)
     frng = rng if p.furniture_seed < 0 else np.random.default_rng(p.furniture_seed)
     furniture: list[Placed] = []
+    repeated = {f"office{k}": ox[k][0] - ox[0][0] for k in range(1, rep)}
     for r in regions:
         if r["kind"] == "corridor":
             continue
         room = tuple(r["clear"])
-        cands = room_candidates(p.furnish, r["kind"], room)
+        if r["name"] in repeated:  # office 0's pieces where they stand in it, with identities of their own
+            dx = repeated[r["name"]]
+            furniture += [Placed(names(q.piece.cls), q.piece, q.k, q.x + dx, q.y, r["name"])
+                          for q in furniture if q.room == "office0"]  # fmt: skip
+            continue
+        furnish = p.furnish
+        if furnish == "mixed":  # a building of offices in its west half and labs in its east half
+            furnish = "lab" if room[0] + room[1] > X else "office"
+        cands = room_candidates(furnish, r["kind"], room)
         furniture += _place_groups(frng, names, room, r["name"], p.furniture_density, cands, keep[r["name"]])
     for item in furniture:
         s, obj = item.emit()

@@ -55,8 +55,11 @@ OFFICE_PARAMS: dict[str, ParamSpec] = {
     "furniture_seed": ParamSpec(-1, -1, 2**31 - 1, "", "random seed of the furniture layer (-1: drawn from the "
                                 "layout's seed, as the office has always been furnished)"),
     "furnish": ParamSpec("office", None, None, "", "how the rooms are furnished: office (desks, chairs, couches, "
-                         "cabinets, plants, bins) or lab (benches with stools, steel shelving, cabinets, a bench "
-                         "island in the large room; models.furniture_kinds)", choices=("office", "lab")),
+                         "cabinets, plants, bins), lab (benches with stools, steel shelving, cabinets, a bench "
+                         "island in the large room) or mixed (the rooms of the west half offices, those of the east "
+                         "half labs; models.furniture_kinds)", choices=("office", "lab", "mixed")),
+    "repeated_rooms": ParamSpec(0, 0, 24, "", "the first this-many offices are the same room (width, door, "
+                                "partition and furniture; perceptual aliasing); 0: none, else 2..n_offices"),
     "windows": ParamSpec(True, None, None, "", "one window per office in the north facade", choices=(False, True)),
     "facade": ParamSpec("plain", None, None, "", "exterior walls along the corridors: plain; windows (a row of "
                         "windows along the south, west and east walls, as in a window-lined building); or curtain "
@@ -89,6 +92,7 @@ class OfficeParams:
     furniture_density: float = OFFICE_PARAMS["furniture_density"].default
     furniture_seed: int = OFFICE_PARAMS["furniture_seed"].default
     furnish: str = OFFICE_PARAMS["furnish"].default
+    repeated_rooms: int = OFFICE_PARAMS["repeated_rooms"].default
     windows: bool = OFFICE_PARAMS["windows"].default
     facade: str = OFFICE_PARAMS["facade"].default
     facade_glass: str = OFFICE_PARAMS["facade_glass"].default
@@ -124,6 +128,8 @@ class OfficeParams:
             raise ConfigError("office.corridor_length_m", X,
                               f">= {need_x:.3f} m for {n} offices at least {self.office_min_width_m:.2f} m wide "
                               f"with {WALL_T_M} m walls between them")
+        if self.repeated_rooms and not 2 <= self.repeated_rooms <= n:
+            raise ConfigError("office.repeated_rooms", self.repeated_rooms, f"0 or 2..n_offices ({n})")
         max_meeting = X - 2 * W - 2 * WALL_T_M
         if self.meeting_room_m > max_meeting:
             raise ConfigError("office.meeting_room_m", self.meeting_room_m,
@@ -135,5 +141,9 @@ class OfficeParams:
         return from_dict_checked(cls, "office", OFFICE_PARAMS, values)
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        # left out at 0, so the scene truth of every office without repeated rooms stays as it was
+        out = asdict(self)
+        if not self.repeated_rooms:
+            del out["repeated_rooms"]
+        return out
 

@@ -12,6 +12,11 @@ nothing, so the worlds, their frames and every figure of before stay the same.
   facing out, in geom group 1 (cameras render groups 0-2, the LiDAR casts 0 and 2) and without
   collisions. MuJoCo's rangefinders (the ToF sensors) see every group: on a poster they read 1.1
   mm short. The panels have no surface in the scene truth (segmentation truth: none);
+- ``surfaces="textured_floors"``: ``textured`` and the floors that stay plain under it (the
+  office's corridor tiles and polished stone, a course's ground) carpet-tiled too, with a motif
+  repeating every 8 m: what a real office's corridor floor gives a thigh camera, which sees the
+  floor and the lower walls rather than posters at eye height (seeds/000: the Exosense unit on
+  the thigh);
 - ``surfaces="featureless"``: walls and ceilings flat white and floors flat light grey with no
   marks at all (a white corridor: a tracker finds nothing on them but the edges between them);
 - ``light_level``: every light (sun, ceiling spots, the camera's headlight) scaled by it, e.g. 0.3
@@ -37,7 +42,7 @@ from . import textures
 if TYPE_CHECKING:
     import mujoco
 
-SURFACES = ("default", "textured", "featureless")
+SURFACES = ("default", "textured", "textured_floors", "featureless")
 WHITE_RGB = (0.93, 0.93, 0.92)
 FLOOR_GREY_RGB = (0.78, 0.78, 0.77)
 # material -> (image maker, metres the image spans)
@@ -45,6 +50,12 @@ _TEXTURED: dict[str, tuple[Any, float]] = {
     "world_wood": (textures.wood_grain, 2.0),
     "office_wood": (textures.wood_grain, 2.0),
     "office_carpet": (textures.patterned_carpet, 2.0),
+}
+# textured_floors: every plain floor carpet-tiled, over 8 m before the motif repeats (a 2 m repeat
+# in a corridor would give place recognition the same view every 2 m)
+_FLOORS: dict[str, tuple[Any, float]] = {
+    "world_floor": (lambda rng, metres: textures.patterned_carpet(rng, size=2048, metres=metres), 8.0),
+    "office_polished": (lambda rng, metres: textures.patterned_carpet(rng, size=2048, metres=metres), 8.0),
 }
 _FEATURELESS: dict[str, tuple[float, float, float]] = {
     "world_plaster": WHITE_RGB,
@@ -95,9 +106,10 @@ def _retexture(spec: mujoco.MjSpec, material: str, texture: str, img: np.ndarray
 def texture_images(seed: int, surfaces: str) -> dict[str, tuple[np.ndarray, float]]:
     """material -> (image, metres it spans) that ``surfaces`` gives a world of ``seed``. One
     generator per material, keyed by its name, so adding a material does not reshuffle the others."""
-    if surfaces == "textured":
+    if surfaces in ("textured", "textured_floors"):
         out = {}
-        for mat, (make, metres) in _TEXTURED.items():
+        made = {**_TEXTURED, **_FLOORS} if surfaces == "textured_floors" else _TEXTURED
+        for mat, (make, metres) in made.items():
             rng = np.random.default_rng([int(seed), zlib.crc32(f"texture:{mat}".encode())])
             out[mat] = (make(rng, metres=metres), metres)
         return out
@@ -191,8 +203,13 @@ def apply_look(spec: mujoco.MjSpec, look: WorldLook, seed: int) -> None:
 
     for mat, (img, metres) in texture_images(seed, look.surfaces).items():
         _retexture(spec, mat, f"look_{mat}", img, metres)
-    if look.surfaces == "textured":
+    if look.surfaces in ("textured", "textured_floors"):
         hang_posters(spec, np.random.default_rng([int(seed), zlib.crc32(b"posters")]))
+    if look.surfaces == "textured_floors":
+        for mat in _FLOORS:  # a carpet has no gloss
+            m = spec.material(mat)
+            if m is not None:
+                m.specular, m.reflectance = 0.0, 0.0
     if look.surfaces == "featureless":
         for mat in _FEATURELESS:  # no gloss either: a specular highlight is a feature too
             m = spec.material(mat)

@@ -48,6 +48,7 @@ CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
     (None, "change_seed"): {"day": 1},  # it draws a script of `day` days
     ("multisession", "change_seed"): {"changes": ""},  # of the last session's day; written or drawn, not both
     ("multisession", "furnish"): {"changes": ""},  # the lab has no plant0 to remove
+    ("multisession", "repeated_rooms"): {"n_offices": 2, "changes": ""},  # two offices to repeat one in
 }
 
 # free-string keys: values to try

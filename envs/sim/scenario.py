@@ -32,7 +32,7 @@ OMIT_AT_DEFAULT: dict[str, Any] = {
     "extra_sensors": "", "segmentation_truth": False, "heel_strike_scale": 0.0, "imu_extrinsics": "identity",
     "imu_time_offset_s": 0.0, "surfaces": "default", "light_level": 1.0, "texture_seed": 0, "exposure_s": 0.0,
     # the office's furniture layer and its change scripts (models.office_changes), region routes
-    "furniture_seed": -1, "furnish": "office", "day": 0, "changes": "", "change_seed": -1, "route_regions": "",
+    "furniture_seed": -1, "furnish": "office", "repeated_rooms": 0, "day": 0, "changes": "", "change_seed": -1, "route_regions": "",
 }  # fmt: skip
 
 

@@ -15,12 +15,12 @@ Per session (``process``, online):
 
 At the end (``finalize``, offline as the paper merges):
 
-1. **Vocabulary**: trained on the keyframe images of the first session only. The queries are the
-   later sessions' keyframes, never seen in training; the database holds the earlier sessions'
-   keyframes, which the vocabulary was made for, as a deployed system trains on the building it
-   mapped first. A vocabulary from another office (rendered by the track) would need images
-   through the calibration: the words of one office's textures serve its own images best, and
-   nothing from outside the episode reaches the pipeline.
+1. **Vocabulary** (``vocabulary``): ``session``, trained on the keyframe images of the first
+   session only. The queries are the later sessions' keyframes, never seen in training; the
+   database holds the earlier sessions' keyframes, which the vocabulary was made for, as a
+   deployed system trains on the building it mapped first. ``other``: trained on another office
+   (:mod:`.other_office`), read from ``vocabulary_file`` or, when that is empty, from the file
+   the harness builds and caches before the run; nothing of the episode trains it.
 2. **Place recognition**: session ``k``'s keyframes are queries against all keyframes of sessions
    before it (:class:`~.matching.PlaceMatcher`: ORB bag of words, SIFT + PnP with the depth).
    With ``use_place_labels`` a candidate of another place type than the query is not verified
@@ -42,6 +42,7 @@ import math
 import time
 import tracemalloc
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -58,9 +59,12 @@ from .change import ChangeConfig, Scan, detect_changes, updated_scans
 from .keyframes import KeyframeStore
 from .matching import MatchConfig, PlaceMatcher
 from .merge import MergeConfig, PoseEdge, SessionGraph, merge_sessions
+from .other_office import other_office_vocabulary_path
+from .place_recognition import Vocabulary
 
 __all__ = ["LtExosense", "LtExosenseConfig", "LtExosenseDufomap", "LtExosenseDufomapConfig"]
 
+VOCABULARIES = ("session", "other")
 ODOM_HISTORY = 64  # odometry samples kept to pair with images (a few seconds at camera rate)
 
 
@@ -74,6 +78,9 @@ class LtExosenseConfig:
         max_depth_m: depth beyond this is left out of the clouds (the D435's useful range).
         max_odometry_age_s: an image whose nearest odometry sample is further in time is skipped.
         use_place_labels: verify only candidates of the query's place type (when both have one).
+        vocabulary: ``session`` (trained on the first session's keyframes) or ``other`` (trained
+            on another office, :mod:`.other_office`).
+        vocabulary_file: with ``other``, the vocabulary's ``.npz`` (empty: the harness's cached one).
         change: the change detection stage (``kind`` octree or dufomap).
     """
 
@@ -83,6 +90,8 @@ class LtExosenseConfig:
     max_depth_m: float = 4.0
     max_odometry_age_s: float = 0.06
     use_place_labels: bool = True
+    vocabulary: str = "session"
+    vocabulary_file: str = ""
     change: ChangeConfig = field(default_factory=ChangeConfig)
 
     def __post_init__(self) -> None:
@@ -91,6 +100,12 @@ class LtExosenseConfig:
         check_range("cloud_stride_px", self.cloud_stride_px, 1, 64)
         check_range("max_depth_m", self.max_depth_m, 0.0, 100.0, low_open=True)
         check_range("max_odometry_age_s", self.max_odometry_age_s, 0.0, 10.0)
+        if self.vocabulary not in VOCABULARIES:
+            raise ConfigError("vocabulary", self.vocabulary, " or ".join(VOCABULARIES))
+
+    def vocabulary_path(self) -> Path:
+        """The file of the ``other`` vocabulary."""
+        return Path(self.vocabulary_file) if self.vocabulary_file else other_office_vocabulary_path()
 
 
 @dataclass
@@ -138,6 +153,7 @@ class LtExosense:
             raise ConfigError(f"{self.name}.config", type(self.config).__name__, "an LtExosenseConfig")
         self._was_reset = False
         self._store: KeyframeStore | None = None
+        self._vocabulary: Vocabulary | None = None
         self._reset_state(None)
 
     def _reset_state(self, calibration: Calibration | None) -> None:
@@ -161,6 +177,13 @@ class LtExosense:
         """Forget everything; find the camera and its odometry."""
         self._reset_state(calibration)
         self._was_reset = True
+        if self.config.vocabulary == "other":  # refused here, before any frame, when the file is not there
+            path = self.config.vocabulary_path()
+            try:
+                self._vocabulary = Vocabulary.load(path)
+            except ConfigError:
+                raise ConfigError(f"{self.name}.vocabulary_file", str(path), "a vocabulary file (.npz); empty: the one "
+                                  "`exobench run` builds for vocabulary=other") from None  # fmt: skip
         self._store = KeyframeStore()
         extra = calibration.extra or {}
         cams = [m for m in calibration.mounts_of_kind("rgbd") if m.sensor_id == extra.get("camera")]
@@ -312,12 +335,15 @@ class LtExosense:
         if len(sessions) < 2 or self._K is None:
             return []
         assert self._store is not None
-        first = [self._store.get((sessions[0].session, k), "image") for k in range(len(sessions[0].poses))]
-        try:
-            vocabulary = PlaceMatcher.train_vocabulary(first, MatchConfig())
-        except ConfigError:  # too few keyframes or features in the first session to train on
-            stats["vocabulary_error"] = "too few training descriptors"
-            return []
+        if self._vocabulary is not None:
+            vocabulary = self._vocabulary
+        else:
+            first = [self._store.get((sessions[0].session, k), "image") for k in range(len(sessions[0].poses))]
+            try:
+                vocabulary = PlaceMatcher.train_vocabulary(first, MatchConfig())
+            except ConfigError:  # too few keyframes or features in the first session to train on
+                stats["vocabulary_error"] = "too few training descriptors"
+                return []
         stats["vocabulary_words"] = int(vocabulary.n_words)
         matcher = PlaceMatcher(self._store, self._K, np.eye(4), vocabulary, MatchConfig())
         labels = {(s.session, k): lab for s in sessions for k, lab in enumerate(s.labels)}

@@ -16,8 +16,11 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -128,6 +131,40 @@ class Vocabulary:
     @property
     def n_words(self) -> int:
         return len(self.idf)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write the tree to ``path`` (``.npz``) atomically: a temporary sibling renamed over it."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        parent = np.full(len(self._children), -1, dtype=np.int64)
+        for node, kids in enumerate(self._children):
+            parent[kids] = node
+        leaves = np.array(sorted(self._word_of_node, key=self._word_of_node.__getitem__), dtype=np.int64)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".npz", dir=path.parent)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez(f, centroids=self._centroids, parent=parent, leaves=leaves, idf=self.idf)
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Vocabulary:
+        """A vocabulary written by :meth:`save`; ConfigError naming the file when it is missing or
+        not such a file."""
+        try:
+            with np.load(Path(path)) as z:
+                centroids, parent, leaves, idf = (z[k] for k in ("centroids", "parent", "leaves", "idf"))
+        except (OSError, KeyError, ValueError) as e:
+            raise ConfigError("vocabulary file", str(path), f"a vocabulary written by Vocabulary.save ({e})") from None
+        children: list[list[int]] = [[] for _ in range(len(parent))]
+        for node, up in enumerate(parent):  # children were numbered after their parent, in order
+            if up >= 0:
+                children[int(up)].append(node)
+        return cls(np.asarray(centroids, dtype=np.uint8), children, {int(n): w for w, n in enumerate(leaves)},
+                   np.asarray(idf, dtype=float))
 
     @classmethod
     def train(cls, descriptors_per_image: Sequence[np.ndarray], config: VocabularyConfig | None = None) -> Vocabulary:

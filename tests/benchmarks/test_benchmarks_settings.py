@@ -41,6 +41,9 @@ CONTEXT = {
     ("multisession", "meeting_room_m"): {"corridor_length_m": "80", "changes": ""},
     ("multisession", "change_seed"): {"changes": ""},
     ("multisession", "room_depth_m"): {"changes": ""},
+    # repeated_rooms needs as many offices (up to 3); the small offices of these quick cases have 1
+    ("multisession", "repeated_rooms"): {"n_offices": "3", "corridor_length_m": "80", "changes": ""},
+    ("loop-closure", "repeated_rooms"): {"n_offices": "3", "corridor_length_m": "80"},
 }
 
 

@@ -14,8 +14,10 @@ Suites (the run seed drives the sensor noise; the building is ``office_seed``):
   walk from the start towards the office along the north corridor, on day 0 and on day 1, when
   a stack of boxes stands against the corridor's south wall on the way; 10 Hz.
 - ``paper``: *Human* (two areas of the default office, two days, two sessions a day),
-  *Exo* (five sessions over overlapping region sets of the lab-furnished office, days 0-2), and
-  the Table I alignment set (three sessions of one area on one day).
+  *Exo* (five sessions of one day over overlapping parts of a mixed building: offices in its
+  west half, labs in its east half), and the Table I alignment set (three sessions of one area
+  on one day); floors carpet-tiled (``textured_floors``), as the paper's real offices give its
+  thigh camera texture; the blank corridors are the general suite's.
 - ``general``: office layout, furniture, a drawn change script and the regions walked drawn
   from the run seed.
 
@@ -47,15 +49,23 @@ QUICK = {
     **SMALL, "max_distance_m": 4.0, "sessions": "0:office0;1:office0", "changes": "1 obstacle boxes/2 box9 4.4 6.25 0",
     "surfaces": "textured",
 }  # fmt: skip
-HUMAN = {"max_distance_m": 12.0, "surfaces": "textured", "change_seed": 3}
+# The paper's sessions were recorded in real offices, whose floors a thigh camera sees (carpet
+# tiles, speckled vinyl) rather than posters at eye height: `textured_floors`. Every session of a
+# case walks from the start along the north corridor's west end, so each overlaps the others there
+# and in the rooms they share; the blank corridors stay the general suite's (`textured`).
+HUMAN = {"max_distance_m": 12.0, "surfaces": "textured_floors", "change_seed": 3}
+# *Exo* (IV): five sequences of one day (E^{d1}_{a1..5}) "teleoperated through a mixed office and
+# lab environment. Each session covers a different portion of the space, with overlapping regions
+# between sessions": one building, offices in its west half and labs in its east half
+EXO = {"max_distance_m": 14.0, "surfaces": "textured_floors", "furnish": "mixed", "n_offices": 3,
+       "corridor_length_m": 14.0, "meeting_room_m": 4.0}  # fmt: skip
 PAPER = {
-    "human/area1": {**HUMAN, "sessions": "0:corridor_s,meeting;0:meeting,corridor_s;1:corridor_s,meeting;1:meeting,corridor_s"},
-    "human/area2": {**HUMAN, "sessions": "0:corridor_n,office1;0:office1,corridor_n;1:corridor_n,office1;1:office1,corridor_n"},
-    "exo/lab": {"max_distance_m": 12.0, "surfaces": "textured", "furnish": "lab", "change_seed": 5,
-                "sessions": "0:corridor_s,meeting;0:meeting,corridor_e;1:corridor_e,corridor_n;1:corridor_n,office2;"
-                            "2:corridor_s,meeting,corridor_e"},
-    "alignment/area1": {"max_distance_m": 12.0, "surfaces": "textured",
-                        "sessions": "0:corridor_s,meeting;0:meeting,corridor_s;0:corridor_s,meeting"},
+    "human/area1": {**HUMAN, "sessions": "0:office1,corridor_w;0:corridor_w,office1;1:office1,corridor_w;1:corridor_w,office1"},
+    "human/area2": {**HUMAN, "sessions": "0:office2;0:corridor_n,office2;1:office2;1:corridor_n,office2"},
+    "exo/mixed": {**EXO, "sessions": "0:corridor_n,office1;0:office1,office2;0:corridor_w,corridor_s;"
+                                     "0:corridor_s,meeting;0:corridor_n,meeting"},
+    "alignment/area1": {"max_distance_m": 12.0, "surfaces": "textured_floors",
+                        "sessions": "0:office1,corridor_w;0:corridor_w,office1;0:office1,corridor_w"},
 }  # fmt: skip
 GENERAL_CASES = 4
 PER_SESSION = ("day", "route", "route_regions")  # office rows that `sessions` sets for each session

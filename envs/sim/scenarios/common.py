@@ -24,7 +24,7 @@ COMMON_PARAMS: dict[str, ParamSpec] = {
                                    "resilient heels; 0: none; envs.sensors.imu.impact)", feeds=("imu.heel_strike_scale",)),
     "surfaces": ParamSpec("default", None, None, "", "what cameras see on the surfaces: default (as built); textured "
                           "(posters and notice boards on the walls, wood grain, patterned carpet, drawn from the world's "
-                          "seed); featureless (flat white walls and ceilings, flat grey floors: a tracker finds nothing "
+                          "seed); textured_floors (textured, and the plain floors carpet-tiled too); featureless (flat white walls and ceilings, flat grey floors: a tracker finds nothing "
                           "on them); models.vision_look", choices=SURFACES),
     "light_level": ParamSpec(1.0, 0.02, 2.0, "", "every light scaled by this (1: as built; 0.2-0.4: a dim room); "
                              "models.vision_look"),

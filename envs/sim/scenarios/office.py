@@ -98,8 +98,13 @@ PARAMS: dict[str, ParamSpec] = {
                                       "toughened glass, models.materials)", feeds=("lidar.glass_roller_wave_mm",)),
     "furniture_seed": ParamSpec(-1, -1, 2**31 - 1, "", "random seed of the furniture layer (-1: drawn from "
                                 "office_seed, as always)", feeds=("office.furniture_seed",)),
-    "furnish": ParamSpec("office", None, None, "", "office (desks, chairs, ...) or lab (benches, stools, steel "
-                         "shelving; models.furniture_kinds)", choices=FURNISHINGS, feeds=("office.furnish",)),
+    "furnish": ParamSpec("office", None, None, "", "office (desks, chairs, ...), lab (benches, stools, steel "
+                         "shelving) or mixed (offices in the west half, labs in the east half; "
+                         "models.furniture_kinds)", choices=FURNISHINGS, feeds=("office.furnish",)),
+    "repeated_rooms": ParamSpec(0, 0, 3, "", "the first this-many offices are the same room: width, door, "
+                                "partition and furniture (perceptual aliasing; 0: none, else 2..n_offices; at "
+                                "most 3, which every office of the suites has)",
+                                feeds=("office.repeated_rooms",)),
     "day": ParamSpec(0, 0, MAX_DAY, "", "the day the office stands as: the furniture after the changes of days "
                      "1..day of the change script (0: as furnished)"),
     "changes": ParamSpec("", None, None, "", "change script of the furniture (models.office_changes): JSON, or "
