@@ -66,6 +66,8 @@ from exobench.core.kinds import FRAME_TYPES, frame_kind
 from exobench.core.pipeline import is_deterministic
 from exobench.envs.sensors.kinds import SENSOR_KINDS, registration_problems
 
+pytestmark = pytest.mark.long(seconds=170)  # the workers take it first (tests/conftest.py)
+
 # built once, at collection, with the toy track of docs/adding-a-track.md (tests/toy_track.py)
 # beside the registered ones: it passes what they pass. A registration a test makes later (such
 # as the toy of test_benchmarks_track_registry.py, which rebuilds the default registries) is not

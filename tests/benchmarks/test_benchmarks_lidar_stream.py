@@ -26,6 +26,8 @@ from exobench.core.episode import EpisodeStream
 from exobench.core.estimates import FilterEstimate
 from exobench.envs.sim.recorder import CHUNK_S
 
+pytestmark = pytest.mark.long(seconds=35)  # the workers take it first (tests/conftest.py)
+
 SEED = 3
 # duplicated and late sweeps and NaN points: the spool must keep the whole episode's pairing and admission
 FAULTY = {"max_distance_m": 0.5, "lidar_duplicate_scans": 0.3, "lidar_out_of_order": 0.3, "lidar_nan_points": 0.05}

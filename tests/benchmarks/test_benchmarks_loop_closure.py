@@ -31,6 +31,8 @@ from exobench.benchmarks.tracks.loop_closure.metrics import (
     yaw_errors,
 )
 
+pytestmark = pytest.mark.long(seconds=30)  # the workers take it first (tests/conftest.py)
+
 T = np.array([0.0, 10.0, 20.0, 30.0, 40.0, 50.0])
 POS = np.array([[0, 0, 0], [10, 0, 0], [20, 0, 0], [20, 10, 0], [1, 0, 0], [10, 3, 0]], dtype=float)
 MATCH = np.array([-1, 0, -1, 0, 0, 2])

@@ -28,6 +28,8 @@ from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE
 from exobench.benchmarks.runner import execute
 from exobench.core import ConfigError
 
+pytestmark = pytest.mark.long(seconds=55)  # the workers take it first (tests/conftest.py)
+
 HERE = Path(__file__).parent
 
 

@@ -21,6 +21,8 @@ from exobench.core.faults import swap_place_labels
 from exobench.core.frames import ImuSample, PlaceLabel, SessionStart
 from exobench.envs.session import iter_frames, write_session
 
+pytestmark = pytest.mark.long(seconds=35)  # the workers take it first (tests/conftest.py)
+
 
 def _episode(frames, extra=None, T_we=None) -> Episode:
     calib = Calibration(robot_urdf="<robot name='x'/>", base_link="pelvis", joint_names=(), mounts=(),

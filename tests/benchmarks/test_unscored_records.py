@@ -22,6 +22,8 @@ from exobench.core.estimates import (
     TrajectoryEstimate,
 )
 
+pytestmark = pytest.mark.long(seconds=40)  # the workers take it first (tests/conftest.py)
+
 E = np.zeros(0)
 EMPTY = {
     "stairs": StaircaseEstimate((), math.nan, math.nan),

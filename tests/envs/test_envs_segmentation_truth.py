@@ -14,6 +14,8 @@ from exobench.envs.session import read_session, write_session
 from exobench.envs.sim import OfficeScenario, simulate_office
 from exobench.envs.sim.scenarios.course import LocomotionScenario, simulate_locomotion
 
+pytestmark = pytest.mark.long(seconds=40)  # the workers take it first (tests/conftest.py)
+
 # noise-free depth (quantised to 1 mm) so that the measured depth back-projects onto the planes
 COURSE = {"width_px": 64, "height_px": 48, "rate_hz": 5.0, "duration_cap_s": 3.0, "pedestrians": 1,
           "depth_noise_scale": 0.0}  # fmt: skip
