@@ -100,11 +100,12 @@ def test_scorer_against_an_independent_computation():
     poses1[:, 1, 3] += 0.03  # session 1 merged 3 cm off in y
     map_pts = _plane(0.02, 21)  # 2 cm above the floor
     added = box[::2]  # half of the box's samples found added ...
-    static = np.concatenate([map_pts, box[1::2][:5]])  # ... five of the others left static
+    every = np.concatenate([map_pts, box[1::2][:5], added])  # ... five of the others left static
+    static = np.arange(len(every)) < len(map_pts) + 5
     est = MultiSessionEstimate(
         sessions=(0, 1), days=(0, 1), keyframe_stamps_s=(t[k], t[k] + 10.0), T_map_cam=(poses, poses1),
         map_of_session=(0, 0), change_pairs=((0, 1),), removed_points=(np.zeros((0, 3)),), added_points=(added,),
-        static_points=(static,), merged_map_points=map_pts, map_points_no_change_detection=_plane(0.05, 21),
+        static_masks=(static,), merged_map_points=map_pts, map_points_no_change_detection=every,
         map_points_single_session=_plane(0.01, 21), merge_time_s=1.5, peak_memory_mb=12.0,
     )  # fmt: skip
     m = MultisessionTrack().score(ep, est)
@@ -114,7 +115,8 @@ def test_scorer_against_an_independent_computation():
     assert m["rpe_1m_m"] == pytest.approx(0.0, abs=1e-9)  # the offset is the same for every keyframe of a session
     assert m["map_error_mean_m"] == pytest.approx(0.02)
     assert m["map_error_max_m"] == pytest.approx(0.02)
-    assert m["map_error_mean_m_no_change_detection"] == pytest.approx(0.05)
+    # every point straight above the floor's samples: its error is its height
+    assert m["map_error_mean_m_no_change_detection"] == pytest.approx(np.mean(every[:, 2]))
     assert m["map_error_mean_m_single_session"] == pytest.approx(0.01)
     # every added point is on the box (TP); the five static box points are FN
     tp, fn = len(added), 5 + 1  # and the map point at (1, 1, 0.02), within 5 cm of the box's foot
@@ -128,7 +130,7 @@ def test_scorer_against_an_independent_computation():
     assert m["n_separate_sessions"] == 0 and m["n_change_runs"] == 1
     # session 1 overlapping nothing: its own map, reported, out of the ATE
     apart = dataclasses.replace(est, map_of_session=(0, 1), separate_sessions=(1,), change_pairs=(), removed_points=(),
-                                added_points=(), static_points=())  # fmt: skip
+                                added_points=(), static_masks=())  # fmt: skip
     m = MultisessionTrack().score(ep, apart)
     assert m["n_separate_sessions"] == 1 and m["separate_sessions"] == [1]
     assert m["ate_m"] == pytest.approx(0.0, abs=1e-12) and m["n_change_runs"] == 0 and np.isnan(m["change_precision"])
@@ -174,8 +176,8 @@ def test_a_covered_floor_is_no_missed_change():
     est = MultiSessionEstimate(
         sessions=(0, 1), days=(0, 1), keyframe_stamps_s=(t, t), T_map_cam=(poses, poses), map_of_session=(0, 0),
         change_pairs=((0, 1),), removed_points=(np.zeros((0, 3)),), added_points=(box[::2],),
-        static_points=(np.concatenate([under, box[1::2][:10]]),), merged_map_points=floor,
-        map_points_no_change_detection=floor, map_points_single_session=floor,
+        static_masks=(np.arange(len(under) + len(box[::2]) + 10) < len(under) + 10,), merged_map_points=floor,
+        map_points_no_change_detection=np.concatenate([under, box[1::2][:10], box[::2]]), map_points_single_session=floor,
     )  # fmt: skip
     m = MultisessionTrack().score(_episode((), extra), est)
     # TP: the added half of the box; FN: the ten box points left static, not the floor under it
