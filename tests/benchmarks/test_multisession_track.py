@@ -236,3 +236,17 @@ def test_invalid_change_script_is_refused_before_anything_runs(tmp_path):
     assert result.exit_code == 2
     assert "day 1" in result.output and "nosuchthing" in result.output
     assert not (tmp_path / "run" / "results.jsonl").exists()
+
+
+def test_bench_multisession_scenario_is_the_quick_office_walked_ten_times():
+    from exobench.benchmarks.bench.multisession import bench_scenario
+
+    track = MultisessionTrack()
+    quick = track.validate_scenario(track.cases("quick")[0].scenario)
+    scenario = track.validate_scenario(bench_scenario(10, 2.0))  # refused if the bench's rows were not the track's
+    plans = parse_sessions(scenario["sessions"])
+    assert [p.day for p in plans] == [0] + [1] * 9
+    assert {p.regions for p in plans} == {parse_sessions(quick["sessions"])[0].regions}
+    assert scenario["max_distance_m"] == 2.0
+    assert {k: v for k, v in scenario.items() if k not in ("sessions", "max_distance_m")} == {
+        k: v for k, v in quick.items() if k not in ("sessions", "max_distance_m")}
