@@ -403,7 +403,7 @@ def orbvoc(as_json: bool) -> None:
 
 
 @cli.command()
-@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion", "executor"]))
+@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion", "executor", "multisession"]))
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
@@ -414,7 +414,8 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
     factor, and per track a paper episode cut short: time per stage and pipeline, peak memory),
     the LiDAR (lidar) or the locomotion track at 640x480 (locomotion: latency per prediction,
     TSDF and rendering fps) or the executors (executor: episodes per second of the stairs paper
-    suite on the pool at 1 and 2 workers and on a local Ray at 2, Ray's overhead per episode)."""
+    suite on the pool at 1 and 2 workers and on a local Ray at 2, Ray's overhead per episode) or
+    the multisession merge (multisession: peak memory merging two and ten sessions, and the ratio)."""
     from exobench.core.errors import ConfigError
 
     from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
@@ -450,6 +451,10 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
         from .bench import bench_locomotion
 
         result = bench_locomotion(seed=seed)
+    elif what == "multisession":
+        from .bench.multisession import bench_multisession
+
+        result = bench_multisession(seed=seed)
     elif what == "executor":
         from .bench.executor import SUITES, bench_executor
         from .ray_executor import executor_from_options
@@ -476,7 +481,7 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
     if as_json:
         click.echo(json.dumps(json_safe(result), indent=2))
         return
-    if what in ("lidar", "locomotion", "sim", "executor"):  # one figure per line: exobench.static.ms_per_sweep ...
+    if what in ("lidar", "locomotion", "sim", "executor", "multisession"):  # one figure per line: exobench.static.ms_per_sweep ...
         result = _flat(result)
     w = max(28, *(len(k) + 1 for k in result))
     for key, value in json_safe(result).items():

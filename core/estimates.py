@@ -218,9 +218,12 @@ class MultiSessionEstimate:
             session against the main map updated by the sessions before it.
         removed_points / added_points: per change pair, the points found removed (prior points
             where the session saw free space) and added (map frame, m), (N, 3) each.
-        static_points: per change pair, the points of the updated map not flagged (m).
+        static_masks: per change pair, (N,) bool over ``map_points_no_change_detection``: the
+            points of the updated map not flagged (a mask, not the points: the updated map of
+            the k-th run holds k sessions, so copies would grow with the square of the sessions).
         merged_map_points: the final map after change detection (eq. 3), (N, 3) m.
-        map_points_no_change_detection: every session's points at the merged poses, unfiltered.
+        map_points_no_change_detection: every session's points of the main map at the merged
+            poses, unfiltered, session after session.
         map_points_single_session: the last session of the main map alone, at its merged poses.
         merge_time_s: place recognition, merging and change detection, s (wall time).
         peak_memory_mb: the pipeline's peak traced allocations while merging, MB.
@@ -238,7 +241,7 @@ class MultiSessionEstimate:
     change_pairs: tuple[tuple[int, int], ...] = ()
     removed_points: tuple[np.ndarray, ...] = ()
     added_points: tuple[np.ndarray, ...] = ()
-    static_points: tuple[np.ndarray, ...] = ()
+    static_masks: tuple[np.ndarray, ...] = ()
     merged_map_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     map_points_no_change_detection: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     map_points_single_session: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))

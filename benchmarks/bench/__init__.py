@@ -7,7 +7,9 @@
 - :mod:`.locomotion`: :func:`bench_locomotion` (rendering, TSDF, pipeline latency at 640x480);
 - :mod:`.sim`: :func:`~.sim.bench_sim_tracks` (per track, a paper episode's time per stage and
   pipeline, and its peak memory; part of `bench sim`) and :func:`~.sim.bench_episode_alone`
-  (one paper case whole: its wall time and peak memory; `bench sim --track T --case NAME`).
+  (one paper case whole: its wall time and peak memory; `bench sim --track T --case NAME`);
+- :mod:`.multisession`: :func:`~.multisession.bench_multisession` (LT-Exosense's peak memory
+  merging two and ten sessions of one office, and the ratio; `bench multisession`).
 """
 
 from .lidar import bench_lidar

@@ -31,14 +31,15 @@ the prior's free space are added; the updated map is assembled the same way.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from exobench.core.errors import ConfigError, check_int, check_range
 
-__all__ = ["CHANGE_KINDS", "ChangeConfig", "ChangeResult", "DufomapConfig", "OctreeConfig", "Scan",
+__all__ = ["CHANGE_KINDS", "ChangeClassifier", "ChangeConfig", "ChangeResult", "DufomapConfig", "OctreeConfig", "Scan",
+           "ScanSource", "change_classifier", "load_stage",
            "VoxelChanges", "detect_changes", "dufomap_changes", "octree_changes", "update_map", "updated_scans",
            "voxel_changes", "voxel_keys"]
 
@@ -263,51 +264,136 @@ def _states(tree, keys: np.ndarray, resolution_m: float) -> np.ndarray:
     return tree.getLabels((keys.astype(float) + 0.5) * resolution_m)
 
 
+class _Hits:
+    """The occupied voxels (unique keys) of scans seen one at a time: as many as the area has
+    voxels, however many scans (sessions) fill them."""
+
+    def __init__(self, resolution_m: float) -> None:
+        self.resolution_m = resolution_m
+        self._packed = np.zeros(0, dtype=np.int64)
+
+    def add(self, scan: Scan) -> Scan:
+        self._packed = np.union1d(self._packed, _pack(voxel_keys(scan.points_m, self.resolution_m)))
+        return scan
+
+    @property
+    def keys(self) -> np.ndarray:
+        return _unpack(self._packed)
+
+
+ScanSource = Callable[[], Iterable[Scan]]
+"""Scans to be read one at a time, as often as asked (a prior map kept on disk)."""
+
+
+def _source(scans: ScanSource | Sequence[Scan]) -> ScanSource:
+    return scans if callable(scans) else (lambda: iter(scans))
+
+
+class ChangeClassifier:
+    """One change detection run (a prior map against the current session) as tests on points:
+    :meth:`removed` on prior points, :meth:`added` on current points. Built by
+    :func:`change_classifier` from the prior's scans read one at a time, so that what it holds
+    (octrees or DUFOMaps, voxel sets) grows with the area mapped, not with the sessions that
+    mapped it; the prior's points are then classified a scan at a time as well."""
+
+    def __init__(self, removed: Callable[[np.ndarray], np.ndarray], added: Callable[[np.ndarray], np.ndarray],
+                 voxels: VoxelChanges | None = None) -> None:
+        self._removed, self._added, self.voxels = removed, added, voxels
+
+    def removed(self, prior_points: np.ndarray) -> np.ndarray:
+        """(n,) bool: which prior points the current session found removed."""
+        pts = np.asarray(prior_points, dtype=float).reshape(-1, 3)
+        return self._removed(pts) if len(pts) else np.zeros(0, dtype=bool)
+
+    def added(self, current_points: np.ndarray) -> np.ndarray:
+        """(n,) bool: which current points are added to the prior."""
+        pts = np.asarray(current_points, dtype=float).reshape(-1, 3)
+        return self._added(pts) if len(pts) else np.zeros(0, dtype=bool)
+
+
+def _octree_classifier(prior: ScanSource, current: Sequence[Scan], cfg: OctreeConfig) -> ChangeClassifier:
+    res = cfg.resolution_m
+    hits_p, hits_c = _Hits(res), _Hits(res)
+    tree_p = _octree((hits_p.add(s) for s in prior()), cfg)
+    tree_c = _octree((hits_c.add(s) for s in current), cfg)
+    keys_p, keys_c = hits_p.keys, hits_c.keys
+    keys = _rows(np.concatenate([keys_p, keys_c]))
+    voxels = voxel_changes(keys, _states(tree_p, keys, res), _states(tree_c, keys, res), keys_p, keys_c,
+                           cfg.hit_guard_voxels)
+    del tree_p, tree_c
+    return ChangeClassifier(lambda p: _isin(voxel_keys(p, res), voxels.removed),
+                            lambda p: _isin(voxel_keys(p, res), voxels.added), voxels)
+
+
 def octree_changes(prior: Sequence[Scan], current: Sequence[Scan], config: OctreeConfig | None = None) -> ChangeResult:
     """Octree differencing of the prior map and the current session (module docstring)."""
-    cfg = config or OctreeConfig()
-    res = cfg.resolution_m
+    return _result(_octree_classifier(_source(prior), current, config or OctreeConfig()), prior, current)
+
+
+def _result(clf: ChangeClassifier, prior: Sequence[Scan], current: Sequence[Scan]) -> ChangeResult:
     pts_p = np.concatenate([s.points_m for s in prior] or [np.zeros((0, 3))])
     pts_c = np.concatenate([s.points_m for s in current] or [np.zeros((0, 3))])
-    keys_p, keys_c = voxel_keys(pts_p, res), voxel_keys(pts_c, res)
-    keys = _rows(np.concatenate([keys_p, keys_c]))
-    voxels = voxel_changes(keys, _states(_octree(prior, cfg), keys, res), _states(_octree(current, cfg), keys, res),
-                           keys_p, keys_c, cfg.hit_guard_voxels)
-    gone = _isin(keys_p, voxels.removed)
-    return ChangeResult(pts_p[gone], pts_c[_isin(keys_c, voxels.added)], np.concatenate([pts_p[~gone], pts_c]),
-                        ~gone, voxels)
+    gone = clf.removed(pts_p)
+    return ChangeResult(pts_p[gone], pts_c[clf.added(pts_c)], np.concatenate([pts_p[~gone], pts_c]), ~gone,
+                        clf.voxels)
 
 
-def _dufomap_dynamic(built_from: Sequence[Scan], labelled: np.ndarray, cfg: DufomapConfig) -> np.ndarray:
-    # DUFOMap logs its settings through glog at INFO on every construction; library code does
-    # not print, so glog is told to keep to errors unless the user set its level
-    os.environ.setdefault("GLOG_minloglevel", "2")
+def load_stage(kind: str) -> None:
+    """Import the C++ extension of stage ``kind`` (otherwise loaded when the stage first runs):
+    a caller that measures the stage's memory imports it first."""
+    if kind == "octree":
+        import pyoctomap  # noqa: F401
+    else:
+        # DUFOMap logs its settings through glog at INFO on every construction; library code
+        # does not print, so glog is told to keep to errors unless the user set its level
+        os.environ.setdefault("GLOG_minloglevel", "2")
+        import dufomap  # noqa: F401
+
+
+def _dufomap(built_from: Iterable[Scan], cfg: DufomapConfig):  # -> dufomap.dufomap
+    load_stage("dufomap")
     from dufomap import dufomap  # C++ extension, loaded only when the stage runs
 
-    if not len(labelled):
-        return np.zeros(0, dtype=bool)
     dufo = dufomap(cfg.resolution_m, cfg.inflate_hits_m, cfg.inflate_unknown, num_threads=cfg.num_threads)
     for scan in built_from:
         if len(scan.points_m):
             pose = np.eye(4)
             pose[:3, 3] = scan.origin_m
             dufo.run(scan.points_m, pose, cloud_transform=False)
-    # the pose only places the cloud when cloud_transform is set; the points are in the map frame
-    return dufo.segment(labelled, np.eye(4), cloud_transform=False).astype(bool)
+    return dufo
+
+
+def _dynamic(dufo, guard: np.ndarray | None, resolution_m: float, points: np.ndarray) -> np.ndarray:
+    # the pose only places the cloud when cloud_transform is set; the points are in the map frame;
+    # each point is labelled from the map alone, so a cloud may be labelled in parts
+    out = dufo.segment(points, np.eye(4), cloud_transform=False).astype(bool)
+    return out if guard is None else out & ~_isin(voxel_keys(points, resolution_m), guard)
+
+
+def _dufomap_classifier(prior: ScanSource, current: Sequence[Scan], cfg: DufomapConfig) -> ChangeClassifier:
+    res = cfg.resolution_m
+    hits_p, hits_c = _Hits(res), _Hits(res)
+    from_prior = _dufomap((hits_p.add(s) for s in prior()), cfg)
+    from_current = _dufomap((hits_c.add(s) for s in current), cfg)
+    g = cfg.hit_guard_voxels
+    near_c = _dilate(hits_c.keys, g) if g > 0 else None
+    near_p = _dilate(hits_p.keys, g) if g > 0 else None
+    return ChangeClassifier(lambda p: _dynamic(from_current, near_c, res, p), lambda p: _dynamic(from_prior, near_p, res, p))
 
 
 def dufomap_changes(prior: Sequence[Scan], current: Sequence[Scan], config: DufomapConfig | None = None) -> ChangeResult:
     """DUFOMap as the change stage (module docstring)."""
-    cfg = config or DufomapConfig()
-    pts_p = np.concatenate([s.points_m for s in prior] or [np.zeros((0, 3))])
-    pts_c = np.concatenate([s.points_m for s in current] or [np.zeros((0, 3))])
-    gone = _dufomap_dynamic(current, pts_p, cfg)
-    new = _dufomap_dynamic(prior, pts_c, cfg)
-    if cfg.hit_guard_voxels > 0:
-        keys_p, keys_c = voxel_keys(pts_p, cfg.resolution_m), voxel_keys(pts_c, cfg.resolution_m)
-        gone &= ~_isin(keys_p, _dilate(_rows(keys_c), cfg.hit_guard_voxels))
-        new &= ~_isin(keys_c, _dilate(_rows(keys_p), cfg.hit_guard_voxels))
-    return ChangeResult(pts_p[gone], pts_c[new], np.concatenate([pts_p[~gone], pts_c]), ~gone)
+    return _result(_dufomap_classifier(_source(prior), current, config or DufomapConfig()), prior, current)
+
+
+def change_classifier(prior: ScanSource | Sequence[Scan], current: Sequence[Scan],
+                      config: ChangeConfig | None = None) -> ChangeClassifier:
+    """The stage ``config.kind`` as a :class:`ChangeClassifier`; ``prior`` may be a callable
+    that yields its scans afresh on each call (read from disk), read once here."""
+    cfg = config or ChangeConfig()
+    if cfg.kind == "octree":
+        return _octree_classifier(_source(prior), current, cfg.octree)
+    return _dufomap_classifier(_source(prior), current, cfg.dufomap)
 
 
 def updated_scans(prior: Sequence[Scan], current: Sequence[Scan], result: ChangeResult) -> list[Scan]:

@@ -28,19 +28,27 @@ At the end (``finalize``, offline as the paper merges):
 3. **Merge**: :func:`~.merge.merge_sessions`, session 0 anchors; a session no edge joins to it
    stays its own map (``separate_sessions``).
 4. **Changes**: the sessions of the main map in order, each against the map updated by those
-   before it (:func:`~.change.detect_changes`, ``change.kind`` octree or dufomap; eq. 2-3).
+   before it (:func:`~.change.change_classifier`, ``change.kind`` octree or dufomap; eq. 2-3).
+   The map stays on disk as the paper keeps it: the current session's clouds are read from the
+   store, the prior's a keyframe at a time, into octrees (or DUFOMaps) and voxel sets as large
+   as the area, not as the number of sessions; in memory only a flag per point (still in the
+   map or not) and the points found changed. The detected static points of each run are given
+   as a mask over every session's points (``static_masks``).
 
 ``merge_time_s`` is the wall time of 1-4, ``peak_memory_mb`` the peak of the allocations traced
-by :mod:`tracemalloc` during them (NumPy's and Python's; OpenCV's and OctoMap's own heaps are not
-traced).
+by :mod:`tracemalloc` during them, above what was traced when they began (NumPy's and Python's;
+OpenCV's and OctoMap's own heaps are not traced); the modules the merge loads are imported
+before (`exobench bench multisession` measures two against ten sessions).
 """
 
 from __future__ import annotations
 
 import bisect
+import importlib
 import math
 import time
 import tracemalloc
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
@@ -55,7 +63,7 @@ from exobench.core.frames import Frame, OdometrySample, PlaceLabel, RgbdFrame, S
 from exobench.core.limits import absurd_depth, max_depth_m, odometry_absurd
 from exobench.core.pipeline import check_frame
 
-from .change import ChangeConfig, Scan, detect_changes, updated_scans
+from .change import ChangeConfig, Scan, change_classifier, load_stage
 from .keyframes import KeyframeStore
 from .matching import MatchConfig, PlaceMatcher
 from .merge import MergeConfig, PoseEdge, SessionGraph, merge_sessions
@@ -276,15 +284,21 @@ class LtExosense:
     # --- merging --------------------------------------------------------------------------------
     def finalize(self) -> MultiSessionEstimate:
         if self._result is None:
+            # modules the merge would import: an import's memory stays traced for the rest of
+            # the process and went to whichever pipeline merged first (on the quick case
+            # lt-exosense's 129 MB against DUFOMap's 62, 87 MB of it scikit-learn's import)
+            importlib.import_module("sklearn.cluster")
+            load_stage(self.config.change.kind)
             tracing = tracemalloc.is_tracing()
             if not tracing:
                 tracemalloc.start()
             tracemalloc.reset_peak()
+            base = tracemalloc.get_traced_memory()[0]  # a caller's own tracing: its memory is not ours
             t0 = time.perf_counter()
             try:
                 self._result = self._merge(t0)
             finally:
-                peak = tracemalloc.get_traced_memory()[1]
+                peak = tracemalloc.get_traced_memory()[1] - base
                 if not tracing:
                     tracemalloc.stop()
             self._result = _with(self._result, merge_time_s=time.perf_counter() - t0, peak_memory_mb=peak / 2**20)
@@ -306,29 +320,60 @@ class LtExosense:
         T_map = tuple(np.stack([merged.maps[map_of[s.session]].T_m_b[(s.session, k)] for k in range(len(s.poses))])
                       for s in sessions)  # fmt: skip
         main = [i for i, s in enumerate(sessions) if map_of[s.session] == 0]
-        scans = [self._scans(sessions[i], T_map[i]) for i in main]
-        pairs, removed, added, static = [], [], [], []
-        prior = list(scans[0])
-        for k in range(1, len(main)):
-            res = detect_changes(prior, scans[k], self.config.change)
-            pairs.append((sessions[main[k - 1]].session, sessions[main[k]].session))
-            removed.append(res.removed_points)
-            added.append(res.added_points)
-            flagged = np.concatenate([res.removed_points, res.added_points])
-            static.append(_without(res.updated_points, res.added_points) if len(flagged) else res.updated_points)
-            prior = updated_scans(prior, scans[k], res)
+        ch = self._changes([sessions[i] for i in main], [T_map[i] for i in main])
         stats["time_place_recognition_s"] = stats.pop("_t_pr", float("nan"))
         stats["vocabulary_words"] = stats.get("vocabulary_words", 0)
         return MultiSessionEstimate(
             sessions=tuple(s.session for s in sessions), days=tuple(s.day for s in sessions),
             keyframe_stamps_s=tuple(np.asarray(s.stamps) for s in sessions), T_map_cam=T_map,
             map_of_session=tuple(map_of[s.session] for s in sessions), separate_sessions=tuple(merged.separate_sessions),
-            inter_edges=tuple((e.a[0], e.a[1], e.b[0], e.b[1]) for e in edges), change_pairs=tuple(pairs),
-            removed_points=tuple(removed), added_points=tuple(added), static_points=tuple(static),
-            merged_map_points=_points(prior),
-            map_points_no_change_detection=np.concatenate([_points(sc) for sc in scans]),
-            map_points_single_session=_points(scans[-1]), stats=stats, counts=counts,
+            inter_edges=tuple((e.a[0], e.a[1], e.b[0], e.b[1]) for e in edges), stats=stats, counts=counts, **ch,
         )  # fmt: skip
+
+    def _changes(self, sessions: list[_Session], T_map: list[np.ndarray]) -> dict[str, Any]:
+        """Change detection of each session against the map updated by those before it (eq. 2-3),
+        with the map on disk: a session's clouds are read from the store when it is the current
+        one, the prior's a keyframe at a time (:func:`~.change.change_classifier`); in memory
+        only which of every session's points are still in the map (a flag a point) and the
+        points found changed. The map's points are read back once, at the end, for the outputs."""
+        alive: list[np.ndarray] = []  # per session, its points (keyframe after keyframe) still in the map
+        sizes: list[np.ndarray] = []  # per session, the points of each keyframe
+        pairs, removed, added, static = [], [], [], []
+
+        def prior() -> Iterator[Scan]:
+            for i in range(len(alive)):
+                bounds = np.concatenate([[0], np.cumsum(sizes[i])])
+                for k, scan in enumerate(self._scans(sessions[i], T_map[i])):
+                    yield Scan(scan.points_m[alive[i][bounds[k]:bounds[k + 1]]], scan.origin_m)
+
+        for i, s in enumerate(sessions):
+            current = list(self._scans(s, T_map[i]))
+            sizes.append(np.array([len(c.points_m) for c in current], dtype=int))
+            if i:
+                clf = change_classifier(prior, current, self.config.change)
+                gone = []
+                for j in range(i):  # the prior's points a keyframe at a time, as prior() yields them
+                    bounds = np.concatenate([[0], np.cumsum(sizes[j])])
+                    for k, scan in enumerate(self._scans(sessions[j], T_map[j])):
+                        flags = alive[j][bounds[k]:bounds[k + 1]]
+                        pts = scan.points_m[flags]
+                        out = clf.removed(pts)
+                        gone.append(pts[out])
+                        flags[np.flatnonzero(flags)[out]] = False
+                pts_c = _points(current)
+                new = clf.added(pts_c)
+                pairs.append((sessions[i - 1].session, s.session))
+                removed.append(np.concatenate([np.zeros((0, 3)), *gone]))
+                added.append(pts_c[new])
+                static.append([*(a.copy() for a in alive), ~new])
+            alive.append(np.ones(int(sizes[-1].sum()), dtype=bool))
+            del current
+        every = np.concatenate([_points(list(self._scans(s, T))) for s, T in zip(sessions, T_map)])
+        n = [int(z.sum()) for z in sizes]
+        masks = tuple(np.concatenate([*m, *(np.zeros(k, dtype=bool) for k in n[len(m):])]) for m in static)
+        return {"change_pairs": tuple(pairs), "removed_points": tuple(removed), "added_points": tuple(added),
+                "static_masks": masks, "merged_map_points": every[np.concatenate(alive)],
+                "map_points_no_change_detection": every, "map_points_single_session": every[len(every) - n[-1]:]}
 
     def _inter_edges(self, sessions: list[_Session], stats: dict[str, Any]) -> list[PoseEdge]:
         t0 = time.perf_counter()
@@ -364,14 +409,13 @@ class LtExosense:
         stats["n_inter_edges"] = len(edges)
         return edges
 
-    def _scans(self, s: _Session, T_map: np.ndarray) -> list[Scan]:
+    def _scans(self, s: _Session, T_map: np.ndarray) -> Iterator[Scan]:
+        """The session's keyframe clouds at their merged poses, read from the store one by one."""
         assert self._store is not None
-        out = []
         for k in range(len(s.poses)):
             p = self._store.get((s.session, k), "cloud").astype(float)
             T = T_map[k]
-            out.append(Scan(p @ T[:3, :3].T + T[:3, 3], T[:3, 3].copy()))
-        return out
+            yield Scan(p @ T[:3, :3].T + T[:3, 3], T[:3, 3].copy())
 
 
 @dataclass
@@ -391,15 +435,6 @@ class LtExosenseDufomap(LtExosense):
 
 def _points(scans: list[Scan]) -> np.ndarray:
     return np.concatenate([s.points_m for s in scans]) if scans else np.zeros((0, 3))
-
-
-def _without(points: np.ndarray, flagged: np.ndarray) -> np.ndarray:
-    """``points`` less the rows equal to a row of ``flagged`` (the added points are a subset)."""
-    if not len(flagged):
-        return points
-    a = np.ascontiguousarray(points).view([("", points.dtype)] * 3).ravel()
-    b = np.ascontiguousarray(flagged.astype(points.dtype)).view([("", points.dtype)] * 3).ravel()
-    return points[~np.isin(a, b)]
 
 
 def _with(est: MultiSessionEstimate, **values: Any) -> MultiSessionEstimate:

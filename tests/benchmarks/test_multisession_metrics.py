@@ -41,6 +41,16 @@ def test_confusion_over_changed_areas_and_whole_map():
     assert (w.tp, w.fp, w.fn, w.tn) == (2, 2, 1, 2)
 
 
+def test_a_point_goes_to_its_nearest_sample_when_changed_and_static_ones_are_both_near():
+    # a box's foot: changed samples on its face at x = 0, the floor static from x = 0.03 on;
+    # detected static 0.035 (floor, 3.5 cm from the face, 0.5 cm from the floor) is a true
+    # negative, 0.01 (on the face) a false negative; detected changed 0.045 (on the floor) a false
+    # positive, 0.005 a true positive; a tie (0.015: 1.5 cm from both) goes to the change
+    changed, static = _x(0.0), _x(0.03, 0.04, 0.05)
+    c = change_confusion(_x(0.005, 0.045, 0.015), _x(0.01, 0.035), changed, static)
+    assert (c.tp, c.fp, c.fn, c.tn) == (2, 1, 1, 1)
+
+
 def test_precision_recall_f1_by_hand():
     assert change_precision(*ARGS) == pytest.approx(2 / 3)
     assert change_recall(*ARGS) == pytest.approx(2 / 3)

@@ -102,11 +102,12 @@ def test_scorer_against_an_independent_computation():
     poses1[:, 1, 3] += 0.03  # session 1 merged 3 cm off in y
     map_pts = _plane(0.02, 21)  # 2 cm above the floor
     added = box[::2]  # half of the box's samples found added ...
-    static = np.concatenate([map_pts, box[1::2][:5]])  # ... five of the others left static
+    every = np.concatenate([map_pts, box[1::2][:5], added])  # ... five of the others left static
+    static = np.arange(len(every)) < len(map_pts) + 5
     est = MultiSessionEstimate(
         sessions=(0, 1), days=(0, 1), keyframe_stamps_s=(t[k], t[k] + 10.0), T_map_cam=(poses, poses1),
         map_of_session=(0, 0), change_pairs=((0, 1),), removed_points=(np.zeros((0, 3)),), added_points=(added,),
-        static_points=(static,), merged_map_points=map_pts, map_points_no_change_detection=_plane(0.05, 21),
+        static_masks=(static,), merged_map_points=map_pts, map_points_no_change_detection=every,
         map_points_single_session=_plane(0.01, 21), merge_time_s=1.5, peak_memory_mb=12.0,
     )  # fmt: skip
     m = MultisessionTrack().score(ep, est)
@@ -116,7 +117,8 @@ def test_scorer_against_an_independent_computation():
     assert m["rpe_1m_m"] == pytest.approx(0.0, abs=1e-9)  # the offset is the same for every keyframe of a session
     assert m["map_error_mean_m"] == pytest.approx(0.02)
     assert m["map_error_max_m"] == pytest.approx(0.02)
-    assert m["map_error_mean_m_no_change_detection"] == pytest.approx(0.05)
+    # every point straight above the floor's samples: its error is its height
+    assert m["map_error_mean_m_no_change_detection"] == pytest.approx(np.mean(every[:, 2]))
     assert m["map_error_mean_m_single_session"] == pytest.approx(0.01)
     # every added point is on the box (TP); the five static box points are FN
     tp, fn = len(added), 5 + 1  # and the map point at (1, 1, 0.02), within 5 cm of the box's foot
@@ -130,10 +132,60 @@ def test_scorer_against_an_independent_computation():
     assert m["n_separate_sessions"] == 0 and m["n_change_runs"] == 1
     # session 1 overlapping nothing: its own map, reported, out of the ATE
     apart = dataclasses.replace(est, map_of_session=(0, 1), separate_sessions=(1,), change_pairs=(), removed_points=(),
-                                added_points=(), static_points=())  # fmt: skip
+                                added_points=(), static_masks=())  # fmt: skip
     m = MultisessionTrack().score(ep, apart)
     assert m["n_separate_sessions"] == 1 and m["separate_sessions"] == [1]
     assert m["ate_m"] == pytest.approx(0.0, abs=1e-12) and m["n_change_runs"] == 0 and np.isnan(m["change_precision"])
+
+
+def test_change_truth_flags_the_samples_on_the_changed_object_and_not_the_floor_it_covers():
+    """The quick case's stack of boxes (day 1): its faces are on the object; the floor under its
+    footprint disappeared (covered) and is flagged off the object."""
+    from exobench.benchmarks.tracks.multisession.episodes import on_objects, session_scenario
+    from exobench.envs.sim.scenarios.office import _change_script
+    from exobench.models.office_change_truth import change_truth
+
+    track = MultisessionTrack()
+    scenario = track.validate_scenario(track.cases("quick")[0].scenario)
+    office = session_scenario(scenario, parse_sessions(scenario["sessions"])[-1])
+    params = office.office_params()
+    day = change_truth(params, _change_script(params, office.changes, office.change_seed, 1), 1).days[0]
+    (oid, _, kind), = [(o.object_id, o.cls, o.kind) for o in day.objects]
+    assert kind == "added"
+    app, dis = on_objects(day.appeared_geoms, day.objects), on_objects(day.disappeared_geoms, day.objects)
+    assert app.all() and len(app) > 1000  # every appeared sample is on the boxes' faces
+    assert len(dis) > 100 and not dis.any()  # every disappeared one is covered floor ...
+    assert np.allclose(day.disappeared[:, 2], 0.0)
+    lo, hi = day.appeared.min(axis=0), day.appeared.max(axis=0)  # ... inside the boxes' footprint
+    assert np.all((day.disappeared[:, :2] >= lo[:2] - 1e-9) & (day.disappeared[:, :2] <= hi[:2] + 1e-9))
+    assert on_objects(("floor_corridor_n", f"{oid}_box0", f"{oid}x_box0"), day.objects).tolist() == [False, True, False]
+
+
+def test_a_covered_floor_is_no_missed_change():
+    """A box put down on day 1 covers floor the prior map holds: those prior points are kept
+    (nothing can see under the box) and are truly static, not missed changes."""
+    floor = _plane(0.0)
+    box = np.array([[1.0, 1.0 + y, z] for y in np.arange(-0.1, 0.11, 0.01) for z in np.arange(0.01, 0.3, 0.01)])
+    under = floor[(np.abs(floor[:, 0] - 1.0) <= 0.05) & (np.abs(floor[:, 1] - 1.0) <= 0.1)]
+    changes = {1: {"appeared": box, "disappeared": under, "appeared_on_object": np.ones(len(box), bool),
+                   "disappeared_on_object": np.zeros(len(under), bool), "objects": []}}  # fmt: skip
+    t = np.arange(0.0, 1.01, 0.1)
+    rows = np.column_stack([t, t, np.zeros_like(t), np.ones_like(t), np.tile([1.0, 0, 0, 0], (len(t), 1))])
+    extra = {"sessions": ({"session": 0, "day": 0, "camera_w": rows}, {"session": 1, "day": 1, "camera_w": rows}),
+             "changes": changes, "surface_last_day": np.concatenate([floor, box]),
+             "surfaces_by_day": {0: floor, 1: np.concatenate([floor, box])}}  # fmt: skip
+    poses = np.tile(np.eye(4), (len(t), 1, 1))
+    est = MultiSessionEstimate(
+        sessions=(0, 1), days=(0, 1), keyframe_stamps_s=(t, t), T_map_cam=(poses, poses), map_of_session=(0, 0),
+        change_pairs=((0, 1),), removed_points=(np.zeros((0, 3)),), added_points=(box[::2],),
+        static_masks=(np.arange(len(under) + len(box[::2]) + 10) < len(under) + 10,), merged_map_points=floor,
+        map_points_no_change_detection=np.concatenate([under, box[1::2][:10], box[::2]]), map_points_single_session=floor,
+    )  # fmt: skip
+    m = MultisessionTrack().score(_episode((), extra), est)
+    # TP: the added half of the box; FN: the ten box points left static, not the floor under it
+    tp = len(box[::2])
+    assert m["change_recall"] == pytest.approx(tp / (tp + 10))
+    assert m["change_precision"] == pytest.approx(1.0)
 
 
 def test_counters_restart_at_a_session_start_counts_no_drop_over_the_gap():
@@ -186,3 +238,17 @@ def test_invalid_change_script_is_refused_before_anything_runs(tmp_path):
     assert result.exit_code == 2
     assert "day 1" in result.output and "nosuchthing" in result.output
     assert not (tmp_path / "run" / "results.jsonl").exists()
+
+
+def test_bench_multisession_scenario_is_the_quick_office_walked_ten_times():
+    from exobench.benchmarks.bench.multisession import bench_scenario
+
+    track = MultisessionTrack()
+    quick = track.validate_scenario(track.cases("quick")[0].scenario)
+    scenario = track.validate_scenario(bench_scenario(10, 2.0))  # refused if the bench's rows were not the track's
+    plans = parse_sessions(scenario["sessions"])
+    assert [p.day for p in plans] == [0] + [1] * 9
+    assert {p.regions for p in plans} == {parse_sessions(quick["sessions"])[0].regions}
+    assert scenario["max_distance_m"] == 2.0
+    assert {k: v for k, v in scenario.items() if k not in ("sessions", "max_distance_m")} == {
+        k: v for k, v in quick.items() if k not in ("sessions", "max_distance_m")}

@@ -23,7 +23,9 @@ so memory stays that of one session. Every session's odometry starts in a frame 
 Truth (``EpisodeTruth.extra``), kept compactly: ``sessions``, one dict per session (``session``,
 ``day``, ``camera_w``: (N, 8) rows ``[t, x, y, z, qw, qx, qy, qz]`` of the true optical-frame
 pose at each camera frame, stamps as streamed, and ``T_world_odom``); ``changes``: per day
-1..last the change truth's appeared and disappeared samples (1 cm) and changed objects;
+1..last the change truth's appeared and disappeared samples (1 cm), changed objects, and per
+sample whether it lies on a changed object (``appeared_on_object``, ``disappeared_on_object``;
+the others are static surfaces the object covered or uncovered: the floor under a box);
 ``surface_last_day``: the true surfaces of the last day at :data:`SURFACE_SPACING_M` around the
 walks (Table III). ``T_world_estimator`` is session 0's odometry frame: the merged map's frame.
 """
@@ -31,7 +33,7 @@ walks (Table III). ``T_world_estimator`` is session 0's odometry frame: the merg
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from functools import lru_cache
 from typing import Any
 
@@ -215,6 +217,13 @@ def _labels(scenario: Mapping[str, Any], office: Any, T_cam: np.ndarray, seed: i
     return [f.label for f in given]  # type: ignore[union-attr]
 
 
+def on_objects(geoms: Sequence[str], objects: Sequence[Any]) -> np.ndarray:
+    """Whether each change sample lies on one of the changed objects (its geoms are
+    ``<object id>_<part>``), not on a static surface whose exposure the object changed."""
+    prefixes = tuple(f"{o.object_id}_" for o in objects)
+    return np.array([bool(prefixes) and g.startswith(prefixes) for g in geoms], dtype=bool)
+
+
 def world_truth(scenario: Mapping[str, Any], sessions: tuple[dict[str, Any], ...]) -> dict[str, Any]:
     """Change truth of every day after the first session's and the last day's true surfaces
     around the walks."""
@@ -230,6 +239,8 @@ def world_truth(scenario: Mapping[str, Any], sessions: tuple[dict[str, Any], ...
     if script is not None:
         for d in change_truth(params, script, last_day).days:
             changes[d.day] = {"appeared": d.appeared, "disappeared": d.disappeared,
+                              "appeared_on_object": on_objects(d.appeared_geoms, d.objects),
+                              "disappeared_on_object": on_objects(d.disappeared_geoms, d.objects),
                               "objects": [(o.object_id, o.cls, o.kind) for o in d.objects]}  # fmt: skip
     pos = np.concatenate([s["camera_w"][:, 1:4] for s in sessions]) if sessions else np.zeros((1, 3))
     region = np.array([pos.min(axis=0) - SURFACE_MARGIN_M, pos.max(axis=0) + SURFACE_MARGIN_M])

@@ -8,8 +8,9 @@ against the episode's truth (:mod:`.episodes`), with the point-set metrics of :m
   keyframe at least 1 m further) of the error of the second's position seen from the first.
 - Changes (Table II): each change run (a session against the map updated by those before it)
   whose days differ is scored against the truth of the days between (the appeared and
-  disappeared samples of days ``d_prior + 1 .. d``); detected changed = removed and added points,
-  detected static = the rest of the updated map; true static = the surfaces of both days; the
+  disappeared samples of days ``d_prior + 1 .. d`` on the changed objects, :func:`true_changes`;
+  each point associated with its nearest true sample, :mod:`.metrics`); detected changed = removed and added points,
+  detected static = the rest of the updated map (``static_masks``); true static = the surfaces of both days; the
   point counts are summed over the runs, Chamfer is the mean over runs of the Chamfer distance
   between the detected changes and the true changed samples that the sessions observed (a map
   point within 5 cm; the paper annotated changes in its recordings).
@@ -151,9 +152,19 @@ def score_multisession(episode: Episode, est: MultiSessionEstimate) -> dict[str,
 
 
 def true_changes(truth: dict[str, Any], day_prior: int, day: int) -> np.ndarray:
-    """The appeared and disappeared samples of days ``day_prior + 1 .. day`` (world, m)."""
-    parts = [np.concatenate([truth["changes"][d]["appeared"], truth["changes"][d]["disappeared"]])
-             for d in range(day_prior + 1, day + 1) if d in truth["changes"]]  # fmt: skip
+    """The appeared and disappeared samples of days ``day_prior + 1 .. day`` on the changed
+    objects (world, m): object-level change, as the paper annotated it. A static surface that an
+    object covered or uncovered (the floor under a box put down) keeps its occupancy on both days
+    and no camera of the later session sees it: it is no change (truth recorded before the
+    ``*_on_object`` flags: every sample)."""
+    parts = []
+    for d in range(day_prior + 1, day + 1):
+        if d not in truth["changes"]:
+            continue
+        for kind in ("appeared", "disappeared"):
+            pts = np.asarray(truth["changes"][d][kind], dtype=float).reshape(-1, 3)
+            on = truth["changes"][d].get(f"{kind}_on_object")
+            parts.append(pts if on is None else pts[np.asarray(on, dtype=bool).reshape(-1)])
     return np.concatenate(parts) if parts else np.zeros((0, 3))
 
 
@@ -163,9 +174,14 @@ def change_metrics(episode: Episode, est: MultiSessionEstimate, T_we: np.ndarray
     day_of = dict(zip(est.sessions, est.days))
     area, whole = ChangeConfusion(0, 0, 0, 0), ChangeConfusion(0, 0, 0, 0)
     chamfers, runs = [], 0
-    if not (len(est.change_pairs) == len(est.removed_points) == len(est.added_points) == len(est.static_points)):
-        raise ValueError("change_pairs, removed_points, added_points and static_points differ in length")
-    for (a, b), rem, add, stat in zip(est.change_pairs, est.removed_points, est.added_points, est.static_points):
+    if not (len(est.change_pairs) == len(est.removed_points) == len(est.added_points) == len(est.static_masks)):
+        raise ValueError("change_pairs, removed_points, added_points and static_masks differ in length")
+    every = np.asarray(est.map_points_no_change_detection, dtype=float).reshape(-1, 3)
+    for (a, b), rem, add, mask in zip(est.change_pairs, est.removed_points, est.added_points, est.static_masks):
+        mask = np.asarray(mask, dtype=bool).reshape(-1)
+        if mask.shape != (len(every),):
+            raise ValueError(f"static mask of {mask.shape[0]} flags for {len(every)} map points")
+        stat = every[mask]
         da, db = day_of.get(a, -1), day_of.get(b, -1)
         if da < 0 or db <= da:
             continue

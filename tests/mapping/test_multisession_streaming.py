@@ -1,0 +1,99 @@
+"""LT-Exosense's change detection with the map on disk (seeds/000 III-B.2, memory management):
+the pipeline reads the sessions' clouds from its keyframe store a keyframe at a time; its
+output must be that of eq. 2-3 run on the sessions held in memory (``change.update_map``), and
+its memory must grow with the area mapped, not with the sessions that mapped it."""
+
+import math
+import tracemalloc
+
+import numpy as np
+import pytest
+from box_scene import cast
+
+from exobench.mapping.multisession.change import ChangeConfig, Scan, update_map
+from exobench.mapping.multisession.keyframes import KeyframeStore
+from exobench.mapping.multisession.pipeline import LtExosense, LtExosenseConfig, _Session
+
+BOX_A = ((1.0, 2.6, 0.0), (1.4, 3.0, 0.6))
+BOX_B = ((2.6, 1.0, 0.0), (3.1, 1.4, 0.5))
+ORIGINS = ((2.0, 2.0, 1.0), (1.5, 1.5, 1.1), (2.2, 2.4, 0.9))
+
+
+def _pipeline_with(sessions_boxes, kind, yaws=8, n_u=80, n_v=60):
+    """A pipeline whose store holds one session per entry of ``sessions_boxes`` (keyframes at
+    ``ORIGINS``, looking round), as ``process`` leaves it, and the same sessions as scans."""
+    pipe = LtExosense(LtExosenseConfig(change=ChangeConfig(kind=kind)))
+    pipe._store = KeyframeStore()
+    sessions, T_maps, scans = [], [], []
+    for sid, boxes in enumerate(sessions_boxes):
+        s, Ts, sc = _Session(sid, sid), [], []
+        for o in ORIGINS:
+            for yaw in np.arange(yaws) * 2 * math.pi / yaws:
+                T = np.eye(4)
+                T[:3, 3] = o
+                cloud = (cast(o, boxes, yaw, n_u=n_u, n_v=n_v) - o).astype(np.float32)  # camera frame: a shift
+                pipe._store.put((sid, len(s.poses)), cloud=cloud)
+                s.poses.append(T)
+                Ts.append(T)
+                sc.append(Scan(cloud.astype(float) + o, np.array(o, dtype=float)))
+        sessions.append(s)
+        T_maps.append(np.stack(Ts))
+        scans.append(sc)
+    return pipe, sessions, T_maps, scans
+
+
+@pytest.mark.parametrize("kind", ["octree", "dufomap"])
+def test_changes_from_the_store_equal_eq_2_3_on_the_sessions_in_memory(kind):
+    # box A on day 0, box B instead on day 1, box A back on day 2
+    pipe, sessions, T_maps, scans = _pipeline_with([[BOX_A], [BOX_B], [BOX_A]], kind, yaws=4, n_u=40, n_v=30)
+    try:
+        out = pipe._changes(sessions, list(T_maps))
+    finally:
+        pipe._store.close()
+    final, results = update_map(scans, ChangeConfig(kind=kind))
+    every = np.concatenate([s.points_m for sc in scans for s in sc])
+    np.testing.assert_array_equal(out["map_points_no_change_detection"], every)
+    np.testing.assert_array_equal(out["merged_map_points"], np.concatenate([s.points_m for s in final]))
+    np.testing.assert_array_equal(out["map_points_single_session"], np.concatenate([s.points_m for s in scans[-1]]))
+    assert out["change_pairs"] == ((0, 1), (1, 2))
+    for r, res in enumerate(results):
+        assert len(res.removed_points) > 100 and len(res.added_points) > 100  # a box went, another came
+        np.testing.assert_array_equal(out["removed_points"][r], res.removed_points)
+        np.testing.assert_array_equal(out["added_points"][r], res.added_points)
+        # the static points of the run: its updated map (the prior's kept points, then the
+        # current session's) without the added points
+        current = np.concatenate([s.points_m for s in scans[r + 1]])
+        kept_prior = res.updated_points[: len(res.updated_points) - len(current)]
+        kept_current = np.delete(current, _rows_of(current, res.added_points), axis=0)
+        np.testing.assert_array_equal(every[out["static_masks"][r]], np.concatenate([kept_prior, kept_current]))
+
+
+def _rows_of(points, subset):
+    """Indices of the rows of ``points`` equal to a row of ``subset``."""
+    index = {tuple(p): i for i, p in enumerate(points)}
+    return np.array([index[tuple(p)] for p in subset], dtype=int)
+
+
+def _merge_peak_mb(n_sessions):
+    boxes = [[BOX_A] if i % 2 == 0 else [BOX_B] for i in range(n_sessions)]
+    pipe, sessions, T_maps, _ = _pipeline_with(boxes, "octree")
+    try:
+        tracemalloc.start()
+        out = pipe._changes(sessions, list(T_maps))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+        pipe._store.close()
+    outputs = sum(a.nbytes for k in ("merged_map_points", "map_points_no_change_detection") for a in [out[k]])
+    return peak / 2**20, outputs / 2**20
+
+
+def test_memory_of_the_change_runs_grows_with_the_outputs_not_with_the_sessions_squared():
+    """The same room mapped by 2 and by 8 sessions: apart from the outputs (every session's
+    points, the merged map: linear in the sessions), the runs' memory is the area's. With the
+    sessions all in memory the prior of the last run held 7 sessions' points, and its octree
+    differencing several copies of them."""
+    peak2, out2 = _merge_peak_mb(2)
+    peak8, out8 = _merge_peak_mb(8)
+    assert out8 > 3.5 * out2  # the outputs do grow (a check of the scene: 8 sessions of it)
+    assert peak8 - out8 <= 1.5 * (peak2 - out2)
