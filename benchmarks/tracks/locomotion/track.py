@@ -18,7 +18,8 @@ paper repeated each experiment three times: ``--seeds 3``):
   chest, walk, five heights; Sec. III-B 4), ``unconventional view`` (large slow view changes
   towards the side walls, head, stairs 0.15 m and ramp 11.8 deg, five heights; III-B 2) and
   ``multi-direction`` (the parallel course: out along the stair lane and back along the ramp
-  lane, or the other way round, head, five heights; III-B 3).
+  lane, or the other way round, head, five heights; III-B 3), its odometry heading drift
+  (:data:`MULTI_DIRECTION_ODOMETRY`) set so that the loop it walks drifts as Table V's.
 - ``full``: the paper suite, then variations on the walking cases of the six terrains x two
   mounts at 1.75 m: depth noise x3, strong odometry drift, 20 % dropped frames, every noise and
   drift off, and the thigh mount.
@@ -60,6 +61,15 @@ QUICK_CASES: tuple[tuple[str, float, str], ...] = (
     ("ramp", 11.8, "chest"),
     ("ramp", 15.8, "head"),
 )
+# The multi-direction walk goes out along one lane and back along the other, ending 1.5 m from
+# where it started: a loop, the setting of the paper's closed-loop test, where D-VIO drifted
+# |(-0.216, 0.023, 0.136)| = 0.26 m (Table V). The course's default odometry heading drift
+# (0.5 deg/m) turns this 30 m walk by 15 deg and ends it 1.9-2.2 m off (median over seeds), which maps
+# the return lane onto the first lane's stairs in the odometry frame: the plane set still holds
+# their treads (out of view, they keep their scores), and the last ramp-down and level steps were
+# looked up on them (docs/tracks/locomotion.md). The 1 % translation drift alone already gives 1.2x
+# Table V's figure over 30 m (0.31 m); 0.02 deg/m (0.6 deg over the walk) adds 0.02-0.03 m to it.
+MULTI_DIRECTION_ODOMETRY: dict[str, Any] = {"odom_yaw_drift_deg_per_m": 0.02}
 VARIATIONS: dict[str, dict[str, Any]] = {
     "depth noise x3": {"depth_noise_scale": 3.0},
     "odometry drift": {"odom_drift_pct": 5.0, "odom_yaw_drift_deg_per_m": 3.0},
@@ -111,7 +121,8 @@ def protocol_cases() -> list[Case]:
             out.append(Case(name, "unconventional view", scen, figure=terrain == "stairs" and h == MIDDLE_HEIGHT_M))
     for first in ("stairs", "ramp"):
         for h in HEIGHTS_M:
-            scen = {"terrain": "parallel", "approach_m": APPROACH_M, "parallel_first": first, "mount": "head", "pattern": "walk", "user_height_m": h}
+            scen = {"terrain": "parallel", "approach_m": APPROACH_M, "parallel_first": first, "mount": "head", "pattern": "walk",
+                    "user_height_m": h, **MULTI_DIRECTION_ODOMETRY}
             name = f"multi-direction/{first}-first/h{h:.2f}"
             out.append(Case(name, "multi-direction", scen, figure=first == "stairs" and h == MIDDLE_HEIGHT_M))
     return out
