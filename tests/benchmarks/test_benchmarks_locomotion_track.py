@@ -234,3 +234,49 @@ def test_footprint_error_is_measured_in_the_odometry_frame_at_the_prediction(tin
     assert m["footprint_error_m"] == pytest.approx(0.0, abs=1e-9)
     fixed = score_predictions(steps, est, T_world_odom=episode.truth.T_world_estimator)
     assert fixed["footprint_error_m"] > 1e-4
+
+
+def _yaw_shift(yaw_rad: float, t_m) -> np.ndarray:
+    """A gravity-aligned frame of its own: turned by ``yaw_rad`` about z and moved by ``t_m``."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    M = np.eye(4)
+    M[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    M[:3, 3] = t_m
+    return M
+
+
+def test_footprints_on_a_pipelines_own_odometry_are_placed_with_the_poses_it_carries(tiny_run, track):
+    """A pipeline on its own odometry (a frame G of its own origin and yaw, camera poses that err
+    by a few cm and degrees) that puts the true next footprint where it lies relative to its
+    estimated camera pose, and offsets it by a known 5 cm to the side of its own camera, is
+    charged those 5 cm; the alignment through the given odometry stream (the only one before)
+    would charge it metres. A prediction without a pose is not scored, whatever its footprint."""
+    from exobench.benchmarks.tracks.locomotion.metrics import score_predictions
+    from exobench.benchmarks.tracks.locomotion.track import local_odometry_alignment
+
+    _, _, episode = tiny_run
+    rng = np.random.default_rng(7)
+    M = _yaw_shift(1.1, [4.0, -2.5, 0.3])
+    t_cam, T_cam = episode.truth.extra["camera_stamps_s"], episode.truth.extra["camera_T_world"]
+    preds = []
+    for f, nxt, strikes in _frames_and_next_steps(episode):
+        T_true = T_cam[int(np.argmin(np.abs(t_cam - f.stamp_s)))]
+        err = _yaw_shift(rng.normal(0.0, 0.03), rng.normal(0.0, 0.03, 3))
+        T_est = M @ T_true @ err  # the estimate of the camera pose in G
+        rel = np.linalg.inv(T_true) @ np.append(nxt.footprint_w, 1.0)  # the true footprint seen from the camera
+        # 5 cm across, horizontally in the world: the camera's x axis made level
+        x_level = T_true[:3, 0] - T_true[2, 0] * np.array([0.0, 0.0, 1.0])
+        side = 0.05 * x_level / np.linalg.norm(x_level)
+        rel[:3] += T_true[:3, :3].T @ side
+        fp = (T_est @ rel)[:3]
+        preds.append(ModePrediction(f.stamp_s, nxt.mode, fp, strikes, 0.001, "ok", T_est))
+    est = LocomotionEstimate(tuple(preds), odometry="dvio")
+    m = track.score(episode, est)
+    assert m["footprint_error_m"] == pytest.approx(0.05, abs=1e-9)
+    steps = sorted(episode.truth.steps, key=lambda s: s.index)
+    stream = score_predictions(steps, est, T_world_odom=local_odometry_alignment(episode))
+    assert stream["footprint_error_m"] > 1.0
+    # without their poses the same footprints are not scored at all (not scored as good)
+    blind = LocomotionEstimate(tuple(ModePrediction(p.stamp_s, p.mode, p.footprint_odom, p.strike_index, 0.001)
+                                     for p in preds), odometry="dvio")
+    assert math.isnan(track.score(episode, blind)["footprint_error_m"])
