@@ -13,6 +13,11 @@ strike (contact after at least ``min_heel_off_s`` without,
 velocity. A depth image and a strike take the odometry sample nearest to their measurement time
 (stamp minus the mount's ``latency_s``), if at most ``max_odometry_age_s`` away.
 
+``terrain-recon`` with ``odometry="dvio"`` replaces the odometry stream by D-VIO's camera pose of
+each frame (:mod:`.own_odometry`; the frames and contacts wait for it): a frame without one gives
+a prediction without mode or footprint (``no_odometry``), each prediction carries the camera pose
+it used (``T_odom_camera``) and the estimate says the poses are its own (``odometry``).
+
 The footprint and mode of the next step come from :class:`~.predict.StepPredictor`, given the
 strikes so far, the terrain description of the current plane set and the tracked body's position.
 
