@@ -66,6 +66,7 @@ BUILTIN_PIPELINES: dict[str, tuple[Any, ...]] = {
     "gsc-huber": ("exobench.perception.place_recognition.pipelines:GscHuberPipeline", "loop-closure"),
     "gsc-intensity": ("exobench.perception.place_recognition.pipelines:GscIntensityPipeline", "loop-closure"),
     "terrain-recon": ("exobench.mapping.locomotion.pipelines:TerrainReconstructionPipeline", "locomotion"),
+    "terrain-recon-dvio": ("exobench.mapping.locomotion.pipelines:TerrainReconDvioPipeline", "locomotion"),
     "single-frame": ("exobench.mapping.locomotion.pipelines:SingleFramePipeline", "locomotion"),
     "dvio": ("exobench.mapping.odometry.dvio.pipeline:DvioPipeline", "vio"),
     "dvio-no-depth": ("exobench.mapping.odometry.dvio.pipeline:DvioNoDepthPipeline", "vio"),

@@ -102,6 +102,8 @@ class ModePrediction:
         latency_s: compute time of this prediction (frame in -> mode out), s.
         status: ``"ok"``, or why the pipeline kept its last state (``"no_depth"``,
             ``"dropped"``, ``"no_odometry"``, ...).
+        T_odom_camera: the camera pose the prediction was made with, in the odometry frame,
+            (4, 4); None when it had none.
     """
 
     stamp_s: float
@@ -110,6 +112,7 @@ class ModePrediction:
     strike_index: int
     latency_s: float
     status: str = "ok"
+    T_odom_camera: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,12 +125,16 @@ class LocomotionEstimate:
             frame), ``kind`` and ``score`` (for reports and rerun).
         stats: diagnostics (statuses, strikes, ...).
         counts: the input counters by frame kind (:mod:`exobench.core.counters`).
+        odometry: the frame of the footprints and planes: ``"given"``, the odometry stream's of
+            the episode; any other name (e.g. ``"dvio"``), the pipeline's own odometry's, known
+            to a scorer only through the predictions' ``T_odom_camera``.
     """
 
     predictions: tuple[ModePrediction, ...]
     planes: tuple[dict[str, Any], ...] = ()
     stats: dict[str, Any] = field(default_factory=dict)
     counts: dict[str, FrameCounts] = field(default_factory=dict)
+    odometry: str = "given"
 
 
 @dataclass(frozen=True, eq=False)

@@ -4,11 +4,13 @@
   ``footprint``, ``tsdf``).
 - :mod:`.base`: sensor selection, frames and heel strikes, shared; :mod:`.predict`: the next
   step's footprint and mode.
-- :mod:`.pipelines`: the pipelines ``terrain-recon`` and ``single-frame``.
+- :mod:`.pipelines`: the pipelines ``terrain-recon`` (and ``terrain-recon-dvio``) and ``single-frame``.
+- :mod:`.own_odometry`: D-VIO inside ``terrain-recon`` (``odometry="dvio"``).
 - :mod:`.depth` / :mod:`.body`: depth-image helpers; the calibration's sensor mounts.
 """
 
-from .config import LocomotionConfig, TerrainReconConfig
-from .pipelines import SingleFramePipeline, TerrainReconstructionPipeline
+from .config import LocomotionConfig, TerrainReconConfig, TerrainReconDvioConfig
+from .pipelines import SingleFramePipeline, TerrainReconDvioPipeline, TerrainReconstructionPipeline
 
-__all__ = ["LocomotionConfig", "SingleFramePipeline", "TerrainReconConfig", "TerrainReconstructionPipeline"]
+__all__ = ["LocomotionConfig", "SingleFramePipeline", "TerrainReconConfig", "TerrainReconDvioConfig",
+           "TerrainReconDvioPipeline", "TerrainReconstructionPipeline"]

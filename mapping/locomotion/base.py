@@ -13,6 +13,11 @@ strike (contact after at least ``min_heel_off_s`` without,
 velocity. A depth image and a strike take the odometry sample nearest to their measurement time
 (stamp minus the mount's ``latency_s``), if at most ``max_odometry_age_s`` away.
 
+``terrain-recon`` with ``odometry="dvio"`` replaces the odometry stream by D-VIO's camera pose of
+each frame (:mod:`.own_odometry`; the frames and contacts wait for it): a frame without one gives
+a prediction without mode or footprint (``no_odometry``), each prediction carries the camera pose
+it used (``T_odom_camera``) and the estimate says the poses are its own (``odometry``).
+
 The footprint and mode of the next step come from :class:`~.predict.StepPredictor`, given the
 strikes so far, the terrain description of the current plane set and the tracked body's position.
 
@@ -142,7 +147,9 @@ class LocomotionPipeline(ABC):
                 self._odom_mount = "calibrated"
             else:
                 self._odom_mount = "unrelated_link_assumed_camera"
+        self._T_cam_track = T_cam_track
         self._T_body_track = self._T_body_cam @ T_cam_track
+        self._odometry = "given"  # the frame of the poses: the odometry stream's (else the pipeline's own)
         pads_used = ("heel",) if c.strike_pads == "heel" else ("heel", "toe")
         # the pads used and their foot, as the calibration describes each pad
         self._heels = {
@@ -203,7 +210,8 @@ class LocomotionPipeline(ABC):
         stats["n_planes"] = len(planes)
         stats["n_contact_chatter"] = self._divider.n_chatter
         stats["status_counts"] = {s: sum(p.status == s for p in self._predictions) for s in STATUSES}
-        return LocomotionEstimate(tuple(self._predictions), tuple(planes), stats, self._counters.snapshot())
+        return LocomotionEstimate(tuple(self._predictions), tuple(planes), stats, self._counters.snapshot(),
+                                  odometry=self._odometry)
 
     # --- subclass hooks ---
     @abstractmethod
@@ -220,8 +228,11 @@ class LocomotionPipeline(ABC):
         v = _finite_array(frame.v_odom_m_s, (3,))
         if not c.judge(frame, T is None or v is None or odometry_absurd(frame)):  # a malformed pose counts as absurd
             return
-        stamp = float(frame.stamp_s)
-        self._odom.append((stamp, T.copy(), v.copy()))
+        self._remember_pose(float(frame.stamp_s), T.copy(), v.copy())
+
+    def _remember_pose(self, stamp: float, T_odom_body: np.ndarray, v: np.ndarray) -> None:
+        """Keep an odometry pose (at its measurement time) for the strikes and frames to come."""
+        self._odom.append((stamp, T_odom_body, v))
         if self._odom[0][0] < stamp - ODOM_HISTORY_S:
             self._odom = [o for o in self._odom if o[0] >= stamp - ODOM_HISTORY_S]
 
@@ -270,7 +281,11 @@ class LocomotionPipeline(ABC):
         except (TypeError, ValueError):
             return 0
 
-    def _on_rgbd(self, frame: RgbdFrame, counts: FrameCounts, t0: float) -> ModePrediction | None:
+    def _on_rgbd(self, frame: RgbdFrame, counts: FrameCounts, t0: float, *, own: bool = False,
+                 T_own: np.ndarray | None = None) -> ModePrediction | None:
+        """The prediction on one camera frame, with the odometry stream's pose nearest to it, or
+        with ``own`` the pose ``T_own`` of the pipeline's own odometry for this frame (None: it
+        has none, and the step is then not predicted)."""
         st, c = self._stats, self.config
         n_absurd = self._absurd_pixels(frame.depth_m)
         counts.add_absurd(n_absurd)
@@ -285,7 +300,11 @@ class LocomotionPipeline(ABC):
         status = "ok"
         depth = np.asarray(frame.depth_m) if frame.depth_m is not None else np.zeros(0)
         K = _finite_array(frame.K, (3, 3))
-        odo = self._odometry_at(stamp - self._cam_latency_s)
+        if own:
+            odo = None if T_own is None else (T_own, np.zeros(3), 0.0)
+        else:
+            odo = self._odometry_at(stamp - self._cam_latency_s)
+        T_cam = None if odo is None else odo[0] @ self._T_body_cam
         if depth.ndim != 2 or depth.size == 0 or not np.issubdtype(depth.dtype, np.number) or K is None \
                 or K[0, 0] <= 0 or K[1, 1] <= 0:
             status = "bad_frame"
@@ -301,7 +320,7 @@ class LocomotionPipeline(ABC):
         if status == "ok":
             try:
                 work_depth, work_K = decimate(depth, K, c.max_work_width_px)
-                if self._update_planes(work_depth, work_K, odo[0] @ self._T_body_cam) == 0:
+                if self._update_planes(work_depth, work_K, T_cam) == 0:
                     status = "no_planes"
             except _NUMERIC_ERRORS as e:  # a numerical failure on odd input keeps the last state
                 status = "error"
@@ -311,12 +330,18 @@ class LocomotionPipeline(ABC):
         if status != "ok":
             st[f"n_{status}" if status != "error" else "n_errors"] += 1
 
-        p_now = None if odo is None else self._track(odo[0])
-        mode, footprint, why = self._predictor.predict(self._divider.strikes, self._terrain, stamp, p_now)
-        if status == "ok" and why != "ok":
-            status = why
+        if own and odo is None:  # no pose of its own (initialising, lost): no footprint, no mode
+            mode, footprint = "", np.full(3, np.nan)
+        else:
+            p_now = None if odo is None else self._track(odo[0])
+            mode, footprint, why = self._predictor.predict(self._divider.strikes, self._terrain, stamp, p_now)
+            if status == "ok" and why != "ok":
+                status = why
+        n_strikes = len(self._divider.strikes)
+        if own:  # a strike while the own odometry had no pose (initialising, lost) was seen all the same
+            n_strikes += st["n_strikes_without_odometry"]
         t1 = time.perf_counter()
-        pred = ModePrediction(stamp, mode, footprint, len(self._divider.strikes), t1 - t0, status)
+        pred = ModePrediction(stamp, mode, footprint, n_strikes, t1 - t0, status, T_cam)
         self._predictions.append(pred)
         return pred
 

@@ -2,7 +2,8 @@
 
 A pipeline config nests the configs of its stages (``ahc``, ``planes``, ``terrain``,
 ``footprint``; ``tsdf`` for ``terrain-recon``), so ``--set terrain-recon.ahc.<field>=...``
-reaches them.
+reaches them. ``terrain-recon`` nests D-VIO's config too (``dvio``, :class:`DvioConfig`), used when
+``odometry`` is ``"dvio"``: ``--set terrain-recon.odometry=dvio --set terrain-recon.dvio.window=10``.
 """
 
 from __future__ import annotations
@@ -11,13 +12,14 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from exobench.core import ConfigError, check_int, check_range
+from exobench.mapping.odometry.dvio.pipeline import DvioConfig
 from exobench.mapping.tsdf import TsdfConfig
 from exobench.perception.terrain.footprint import FootprintConfig
 from exobench.perception.terrain.plane_extraction import AhcConfig
 from exobench.perception.terrain.plane_tracking import PlaneTrackingConfig
 from exobench.perception.terrain.terrain_types import TerrainConfig
 
-__all__ = ["LocomotionConfig", "TerrainReconConfig", "check_locomotion_config"]
+__all__ = ["LocomotionConfig", "TerrainReconConfig", "TerrainReconDvioConfig", "check_locomotion_config"]
 
 STATUSES = ("ok", "no_depth", "bad_frame", "no_odometry", "no_planes", "error", "few_strikes", "no_direction",
             "no_terrain", "extrapolated", "current_unknown")
@@ -26,6 +28,7 @@ DIRECTIONS = ("stride", "velocity")
 STRIKE_PADS = ("any", "heel")
 LOOKUPS = ("midfoot", "ankle")
 TRACK_POINTS = ("joint", "camera")
+ODOMETRIES = ("given", "dvio")
 
 
 def check_locomotion_config(cfg: Any) -> None:
@@ -114,13 +117,26 @@ class TerrainReconConfig(LocomotionConfig):
     and brought back to it by :func:`upsample_depth` (``upsample_jump_m``), so plane
     extraction and its pixel thresholds see the input resolution [A: 2: the ray cast and its
     refinement cost about a quarter; the planes stay those of the full-resolution cast on
-    the quick suite]."""
+    the quick suite]. ``odometry``: where the camera poses come from: ``"given"``, the odometry
+    stream (``odometry_sensor_id``), or ``"dvio"``, D-VIO run inside the pipeline on the camera's
+    RGB-D frames and IMU samples with the config ``dvio`` (:mod:`.own_odometry`)."""
 
     tsdf: TsdfConfig = field(default_factory=TsdfConfig)
     raycast_downsample: int = 2
     upsample_jump_m: float = 0.05
+    odometry: str = "given"
+    dvio: DvioConfig = field(default_factory=DvioConfig)
 
     def __post_init__(self) -> None:
         check_locomotion_config(self)
         object.__setattr__(self, "raycast_downsample", check_int("raycast_downsample", self.raycast_downsample, 1))
         check_range("upsample_jump_m", self.upsample_jump_m, 0.0)
+        if self.odometry not in ODOMETRIES:
+            raise ConfigError("odometry", self.odometry, list(ODOMETRIES))
+
+
+@dataclass(frozen=True)
+class TerrainReconDvioConfig(TerrainReconConfig):
+    """:class:`TerrainReconConfig` on D-VIO's poses by default (``terrain-recon-dvio``)."""
+
+    odometry: str = "dvio"

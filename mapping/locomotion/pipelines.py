@@ -10,6 +10,13 @@ of the next step at the footprint predicted by eq. 16-18 (II-D; :mod:`.predict`)
 ``single-frame`` (:class:`SingleFramePipeline`), the ablation baseline: AHC on the raw depth of
 the current frame only, a fresh plane set each frame, no TSDF; same footprint and mode logic.
 
+``terrain-recon`` takes the camera poses from the odometry stream (``odometry="given"``) or from
+D-VIO run inside it (``"dvio"``, :mod:`.own_odometry`; the registered ``terrain-recon-dvio``):
+then each frame waits for its D-VIO pose, a frame without one (D-VIO initialising or lost) makes a
+prediction without a mode or footprint (status ``no_odometry``), the strikes take D-VIO's frame
+poses (velocity from the last two), and the estimate says its poses are its own
+(``LocomotionEstimate.odometry``), each prediction carrying the pose it used.
+
 A depth image wider than ``max_work_width_px`` (the D455's 424 px mode) is first decimated to
 every m-th pixel with K adjusted (:func:`~.depth.decimate`); the 5 cm plane cells and voxels gain
 nothing from more pixels.
@@ -17,19 +24,36 @@ nothing from more pixels.
 
 from __future__ import annotations
 
+import time
 from typing import ClassVar
 
 import numpy as np
 
+from exobench.core import (
+    Calibration,
+    ContactSample,
+    Frame,
+    ImuSample,
+    LocomotionEstimate,
+    ModePrediction,
+    RgbdFrame,
+)
+from exobench.core.counters import nan_values
+from exobench.core.limits import imu_absurd
+from exobench.core.pipeline import check_frame
 from exobench.mapping.tsdf import Tsdf
 from exobench.perception.terrain.plane_extraction import extract_planes
 from exobench.perception.terrain.plane_tracking import PlaneSet, voxel_keys
 
 from .base import LocomotionPipeline
-from .config import TerrainReconConfig
+from .config import TerrainReconConfig, TerrainReconDvioConfig
 from .depth import backproject, scale_intrinsics, upsample_depth
+from .own_odometry import DvioOdometry
 
-__all__ = ["SingleFramePipeline", "TerrainReconstructionPipeline"]
+__all__ = ["SingleFramePipeline", "TerrainReconDvioPipeline", "TerrainReconstructionPipeline"]
+
+# the longest gap between two D-VIO poses over which their difference is a velocity, s
+_MAX_VELOCITY_GAP_S = 0.5
 
 
 class TerrainReconstructionPipeline(LocomotionPipeline):
@@ -39,6 +63,74 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
     name = "terrain-recon"
 
     Config: ClassVar[type] = TerrainReconConfig
+
+    def reset(self, calibration: Calibration) -> None:
+        super().reset(calibration)
+        self._own: DvioOdometry | None = None
+        if self.config.odometry == "dvio":
+            self._own = DvioOdometry(self.config.dvio, calibration, self._rgbd_id)
+            # D-VIO's poses are the camera's: the tracked point hangs off the camera itself
+            self._T_body_cam = np.eye(4)
+            self._T_body_track = self._T_cam_track
+            self._odometry = "dvio"
+            self._last_own: tuple[float, np.ndarray] | None = None
+            self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera")
+
+    def process(self, frame: Frame) -> ModePrediction | None:
+        if getattr(self, "_own", None) is None:  # the given odometry (or not reset: refused there)
+            return super().process(frame)
+        t0 = time.perf_counter()
+        check_frame(self, frame, self._ready)
+        own = self._own
+        if isinstance(frame, ImuSample):
+            c = self._counters.admit(frame, frame.sensor_id == own.imu_id)
+            if c is not None:
+                # counted as D-VIO takes it: a NaN or absurd sample is skipped there
+                c.judge(frame, nan_values(frame) > 0 or imu_absurd(frame))
+                own.feed(frame)
+        elif isinstance(frame, ContactSample):
+            c = self._counters.admit(frame, frame.sensor_id in self._heels)
+            if c is not None:
+                if own.idle():
+                    self._on_contact(frame, c)
+                else:
+                    own.hold(frame, c, t0)
+        else:  # the odometry stream is not read
+            c = self._counters.admit(frame, isinstance(frame, RgbdFrame) and frame.sensor_id == self._rgbd_id)
+            if c is not None:
+                own.hold(frame, c, t0)
+                own.feed(frame)
+        return self._release()
+
+    def _release(self) -> ModePrediction | None:
+        """Use the held frames whose turn has come (:meth:`DvioOdometry.released`); the last
+        prediction made."""
+        pred = None
+        for frame, c, t0, T in self._own.released():
+            if isinstance(frame, ContactSample):
+                self._on_contact(frame, c)
+                continue
+            if T is not None:
+                self._remember_own(float(frame.stamp_s) - self._cam_latency_s, T)
+            pred = self._on_rgbd(frame, c, t0, own=True, T_own=T) or pred
+        return pred
+
+    def _remember_own(self, t_s: float, T: np.ndarray) -> None:
+        """Keep a D-VIO pose for the strikes, with the velocity from the previous pose."""
+        v = np.zeros(3)
+        if self._last_own is not None and 0.0 < t_s - self._last_own[0] <= _MAX_VELOCITY_GAP_S:
+            v = (T[:3, 3] - self._last_own[1]) / (t_s - self._last_own[0])
+        self._last_own = (t_s, T[:3, 3].copy())
+        self._remember_pose(t_s, T, v)
+
+    def finalize(self) -> LocomotionEstimate:
+        if getattr(self, "_own", None) is None:
+            return super().finalize()
+        dvio_stats = self._own.finish()
+        self._release()
+        self._stats.update({f"dvio_{k}": v for k, v in dvio_stats.items()})
+        self._stats["n_frames_without_pose"] = dict(self._own.n_without_pose)
+        return super().finalize()
 
     def _reset_map(self) -> None:
         self._tsdf = Tsdf(self.config.tsdf)
@@ -75,3 +167,12 @@ class SingleFramePipeline(LocomotionPipeline):
             self._plane_set = PlaneSet(self.config.planes)
             self._plane_set.update(detected)
         return len(detected)
+
+
+class TerrainReconDvioPipeline(TerrainReconstructionPipeline):
+    """``terrain-recon`` on D-VIO's poses by default (``odometry="dvio"``), so that one run
+    shows both."""
+
+    name = "terrain-recon-dvio"
+
+    Config: ClassVar[type] = TerrainReconDvioConfig

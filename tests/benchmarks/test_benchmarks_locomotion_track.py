@@ -96,6 +96,7 @@ def test_references_apply_to_the_right_groups(track):
         assert len(mine) == 1, group
         assert mine[0].value == pytest.approx(expected[0] / 100.0)
         assert not mine[0].applies(group, "single-frame")  # the published figures are the paper's method
+        assert mine[0].applies(group, "terrain-recon-dvio")  # ... also on its own odometry, as the paper ran it
     assert [r.value for r in refs if r.applies("disturbance", "terrain-recon")] == [pytest.approx(0.9859)]
     assert [r.value for r in refs if r.applies("unconventional view", "terrain-recon")] == [pytest.approx(0.9907)]
     assert [r.value for r in refs if r.applies("multi-direction", "terrain-recon")] == [pytest.approx(0.9818)]
@@ -278,3 +279,49 @@ def test_multi_direction_odometry_drifts_over_its_loop_as_table_v(track):
             errors.append(float(np.linalg.norm(T_odom_cam[-1][:3, 3] - truth[:3, 3])))
         assert dist[-1] == pytest.approx(31.5, abs=0.1)
         assert float(np.median(errors)) <= bound, (c.name, np.median(errors), bound)
+
+
+def _yaw_shift(yaw_rad: float, t_m) -> np.ndarray:
+    """A gravity-aligned frame of its own: turned by ``yaw_rad`` about z and moved by ``t_m``."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    M = np.eye(4)
+    M[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    M[:3, 3] = t_m
+    return M
+
+
+def test_footprints_on_a_pipelines_own_odometry_are_placed_with_the_poses_it_carries(tiny_run, track):
+    """A pipeline on its own odometry (a frame G of its own origin and yaw, camera poses that err
+    by a few cm and degrees) that puts the true next footprint where it lies relative to its
+    estimated camera pose, and offsets it by a known 5 cm to the side of its own camera, is
+    charged those 5 cm; the alignment through the given odometry stream (the only one before)
+    would charge it metres. A prediction without a pose is not scored, whatever its footprint."""
+    from exobench.benchmarks.tracks.locomotion.metrics import score_predictions
+    from exobench.benchmarks.tracks.locomotion.track import local_odometry_alignment
+
+    _, _, episode = tiny_run
+    rng = np.random.default_rng(7)
+    M = _yaw_shift(1.1, [4.0, -2.5, 0.3])
+    t_cam, T_cam = episode.truth.extra["camera_stamps_s"], episode.truth.extra["camera_T_world"]
+    preds = []
+    for f, nxt, strikes in _frames_and_next_steps(episode):
+        T_true = T_cam[int(np.argmin(np.abs(t_cam - f.stamp_s)))]
+        err = _yaw_shift(rng.normal(0.0, 0.03), rng.normal(0.0, 0.03, 3))
+        T_est = M @ T_true @ err  # the estimate of the camera pose in G
+        rel = np.linalg.inv(T_true) @ np.append(nxt.footprint_w, 1.0)  # the true footprint seen from the camera
+        # 5 cm across, horizontally in the world: the camera's x axis made level
+        x_level = T_true[:3, 0] - T_true[2, 0] * np.array([0.0, 0.0, 1.0])
+        side = 0.05 * x_level / np.linalg.norm(x_level)
+        rel[:3] += T_true[:3, :3].T @ side
+        fp = (T_est @ rel)[:3]
+        preds.append(ModePrediction(f.stamp_s, nxt.mode, fp, strikes, 0.001, "ok", T_est))
+    est = LocomotionEstimate(tuple(preds), odometry="dvio")
+    m = track.score(episode, est)
+    assert m["footprint_error_m"] == pytest.approx(0.05, abs=1e-9)
+    steps = sorted(episode.truth.steps, key=lambda s: s.index)
+    stream = score_predictions(steps, est, T_world_odom=local_odometry_alignment(episode))
+    assert stream["footprint_error_m"] > 1.0
+    # without their poses the same footprints are not scored at all (not scored as good)
+    blind = LocomotionEstimate(tuple(ModePrediction(p.stamp_s, p.mode, p.footprint_odom, p.strike_index, 0.001)
+                                     for p in preds), odometry="dvio")
+    assert math.isnan(track.score(episode, blind)["footprint_error_m"])

@@ -44,7 +44,8 @@ by index and by stamp on entry). Definitions:
   each decision made for its own step (``strike_index == k``, finite footprint), mapped to the
   world, and the true footprint of step k (eq. 16-18), m. The track passes the odometry's local
   alignment at the prediction (true camera pose times the inverse of the odometry's camera
-  pose), so the error is the prediction's, not the drift accumulated since the start.
+  pose), so the error is the prediction's, not the drift accumulated since the start; for a
+  pipeline on its own odometry, the same with the camera pose each prediction carries.
 - ``failed`` / ``failed_reason``: the pipeline raised, returned no estimate, or made no
   prediction at all; the simulation raised (no episode).
 
@@ -234,6 +235,8 @@ def footprint_errors(
             continue
         T = np.asarray(T_world_odom(float(predictions[d.prediction].stamp_s)) if callable(T_world_odom)
                        else T_world_odom, dtype=float)
+        if not np.all(np.isfinite(T)):  # the odometry frame's pose unknown then: not scored
+            continue
         f_w = T[:3, :3] @ f + T[:3, 3]
         out.append(float(np.linalg.norm(f_w[:2] - np.asarray(s.footprint_w, dtype=float)[:2])))
     return out

@@ -12,9 +12,12 @@ Open it with ``rerun FILE.rrd``. Entities (world frame, metres, timeline ``sim_t
   odometry poses (default :class:`~exobench.mapping.tsdf.TsdfConfig`, what the ``terrain-recon``
   pipeline integrates), every ``tsdf_every_s``; the estimate itself carries no map;
 - ``world/estimates/{pipeline}/footprint``: the footprint of each prediction (odometry frame
-  mapped to the world with ``truth.T_world_estimator``), coloured by its mode;
+  mapped to the world with ``truth.T_world_estimator``; for a pipeline on its own odometry, with
+  the true camera pose times the inverse of the pose the prediction carries, as the track scores
+  it), coloured by its mode;
 - ``world/estimates/{pipeline}/planes/P{id}``: the final plane set of the estimate, a quad per
-  plane at its centroid, coloured by plane id, labelled with kind and score;
+  plane at its centroid (own odometry: mapped as its last footprint), coloured by plane id,
+  labelled with kind and score;
 - ``modes/true`` and ``modes/{pipeline}``: true mode (of the step, from its liftoff) and predicted
   mode over time as scalars: 0 LG, 1 SA, 2 SD, 3 RA, 4 RD (NaN: none).
 
@@ -182,11 +185,18 @@ def _log_tsdf(rr: Any, rec: Any, episode: Episode, every_s: float) -> None:
 
 
 def _log_estimate(rr: Any, rec: Any, episode: Episode, name: str, est: Any) -> None:
+    from .track import own_pose_alignment
+
     preds, final = _series(est)
-    T = np.asarray(episode.truth.T_world_estimator, dtype=float)
+    T = T_fixed = np.asarray(episode.truth.T_world_estimator, dtype=float)
+    own = own_pose_alignment(episode, final) if final is not None and final.odometry != "given" else None
     for p in preds:
         if not np.isfinite(p.stamp_s):
             continue
+        if own is not None:
+            T = own(float(p.stamp_s)) if p.T_odom_camera is not None else T
+            if not np.all(np.isfinite(T)):
+                T = T_fixed
         rec.set_time("sim_time", duration=float(p.stamp_s))
         rec.log(f"modes/{name}", rr.Scalars(float(MODE_INDEX.get(p.mode, np.nan))))
         f = np.asarray(p.footprint_odom, dtype=float).reshape(-1)

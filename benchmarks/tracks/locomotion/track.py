@@ -206,6 +206,36 @@ def local_odometry_alignment(episode: Episode) -> Callable[[float], np.ndarray] 
     return at
 
 
+def own_pose_alignment(episode: Episode, estimate: LocomotionEstimate) -> Callable[[float], np.ndarray] | None:
+    """T_world_odom at a prediction's stamp for an estimate on its own odometry
+    (``estimate.odometry`` not ``"given"``): the true camera pose at the truth stamp nearest to it
+    times the inverse of the camera pose the prediction was made with (``T_odom_camera``); NaN
+    where the prediction had none. The footprint is so scored where the prediction puts it
+    relative to the camera, as the controller uses it (docs/tracks/locomotion.md). None without
+    the camera truth."""
+    extra = episode.truth.extra or {}
+    if "camera_T_world" not in extra or "camera_stamps_s" not in extra:
+        return None
+    t_cam = np.asarray(extra["camera_stamps_s"], dtype=float)
+    T_cam = np.asarray(extra["camera_T_world"], dtype=float)
+    if len(t_cam) == 0:
+        return None
+    used: dict[float, np.ndarray] = {}
+    for p in estimate.predictions:
+        T = p.T_odom_camera
+        if T is not None and np.shape(T) == (4, 4) and np.all(np.isfinite(T)):
+            used[float(p.stamp_s)] = np.asarray(T, dtype=float)
+    nan = np.full((4, 4), np.nan)
+
+    def at(t_s: float) -> np.ndarray:
+        T = used.get(float(t_s))
+        if T is None:
+            return nan
+        return T_cam[int(_nearest(t_cam, np.array([t_s]))[0])] @ np.linalg.inv(T)
+
+    return at
+
+
 def _nearest(sorted_s: np.ndarray, t_s: np.ndarray) -> np.ndarray:
     """Index of the nearest of the sorted stamps to each time (the earlier on a tie)."""
     k = np.clip(np.searchsorted(sorted_s, t_s), 0, len(sorted_s) - 1)
@@ -256,7 +286,11 @@ class LocomotionTrack:
         return simulate_locomotion(LocomotionScenario.from_dict(dict(scenario)), seed)
 
     def score(self, episode: Episode, estimate: Any, scoring: Mapping[str, Any] | None = None) -> dict[str, Any]:
-        return score_predictions(episode.truth.steps, estimate, T_world_odom=local_odometry_alignment(episode))
+        # a pipeline on the given odometry aligns through that stream; one on its own odometry
+        # through the poses its predictions carry
+        own = isinstance(estimate, LocomotionEstimate) and estimate.odometry != "given"
+        align = own_pose_alignment(episode, estimate) if own else local_odometry_alignment(episode)
+        return score_predictions(episode.truth.steps, estimate, T_world_odom=align)
 
     def failed_metrics(self, episode: Episode | None, reason: str) -> dict[str, Any]:
         return failure_metrics(len(episode.truth.steps) if episode is not None else 0, reason)

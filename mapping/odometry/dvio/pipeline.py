@@ -272,6 +272,12 @@ class DvioPipeline:
             self._no_depth_frames += 1
         return out
 
+    def frame_results(self, start: int = 0) -> list[tuple[float, np.ndarray, str]]:
+        """(stamp, camera pose in G or NaN, status) of each RGB-D frame handled so far, from the
+        ``start``-th on: what a pipeline built on D-VIO reads as the frames are handled (a frame
+        waits for the IMU to reach its time, so a result comes after its frame)."""
+        return list(zip(self._stamps[start:], self._poses[start:], self._status[start:]))
+
     def imu_pose(self) -> ImuRatePose | None:
         """The newest IMU-rate pose (None when not tracking)."""
         pose = self._window.imu_pose() if self._reset_done else None

@@ -1,0 +1,191 @@
+"""``terrain-recon`` on its own odometry (issue 27): the ``odometry`` option (``given`` | ``dvio``),
+the ``terrain-recon-dvio`` variant, predictions placed with D-VIO's poses, missing poses."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from exobench.benchmarks.cli import cli
+from exobench.benchmarks.registry import build_registry
+from exobench.benchmarks.tracks import get_track
+from exobench.core import ConfigError, ImuSample, OdometrySample, RgbdFrame
+from exobench.mapping.locomotion import TerrainReconConfig, TerrainReconDvioConfig
+from exobench.mapping.odometry.dvio.pipeline import DvioConfig
+
+PIPELINE_REGISTRY = build_registry(entry_points=False)
+
+
+@pytest.fixture(scope="module")
+def track():
+    return get_track("locomotion")
+
+
+@pytest.fixture(scope="module")
+def smoke(track):
+    """The track's smoke episode (96x72: too small for D-VIO to initialise)."""
+    return track.simulate(track.validate_scenario(track.smoke_scenario), 0)
+
+
+def _run(name, episode, frames=None, **values):
+    pipe = PIPELINE_REGISTRY.make(name, PIPELINE_REGISTRY.make_config(name, values))
+    pipe.reset(episode.calibration)
+    for f in episode.frames if frames is None else frames:
+        pipe.process(f)
+    return pipe, pipe.finalize()
+
+
+# ------------------------------------------------------------------ the option
+
+
+def test_odometry_option_refuses_a_bad_value_naming_field_value_and_choices():
+    with pytest.raises(ConfigError) as err:
+        TerrainReconConfig(odometry="vins")
+    assert (err.value.field, err.value.value) == ("odometry", "vins")
+    assert "given" in str(err.value.allowed) and "dvio" in str(err.value.allowed)
+    assert TerrainReconConfig().odometry == "given" and TerrainReconDvioConfig().odometry == "dvio"
+
+
+def test_dvio_parameters_are_a_nested_config_of_terrain_recon():
+    cfg = PIPELINE_REGISTRY.make_config("terrain-recon", {"odometry": "dvio", "dvio.window": "7", "dvio.init_keyframes": "5"})
+    assert cfg.odometry == "dvio" and isinstance(cfg.dvio, DvioConfig)
+    assert (cfg.dvio.window, cfg.dvio.init_keyframes) == (7, 5)
+    assert dataclasses.replace(cfg.dvio, window=10, init_keyframes=10) == DvioConfig()  # the rest as D-VIO's defaults
+    variant = PIPELINE_REGISTRY.make_config("terrain-recon-dvio", {"dvio.window": "6", "dvio.init_keyframes": "6"})
+    assert variant.odometry == "dvio" and variant.dvio.window == 6
+    assert PIPELINE_REGISTRY.load("terrain-recon-dvio").track == "locomotion"
+
+
+@pytest.mark.parametrize(
+    ("assignment", "expected"),
+    [
+        ("terrain-recon.odometry=vins", ("odometry", "vins", "given", "dvio")),
+        ("terrain-recon.dvio.kernel=l2", ("kernel", "l2", "cauchy")),
+        ("terrain-recon.dvio.nope=1", ("dvio.nope",)),
+    ],
+)
+def test_bad_odometry_values_are_one_line_at_the_command_line(tmp_path, assignment, expected):
+    out = tmp_path / "run"
+    result = CliRunner().invoke(cli, ["run", "--track", "locomotion", "--pipeline", "terrain-recon", "--set", assignment,
+                                      "--out", str(out)], catch_exceptions=False)  # fmt: skip
+    assert result.exit_code == 2
+    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("exobench: error: "), result.stderr
+    assert all(e in lines[0] for e in expected), lines[0]
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------ given: as before
+
+
+def test_given_odometry_reads_the_stream_and_carries_its_poses(smoke, track):
+    """``given`` (the default) ignores the IMU (the same predictions without it), uses the
+    odometry sample of each frame (its pose times the camera's mount on the odometry's link,
+    from the calibration) and is scored through the stream."""
+    _, est = _run("terrain-recon", smoke)
+    _, no_imu = _run("terrain-recon", smoke, [f for f in smoke.frames if not isinstance(f, ImuSample)])
+    assert est.odometry == "given"
+    key = [(p.stamp_s, p.mode, p.strike_index, p.status, np.asarray(p.footprint_odom, float).tobytes()) for p in est.predictions]
+    assert key == [(p.stamp_s, p.mode, p.strike_index, p.status, np.asarray(p.footprint_odom, float).tobytes()) for p in no_imu.predictions]
+    cal = smoke.calibration
+    cam, odo = cal.mount(cal.extra["camera"]), cal.mount(cal.extra["odometry"]["sensor_id"])
+    assert cam.parent_link == odo.parent_link
+    T_body_cam = np.linalg.inv(np.asarray(odo.T_parent_sensor)) @ np.asarray(cam.T_parent_sensor)
+    poses = {f.stamp_s: np.asarray(f.T_odom_body) for f in smoke.frames if isinstance(f, OdometrySample)}
+    frames = [f.stamp_s for f in smoke.frames if isinstance(f, RgbdFrame)]
+    assert [p.stamp_s for p in est.predictions] == frames and set(frames) <= set(poses)
+    for p in est.predictions:
+        np.testing.assert_allclose(p.T_odom_camera, poses[p.stamp_s] @ T_body_cam, atol=1e-12)
+    assert sum(p.mode != "" for p in est.predictions) > 0
+
+
+# ------------------------------------------------------------------ missing poses
+
+
+def test_frames_without_a_dvio_pose_predict_nothing_and_are_never_scored_as_good(smoke, track):
+    """On the smoke episode D-VIO never initialises: every prediction is without mode, footprint
+    and pose, and every step is undecided (wrong); the given odometry decides steps on the same
+    episode, so the missing poses are what leaves them undecided."""
+    _, est = _run("terrain-recon-dvio", smoke)
+    n = sum(isinstance(f, RgbdFrame) for f in smoke.frames)
+    assert est.odometry == "dvio" and len(est.predictions) == n
+    assert all(p.mode == "" and p.status == "no_odometry" and p.T_odom_camera is None for p in est.predictions)
+    assert all(np.all(np.isnan(p.footprint_odom)) for p in est.predictions)
+    assert est.stats["n_frames_without_pose"]["initialising"] == n
+    m = track.score(smoke, est)
+    assert m["n_steps"] > 0 and m["n_undecided"] == m["n_steps"] and m["accuracy"] == 0.0
+    assert math.isnan(m["footprint_error_m"])
+    assert est.counts["odometry"].ignored == est.counts["odometry"].seen > 0  # the stream is not read
+    assert est.counts["imu"].used > 0
+    given = track.score(smoke, _run("terrain-recon", smoke)[1])
+    assert given["n_decided"] > 0
+
+
+# ------------------------------------------------------------------ a course walk on D-VIO
+
+# a short textured walk (D-VIO needs texture and the resolution to initialise) with a small
+# window so that it initialises within the walk and the test stays short
+WALK = {"surfaces": "textured", "duration_cap_s": 2.5}
+SMALL_DVIO = {"dvio.window": "5", "dvio.init_keyframes": "5", "dvio.max_iterations": "4"}
+
+
+@pytest.fixture(scope="module")
+def dvio_walk(track):
+    case = track.cases("quick")[0]  # stairs, head camera, 10 Hz
+    episode = track.simulate(track.validate_scenario({**case.scenario, **WALK}), 0)
+    pipe, est = _run("terrain-recon-dvio", episode, **SMALL_DVIO)
+    return episode, pipe, est
+
+
+def _truth_pose(episode, stamp):
+    t, T = episode.truth.extra["camera_stamps_s"], episode.truth.extra["camera_T_world"]
+    return np.asarray(T[int(np.argmin(np.abs(np.asarray(t) - stamp)))], dtype=float)
+
+
+def test_a_course_walk_on_dvio_predicts_with_dvio_poses_that_follow_the_truth(dvio_walk):
+    episode, pipe, est = dvio_walk
+    results = {s: (T, status) for s, T, status in pipe._own._dvio.frame_results()}  # D-VIO's own output
+    posed = [p for p in est.predictions if p.T_odom_camera is not None]
+    assert len(posed) >= 10, f"D-VIO gave {len(posed)} poses"
+    for p in est.predictions:  # each prediction has D-VIO's pose of its frame, or none when D-VIO had none
+        T, status = results[p.stamp_s]
+        if status == "ok":
+            assert np.array_equal(p.T_odom_camera, T)
+        else:
+            assert p.T_odom_camera is None and p.mode == ""
+    # independently, from the truth: D-VIO's poses brought into the world at the first one
+    # follow the true camera (position within 10 cm, gravity within 3 deg)
+    T0 = posed[0]
+    T_world_G = _truth_pose(episode, T0.stamp_s) @ np.linalg.inv(T0.T_odom_camera)
+    for p in posed:
+        T_true = _truth_pose(episode, p.stamp_s)
+        T_est = T_world_G @ p.T_odom_camera
+        assert np.linalg.norm(T_est[:3, 3] - T_true[:3, 3]) < 0.10, p.stamp_s
+        # the vertical seen from the camera: G is gravity-aligned
+        up_est, up_true = p.T_odom_camera[:3, :3].T @ [0, 0, 1.0], T_true[:3, :3].T @ [0, 0, 1.0]
+        assert math.degrees(math.acos(min(1.0, float(up_est @ up_true)))) < 3.0, p.stamp_s
+
+
+def test_a_course_walk_on_dvio_has_its_footprints_scored_where_it_puts_them(dvio_walk, track):
+    """The track scores the walk's footprints through the poses the predictions carry: errors of
+    a footprint predictor (tens of cm), not those of D-VIO's frame against the odometry
+    stream's (metres)."""
+    from exobench.benchmarks.tracks.locomotion.metrics import score_predictions
+    from exobench.benchmarks.tracks.locomotion.track import local_odometry_alignment
+
+    episode, _, est = dvio_walk
+    m = track.score(episode, est)
+    assert m["n_decided"] >= 1 and 0.0 <= m["footprint_error_m"] < 0.4
+    steps = sorted(episode.truth.steps, key=lambda s: s.index)
+    through_stream = score_predictions(steps, est, T_world_odom=local_odometry_alignment(episode))
+    assert through_stream["footprint_error_m"] > 2 * m["footprint_error_m"]
+
+
+def test_the_recording_of_a_walk_on_dvio_places_its_footprints_as_scored(dvio_walk, track, tmp_path):
+    episode, _, est = dvio_walk
+    path = track.write_recording(episode, {"terrain-recon-dvio": est}, tmp_path / "walk.rrd")
+    assert path.exists() and path.stat().st_size > 1000
