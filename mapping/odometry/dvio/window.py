@@ -50,14 +50,8 @@ import numpy as np
 
 from exobench.core.errors import ConfigError, check_int, check_range
 
-from .factors import (
-    KERNELS,
-    DepthNoise,
-    Extrinsics,
-    host_depth_factor,
-    projection_depth_factor,
-    reprojection_factor,
-)
+from .factors import KERNELS, DepthNoise, Extrinsics
+from .grouped import HostedLandmark, host_group_factor
 from .imu import ImuNoise, ImuPreintegrator, combined_factor
 from .init import InitResult, KeyframeObs, initialise
 
@@ -132,6 +126,18 @@ class _Landmark:
     key: int
     host: int  # serial of the host keyframe
     obs: set[int] = field(default_factory=set)  # serials with factors in the graph (host included)
+    u_host: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    d_host: float = math.nan
+    observations: list[tuple[int, np.ndarray, float]] = field(default_factory=list)  # (pose key, u, depth)
+
+
+@dataclass(eq=False)
+class _Group:
+    """The smoother's factor of the landmarks one keyframe hosts (:func:`.grouped.host_group_factor`)
+    and its index in the smoother's graph (None until the update that adds it has run)."""
+
+    factor: gtsam.CustomFactor
+    index: int | None = None
 
 
 class SlidingWindow:
@@ -159,6 +165,7 @@ class SlidingWindow:
         self._kfs: list[_Keyframe] = []
         self._serial = 0
         self._landmarks: dict[int, _Landmark] = {}
+        self._groups: dict[int, _Group] = {}  # host serial -> its landmarks' factor
         self._next_lm = 0
         self._smoother: gtsam.BatchFixedLagSmoother | None = None
         self._nav: gtsam.NavState | None = None
@@ -332,9 +339,8 @@ class SlidingWindow:
         graph.add(gtsam.PriorFactorConstantBias(B(n0), bias, gtsam.noiseModel.Diagonal.Sigmas(
             np.array([c.bias_sigma_acc] * 3 + [c.bias_sigma_gyro] * 3))))
         poses = {kf.serial: gtsam.Pose3(T_G[k]) for k, kf in enumerate(self._kfs)}
-        self._landmarks = {}
-        self._add_landmarks(graph, values, stamps, poses)
-        self._update(graph, values, stamps)
+        self._landmarks, self._groups = {}, {}
+        self._update(graph, values, stamps, self._add_landmarks(graph, values, stamps, poses))
 
     # -- window ---------------------------------------------------------------------------------
     def _add_keyframe(self, stamp_s: float, feats: dict) -> None:
@@ -356,21 +362,24 @@ class SlidingWindow:
         oldest = n - self.config.window + 1
         self._kfs = [k for k in self._kfs if k.serial >= oldest]
         self._landmarks = {f: lm for f, lm in self._landmarks.items() if lm.host >= oldest}
+        self._groups = {h: g for h, g in self._groups.items() if h >= oldest}
         poses = {k.serial: self._estimate.atPose3(X(k.serial)) for k in self._kfs[:-1]}
         poses[n] = nav.pose()
-        self._add_landmarks(graph, values, stamps, poses)
-        self._update(graph, values, stamps)
+        self._update(graph, values, stamps, self._add_landmarks(graph, values, stamps, poses))
 
     def _add_landmarks(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                       stamps: gtsam.FixedLagSmootherKeyTimestampMap, poses: Mapping[int, gtsam.Pose3]) -> None:
-        """Factors of every observation in the window not yet in the graph; new landmarks for
-        features seen twice or more in the window."""
+                       stamps: gtsam.FixedLagSmootherKeyTimestampMap, poses: Mapping[int, gtsam.Pose3]) -> list[int]:
+        """New landmarks for features seen twice or more in the window, and every observation not
+        yet in the graph: the factor of each host keyframe whose landmarks changed is replaced by
+        one holding all their observations (:mod:`.grouped`). Returns the graph indices of the
+        factors it replaces, for the smoother to remove."""
         c, kfs = self.config, self._kfs
         seen: dict[int, list[_Keyframe]] = {}
         for kf in kfs:
             for f, (uu, _) in kf.features.items():
                 if np.all(np.isfinite(uu)):
                     seen.setdefault(f, []).append(kf)
+        changed: set[int] = set()
         for f, where in seen.items():
             lm = self._landmarks.get(f)
             if lm is None:
@@ -380,35 +389,41 @@ class SlidingWindow:
                 xi = self._start_depth(host, where[1:], f, poses)
                 if xi is None:
                     continue
-                lm = self._landmarks[f] = _Landmark(L(self._next_lm), host.serial, {host.serial})
+                uu, d = host.features[f]
+                lm = self._landmarks[f] = _Landmark(L(self._next_lm), host.serial, {host.serial}, uu, d)
                 self._next_lm += 1
                 self.stats["landmarks"] += 1
                 values.insert(lm.key, np.array([xi]))
                 stamps.insert((lm.key, float(host.serial)))
-                if c.depth_factors:
-                    fac = host_depth_factor(lm.key, host.features[f][1], self.depth, c.kernel, c.kernel_k)
-                    if fac is not None:
-                        graph.add(fac)
                 # A landmark seen from two close keyframes (or whose factors the robust kernel has
                 # all but switched off) is barely constrained along its ray, and the smoother's
                 # marginalisation eliminates it without damping: a weak prior (sigma 2 m^-1 around
                 # its start) keeps that definite without pulling a well-observed landmark.
                 graph.add(gtsam.PriorFactorVector(lm.key, np.array([xi]), gtsam.noiseModel.Isotropic.Sigma(1, 2.0)))
-            host_u = next(kf for kf in kfs if kf.serial == lm.host).features[f][0]
             for kf in where:
                 if kf.serial in lm.obs:
                     continue
                 lm.obs.add(kf.serial)
                 uu, d = kf.features[f]
-                fac = reprojection_factor(X(lm.host), X(kf.serial), lm.key, host_u, uu, self.ext, self.sigma,
-                                          c.kernel, c.kernel_k)
-                if fac is not None:
-                    graph.add(fac)
-                if c.depth_factors:
-                    fac = projection_depth_factor(X(lm.host), X(kf.serial), lm.key, host_u, d, self.ext, self.depth,
-                                                  c.kernel, c.kernel_k)
-                    if fac is not None:
-                        graph.add(fac)
+                lm.observations.append((X(kf.serial), uu, d))
+                changed.add(lm.host)
+        by_host: dict[int, list[_Landmark]] = {}
+        for lm in self._landmarks.values():
+            if lm.host in changed:
+                by_host.setdefault(lm.host, []).append(lm)
+        remove = []
+        depth = self.depth if c.depth_factors else None
+        for h in sorted(by_host):
+            hosted = [HostedLandmark(lm.key, lm.u_host, lm.d_host, tuple(lm.observations))
+                      for lm in sorted(by_host[h], key=lambda lm: lm.key)]
+            fac = host_group_factor(X(h), hosted, self.ext, self.sigma, depth, c.kernel, c.kernel_k)
+            old = self._groups.pop(h, None)
+            if old is not None and old.index is not None:
+                remove.append(old.index)
+            if fac is not None:
+                graph.add(fac)
+                self._groups[h] = _Group(fac)
+        return remove
 
     def _start_depth(self, host: _Keyframe, others: Sequence[_Keyframe], f: int,
                      poses: Mapping[int, gtsam.Pose3]) -> float | None:
@@ -436,8 +451,17 @@ class SlidingWindow:
         return 1.0 / best[0]
 
     def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                stamps: gtsam.FixedLagSmootherKeyTimestampMap) -> None:
-        result = self._smoother.update(graph, values, stamps)
+                stamps: gtsam.FixedLagSmootherKeyTimestampMap, remove: Sequence[int] = ()) -> None:
+        result = self._smoother.update(graph, values, stamps, list(remove))
+        # Where the smoother put the new host factors, to replace them at the next keyframe (it
+        # fills the slots of removed factors first, so the index is read back, not predicted).
+        pending = {id(g.factor): g for g in self._groups.values() if g.index is None}
+        if pending:
+            factors = self._smoother.getFactors()
+            for i in range(factors.size()):
+                g = pending.get(id(factors.at(i)))
+                if g is not None:
+                    g.index = i
         self.stats["lm_iterations"] += int(result.getIterations())
         est = self._smoother.calculateEstimate()
         newest = self._kfs[-1].serial
