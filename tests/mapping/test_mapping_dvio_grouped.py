@@ -15,7 +15,12 @@ from exobench.mapping.odometry.dvio.factors import (
     projection_depth_factor,
     reprojection_factor,
 )
-from exobench.mapping.odometry.dvio.grouped import HostedLandmark, host_group_factor, kernel_loss_weight
+from exobench.mapping.odometry.dvio.grouped import (
+    HostedLandmark,
+    host_group_factor,
+    kernel_loss_weight,
+    sfm_landmark_factor,
+)
 
 X, L = gtsam.symbol_shorthand.X, gtsam.symbol_shorthand.L
 NOISE = DepthNoise()
@@ -124,3 +129,31 @@ def test_bad_input_is_refused_naming_the_field():
     with pytest.raises(ConfigError, match="observation key"):
         host_group_factor(X(1), lms, EXT, SIGMA, NOISE)
     assert host_group_factor(X(0), [HostedLandmark(L(0), np.zeros(2), 1.0, ())], EXT, SIGMA, NOISE) is None
+
+
+@pytest.mark.parametrize("off", [0.0, 0.03])
+def test_the_sfm_landmark_factor_is_the_sum_of_the_per_observation_sfm_factors(off):
+    from exobench.mapping.odometry.dvio.factors import robust
+    from exobench.mapping.odometry.dvio.init import _sfm_factor
+
+    rng = np.random.default_rng(3)
+    l_G = (POSES[0] * T_IC).transformFrom(np.array([0.3, -0.2, 2.2]))
+    obs = []
+    for k in range(4):
+        P = (POSES[k] * T_IC).transformTo(l_G)
+        d = P[2] + rng.normal(0, 0.02) if k != 2 else float("nan")
+        obs.append((X(k), P[:2] / P[2] + rng.normal(0, 3e-3, 2), d))
+    values = _values({}, off)
+    values.insert(L(0), l_G + off * rng.normal(0, 1, 3))
+    one = gtsam.NonlinearFactorGraph()
+    one.add(sfm_landmark_factor(L(0), obs, EXT, SIGMA, NOISE))
+    each = gtsam.NonlinearFactorGraph()
+    for key, uu, d in obs:
+        each.add(_sfm_factor(key, L(0), uu, None, EXT, robust(gtsam.noiseModel.Isotropic.Sigma(2, SIGMA), "cauchy", 1.0)))
+        if NOISE.valid(d):
+            each.add(_sfm_factor(key, L(0), None, d, EXT,
+                                 robust(gtsam.noiseModel.Isotropic.Sigma(1, NOISE.sigma_m(d)), "cauchy", 1.0)))
+    assert one.error(values) == pytest.approx(each.error(values), rel=1e-9)
+    (H1, g1), (H2, g2) = _system(one, values), _system(each, values)
+    assert np.allclose(H1, H2, rtol=1e-7, atol=1e-9 * np.abs(H2).max())
+    assert np.allclose(g1, g2, rtol=1e-7, atol=1e-9 * np.abs(g2).max())

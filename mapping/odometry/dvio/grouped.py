@@ -33,7 +33,7 @@ from exobench.core.errors import ConfigError, check_range
 
 from .factors import _MIN_XI, _MIN_Z_M, KERNELS, DepthNoise, Extrinsics
 
-__all__ = ["HostedLandmark", "host_group_factor", "kernel_loss_weight"]
+__all__ = ["HostedLandmark", "host_group_factor", "kernel_loss_weight", "sfm_landmark_factor"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,5 +187,73 @@ def host_group_factor(host_key: int, landmarks: Sequence[HostedLandmark], ext: E
         for i in range(n_l):
             H[1 + n_o + i] = A[:, c0 + i:c0 + i + 1]
         return np.concatenate([r_host * sw_h, (r_rep * sw_r[:, None]).reshape(-1), r_dep * sw_d])
+
+    return gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(n), keys, error)
+
+
+def sfm_landmark_factor(lm_key: int, observations: Sequence[tuple[int, np.ndarray, float]], ext: Extrinsics,
+                        sigma: float, depth: DepthNoise, kernel: str = "cauchy", kernel_k: float = 1.0
+                        ) -> gtsam.CustomFactor | None:
+    """The initialisation's SfM cost of one world landmark (Point3 ``lm_key``), eq. (1) and (3):
+    for each observation (IMU pose key, normalised point (2,), depth m or NaN) the reprojection
+    ``P_c[:2] / P_c[2] - u`` (sigma ``sigma``) and, where the camera can measure it, the depth
+    ``P_c[2] - d`` (sigma ``depth.sigma_m(d)``), each block under the robust kernel as in
+    :func:`host_group_factor`; one callback for all of them. None without an observation."""
+    check_range("reprojection sigma", sigma, 0.0, None, low_open=True)
+    if kernel not in KERNELS:
+        raise ConfigError("kernel", kernel, "one of " + ", ".join(KERNELS))
+    if not observations:
+        return None
+    pose_keys = [key for key, _, _ in observations]
+    if len(set(pose_keys)) != len(pose_keys):
+        raise ConfigError("observation key", pose_keys, "one observation per pose")
+    u = np.array([np.asarray(uu, dtype=float).reshape(2) for _, uu, _ in observations])
+    if not np.all(np.isfinite(u)):
+        raise ConfigError("observation", "non-finite", "finite normalised points")
+    d = np.array([float(dd) for _, _, dd in observations])
+    dep = np.flatnonzero([depth.valid(x) for x in d])
+    inv_s_dep = np.array([1.0 / depth.sigma_m(x) for x in d[dep]]) if len(dep) else np.zeros(0)
+    K, n_d = len(observations), len(dep)
+    n = 2 * K + n_d
+    R_CI, p_IC = ext.R_IC.T, ext.p_IC
+    keys = gtsam.KeyVector([*pose_keys, lm_key])
+    first_row = np.concatenate([2 * np.arange(K), 2 * K + np.arange(n_d)])
+    rows = np.arange(2 * K).reshape(K, 2)
+
+    def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list[np.ndarray] | None) -> np.ndarray:
+        T = np.array([values.atPose3(key).matrix() for key in pose_keys])
+        R, t = T[:, :3, :3], T[:, :3, 3]
+        lw = values.atPoint3(lm_key)
+        P_I = np.einsum("kji,kj->ki", R, lw - t)  # R_k^T (l - t_k)
+        P = (P_I - p_IC) @ ext.R_IC  # R_CI (P_I - p_IC)
+        z = P[:, 2]
+        r_rep = (P[:, :2] / z[:, None] - u) / sigma
+        r_dep = (z[dep] - d[dep]) * inv_s_dep
+        rho_r, w_r = kernel_loss_weight(kernel, kernel_k, np.linalg.norm(r_rep, axis=1))
+        rho_d, w_d = kernel_loss_weight(kernel, kernel_k, r_dep)
+        if H is None:
+            e = np.zeros(n)
+            e[first_row] = np.sqrt(2.0 * np.concatenate([rho_r, rho_d]))
+            return e
+        sw_r, sw_d = np.sqrt(w_r), np.sqrt(w_d)
+        J_pose = np.concatenate([_cross_rows(R_CI, P_I), np.broadcast_to(-R_CI, (K, 3, 3))], axis=2)  # (K, 3, 6)
+        J_l = R_CI @ R.transpose(0, 2, 1)  # (K, 3, 3)
+        D = np.zeros((K, 2, 3))
+        D[:, 0, 0] = D[:, 1, 1] = 1.0 / z
+        D[:, 0, 2] = -P[:, 0] / z**2
+        D[:, 1, 2] = -P[:, 1] / z**2
+        s = (sw_r / sigma)[:, None, None]
+        A_pose = np.zeros((n, K, 6))
+        A_pose[rows, np.arange(K)[:, None]] = np.matmul(D, J_pose) * s
+        A_l = np.empty((n, 3))
+        A_l[:2 * K] = (np.matmul(D, J_l) * s).reshape(2 * K, 3)
+        if n_d:
+            s_d = (sw_d * inv_s_dep)[:, None]
+            A_pose[2 * K + np.arange(n_d), dep] = J_pose[dep, 2] * s_d
+            A_l[2 * K:] = J_l[dep, 2] * s_d
+        for k in range(K):
+            H[k] = A_pose[:, k]
+        H[K] = A_l
+        return np.concatenate([(r_rep * sw_r[:, None]).reshape(-1), r_dep * sw_d])
 
     return gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(n), keys, error)
