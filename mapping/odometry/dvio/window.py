@@ -77,6 +77,10 @@ class WindowConfig:
         depth_factors: host and projection depth factors on (``dvio``) or off (``dvio-no-depth``).
         max_iterations: Levenberg-Marquardt iterations per keyframe (VINS-Mono: 8).
         min_features: fewer tracked features than this is a tracking loss.
+        min_landmarks: a new keyframe that observes fewer of the window's landmarks than this is a
+            tracking loss (VINS-Mono's "little feature" bound, ``last_track_num < 2``): its pose,
+            and once the window's last landmarks age out the whole window, would rest on the IMU
+            alone, an optimisation whose system gtsam's Cholesky finds indeterminate.
         max_speed_mps / max_accel_bias / max_gyro_bias: failure bounds (VINS-Mono: 2.5 m/s^2
             and 1 rad/s biases; the speed bound is a walking person's, [A]).
         bias_sigma_acc / bias_sigma_gyro: prior sigma of the initial biases (m/s^2, rad/s).
@@ -90,6 +94,7 @@ class WindowConfig:
     depth_factors: bool = True
     max_iterations: int = 8
     min_features: int = 10
+    min_landmarks: int = 2
     max_speed_mps: float = 8.0
     max_accel_bias: float = 2.5
     max_gyro_bias: float = 1.0
@@ -105,6 +110,7 @@ class WindowConfig:
         check_range("kernel_k", self.kernel_k, 0.0, 100.0, low_open=True)
         check_int("max_iterations", self.max_iterations, 1, 100)
         check_int("min_features", self.min_features, 0, 1000)
+        check_int("min_landmarks", self.min_landmarks, 0, 1000)
         check_range("max_speed_mps", self.max_speed_mps, 0.0, 100.0, low_open=True)
         check_range("max_accel_bias", self.max_accel_bias, 0.0, 50.0, low_open=True)
         check_range("max_gyro_bias", self.max_gyro_bias, 0.0, 10.0, low_open=True)
@@ -214,7 +220,8 @@ class SlidingWindow:
         if not is_keyframe:
             return "ok", self._motion_only(stamp_s, feats).matrix()
         try:
-            self._add_keyframe(stamp_s, feats)
+            if not self._add_keyframe(stamp_s, feats):
+                return self._fail("too few landmarks")
         except RuntimeError as err:  # gtsam: an indeterminant system, a singular marginal
             self.stats["optimisation_failures"] += 1
             self.last_error = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
@@ -343,7 +350,9 @@ class SlidingWindow:
         self._update(graph, values, stamps, self._add_landmarks(graph, values, stamps, poses))
 
     # -- window ---------------------------------------------------------------------------------
-    def _add_keyframe(self, stamp_s: float, feats: dict) -> None:
+    def _add_keyframe(self, stamp_s: float, feats: dict) -> bool:
+        """The keyframe into the window and the window optimised; False, before any optimisation,
+        when the keyframe observes fewer than ``min_landmarks`` of the window's landmarks."""
         prev = self._kfs[-1]
         kf = _Keyframe(self._serial, stamp_s, feats, self._take_samples(stamp_s))
         self._serial += 1
@@ -365,7 +374,11 @@ class SlidingWindow:
         self._groups = {h: g for h, g in self._groups.items() if h >= oldest}
         poses = {k.serial: self._estimate.atPose3(X(k.serial)) for k in self._kfs[:-1]}
         poses[n] = nav.pose()
-        self._update(graph, values, stamps, self._add_landmarks(graph, values, stamps, poses))
+        remove = self._add_landmarks(graph, values, stamps, poses)
+        if sum(n in lm.obs for lm in self._landmarks.values()) < self.config.min_landmarks:
+            return False
+        self._update(graph, values, stamps, remove)
+        return True
 
     def _add_landmarks(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
                        stamps: gtsam.FixedLagSmootherKeyTimestampMap, poses: Mapping[int, gtsam.Pose3]) -> list[int]:
