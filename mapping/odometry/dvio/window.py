@@ -6,11 +6,14 @@ IMU's pose ``T_GI`` in the gravity-aligned frame G, its velocity and the IMU bia
 - eq. (7, 9): :func:`.imu.combined_factor` between consecutive keyframes (the bias random walk
   inside it), preintegrated from the raw samples kept for each interval, so a new bias estimate
   re-integrates them (VINS-Mono's ``repropagate``);
-- eq. (8, 10): :func:`.factors.reprojection_factor` of every landmark (an inverse depth ``l``,
-  hosted in the first window keyframe that saw it) in every other window keyframe that saw it;
+- eq. (8, 10): the reprojection of every landmark (an inverse depth ``l``, hosted in the first
+  window keyframe that saw it) in every other window keyframe that saw it;
 - eq. (11-14): the host and projection depth factors, weighted by the stereo depth noise
   (:class:`.factors.DepthNoise`); off with ``depth_factors=False`` (the ``dvio-no-depth``
   ablation: landmarks are then started by two-view triangulation, not from the depth image);
+- both as one factor per host keyframe (:func:`.grouped.host_group_factor`: the residuals of
+  :mod:`.factors` evaluated with numpy in one Python callback), replaced as its landmarks gain
+  observations;
 - eq. (6): the marginalisation prior. gtsam's ``BatchFixedLagSmoother`` (in the installed gtsam
   wheel; ``gtsam_unstable`` is not installed) keeps every key whose timestamp is within the lag
   of the newest and folds the factors of older keys into a ``LinearContainerFactor`` of the
@@ -31,7 +34,9 @@ the propagation), kept only when enough inliers agree. The IMU-rate pose
 (:meth:`SlidingWindow.imu_pose`) propagates the newest window state with every sample.
 
 Failure (VINS-Mono's ``failureDetection``): an optimisation that raises, a speed or bias beyond
-the config's bounds, or too few features tracked. The window is then cleared; the caller
+the config's bounds, too few features tracked, or a new keyframe that observes fewer than
+``min_landmarks`` of the window's landmarks (checked before the smoother runs: a window held by
+the IMU alone is not solvable in double precision, docs/dvio.md "The indeterminate system"). The window is then cleared; the caller
 re-initialises (:mod:`.init`) and the new segment is anchored (position and yaw; the gravity
 direction is the new initialisation's) on the last good state propagated by the IMU through the
 loss to the first keyframe of the new initialisation (on the last good pose when the loss lasted
