@@ -3,6 +3,8 @@
 - :mod:`.imu`: IMU preintegration and bias handling on gtsam (eq. 7, 9).
 - :mod:`.factors`: the inverse-depth reprojection factor (eq. 8) and the host and projection
   depth factors (eq. 11-14) weighted by the stereo depth noise model.
+- :mod:`.grouped`: the same residuals of all the landmarks a keyframe hosts as one factor (the
+  window's), and the SfM's per landmark (the initialisation's): one Python callback each.
 - :mod:`.tracker`: the KLT front end (OpenCV) and keyframe choice by parallax.
 - :mod:`.init`: the depth-enhanced SfM initialisation (eq. 1-5), the gyroscope bias and the
   visual-inertial alignment.

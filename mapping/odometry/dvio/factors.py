@@ -23,6 +23,10 @@ Jacobians are analytic for gtsam's right perturbation of ``Pose3`` (``T exp(d)``
 (rotation, translation)), checked against finite differences in the tests. A measurement the
 camera cannot make (a depth that is NaN, not positive or outside the camera's range; a
 non-finite bearing) gives no factor: the builders return None and the caller counts it.
+
+The window evaluates the same residuals grouped per host keyframe (:mod:`.grouped`: one Python
+callback instead of one per observation); these per-observation factors are what that is tested
+against.
 """
 
 from __future__ import annotations

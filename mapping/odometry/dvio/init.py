@@ -39,6 +39,7 @@ cannot measure) are left out; too few landmarks for PnP or too few keyframes giv
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -46,7 +47,8 @@ import cv2
 import gtsam
 import numpy as np
 
-from .factors import DepthNoise, Extrinsics, robust
+from .factors import DepthNoise, Extrinsics
+from .grouped import sfm_landmark_factor
 from .imu import GRAVITY_MPS2
 
 __all__ = ["InitResult", "KeyframeObs", "align_visual_inertial", "corrected_deltas", "depth_sfm", "initialise",
@@ -102,7 +104,8 @@ def _cam_point(T_WI: gtsam.Pose3, l_W: np.ndarray, ext: Extrinsics) -> tuple[np.
 
 def _sfm_factor(kp: int, kl: int, u: np.ndarray | None, d: float | None, ext: Extrinsics,
                 model: gtsam.noiseModel.Base) -> gtsam.CustomFactor:
-    """Eq. (1) when ``u`` is given, eq. (3) when ``d`` is."""
+    """Eq. (1) when ``u`` is given, eq. (3) when ``d`` is, one observation per factor: the
+    reference :func:`.grouped.sfm_landmark_factor` (which :func:`depth_sfm` uses) is tested against."""
 
     def error(this: gtsam.CustomFactor, values: gtsam.Values, H: list[np.ndarray] | None) -> np.ndarray:
         P, J_pose, J_l = _cam_point(values.atPose3(kp), values.atPoint3(kl), ext)
@@ -160,23 +163,24 @@ def depth_sfm(frames: Sequence[KeyframeObs], ext: Extrinsics, noise: DepthNoise,
 
     graph = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
-    reproj = robust(gtsam.noiseModel.Isotropic.Sigma(2, pixel_sigma), kernel, 1.0)
     for k, T in enumerate(poses):
         values.insert(k, T)
     graph.add(gtsam.PriorFactorPose3(0, gtsam.Pose3(), gtsam.noiseModel.Isotropic.Sigma(6, 1e-6)))
     ids = sorted(lms)
     for fid in ids:
         values.insert(_L0 + fid, lms[fid])
+    # Eq. (1) and (3) of each landmark in every keyframe that saw it, as one factor per landmark
+    # (grouped.py: one Python callback per landmark and optimiser step, not two per observation).
+    seen: dict[int, list[tuple[int, np.ndarray, float]]] = {}
     for k, f in enumerate(frames):
         for fid, obs in f.features.items():
-            if fid not in lms:
-                continue
-            u, d = _usable(obs, noise)
+            u, d = _usable(obs, noise) if fid in lms else (None, None)
             if u is not None:
-                graph.add(_sfm_factor(k, _L0 + fid, u, None, ext, reproj))
-            if d is not None:
-                depth_model = robust(gtsam.noiseModel.Isotropic.Sigma(1, noise.sigma_m(d)), kernel, 1.0)
-                graph.add(_sfm_factor(k, _L0 + fid, None, d, ext, depth_model))
+                seen.setdefault(fid, []).append((k, u, math.nan if d is None else d))
+    for fid in ids:
+        fac = sfm_landmark_factor(_L0 + fid, seen.get(fid, []), ext, pixel_sigma, noise, kernel)
+        if fac is not None:
+            graph.add(fac)
     result = gtsam.LevenbergMarquardtOptimizer(graph, values).optimize()
     return ([result.atPose3(k) for k in range(len(poses))],
             {fid: result.atPoint3(_L0 + fid) for fid in ids})

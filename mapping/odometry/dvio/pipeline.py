@@ -70,6 +70,7 @@ class DvioConfig:
         depth_factors: the host and projection depth factors (eq. 11-14) on.
         max_iterations: Levenberg-Marquardt iterations per keyframe.
         min_features: fewer tracked features is a tracking loss.
+        min_landmarks: a keyframe observing fewer window landmarks is a tracking loss.
         max_wait_s: longest a frame waits for the IMU to reach its time, s.
         camera_id / imu_id: streams to read ("" = the calibration's camera and its IMU).
     """
@@ -86,6 +87,7 @@ class DvioConfig:
     depth_factors: bool = True
     max_iterations: int = 8
     min_features: int = 10
+    min_landmarks: int = 2
     max_wait_s: float = 0.5
     camera_id: str = ""
     imu_id: str = ""
@@ -104,7 +106,8 @@ class DvioConfig:
     def window_config(self) -> WindowConfig:
         return WindowConfig(window=self.window, init_keyframes=self.init_keyframes, pixel_sigma_px=self.pixel_sigma_px,
                             kernel=self.kernel, kernel_k=self.kernel_k, depth_factors=self.depth_factors,
-                            max_iterations=self.max_iterations, min_features=self.min_features)
+                            max_iterations=self.max_iterations, min_features=self.min_features,
+                            min_landmarks=self.min_landmarks)
 
 
 @dataclass(frozen=True)

@@ -6,11 +6,14 @@ IMU's pose ``T_GI`` in the gravity-aligned frame G, its velocity and the IMU bia
 - eq. (7, 9): :func:`.imu.combined_factor` between consecutive keyframes (the bias random walk
   inside it), preintegrated from the raw samples kept for each interval, so a new bias estimate
   re-integrates them (VINS-Mono's ``repropagate``);
-- eq. (8, 10): :func:`.factors.reprojection_factor` of every landmark (an inverse depth ``l``,
-  hosted in the first window keyframe that saw it) in every other window keyframe that saw it;
+- eq. (8, 10): the reprojection of every landmark (an inverse depth ``l``, hosted in the first
+  window keyframe that saw it) in every other window keyframe that saw it;
 - eq. (11-14): the host and projection depth factors, weighted by the stereo depth noise
   (:class:`.factors.DepthNoise`); off with ``depth_factors=False`` (the ``dvio-no-depth``
   ablation: landmarks are then started by two-view triangulation, not from the depth image);
+- both as one factor per host keyframe (:func:`.grouped.host_group_factor`: the residuals of
+  :mod:`.factors` evaluated with numpy in one Python callback), replaced as its landmarks gain
+  observations;
 - eq. (6): the marginalisation prior. gtsam's ``BatchFixedLagSmoother`` (in the installed gtsam
   wheel; ``gtsam_unstable`` is not installed) keeps every key whose timestamp is within the lag
   of the newest and folds the factors of older keys into a ``LinearContainerFactor`` of the
@@ -31,11 +34,13 @@ the propagation), kept only when enough inliers agree. The IMU-rate pose
 (:meth:`SlidingWindow.imu_pose`) propagates the newest window state with every sample.
 
 Failure (VINS-Mono's ``failureDetection``): an optimisation that raises, a speed or bias beyond
-the config's bounds, or too few features tracked. The window is then cleared; the caller
-re-initialises (:mod:`.init`) and the new segment is anchored (position and yaw; the gravity
-direction is the new initialisation's) on the last good state propagated by the IMU through the
-loss to the first keyframe of the new initialisation (on the last good pose when the loss lasted
-longer than ``_MAX_DEAD_RECKON_S``).
+the config's bounds, too few features tracked, or a new keyframe that observes fewer than
+``min_landmarks`` of the window's landmarks (checked before the smoother runs: a window held by
+the IMU alone is not solvable in double precision, docs/dvio.md "The indeterminate system").
+The window is then cleared; the caller re-initialises (:mod:`.init`) and the new segment is
+anchored (position and yaw; the gravity direction is the new initialisation's) on the last good
+state propagated by the IMU through the loss to the first keyframe of the new initialisation (on
+the last good pose when the loss lasted longer than ``_MAX_DEAD_RECKON_S``).
 """
 
 from __future__ import annotations
@@ -50,14 +55,8 @@ import numpy as np
 
 from exobench.core.errors import ConfigError, check_int, check_range
 
-from .factors import (
-    KERNELS,
-    DepthNoise,
-    Extrinsics,
-    host_depth_factor,
-    projection_depth_factor,
-    reprojection_factor,
-)
+from .factors import KERNELS, DepthNoise, Extrinsics
+from .grouped import HostedLandmark, host_group_factor
 from .imu import ImuNoise, ImuPreintegrator, combined_factor
 from .init import InitResult, KeyframeObs, initialise
 
@@ -83,6 +82,10 @@ class WindowConfig:
         depth_factors: host and projection depth factors on (``dvio``) or off (``dvio-no-depth``).
         max_iterations: Levenberg-Marquardt iterations per keyframe (VINS-Mono: 8).
         min_features: fewer tracked features than this is a tracking loss.
+        min_landmarks: a new keyframe that observes fewer of the window's landmarks than this is a
+            tracking loss (VINS-Mono's "little feature" bound, ``last_track_num < 2``): its pose,
+            and once the window's last landmarks age out the whole window, would rest on the IMU
+            alone, an optimisation whose system gtsam's Cholesky finds indeterminate.
         max_speed_mps / max_accel_bias / max_gyro_bias: failure bounds (VINS-Mono: 2.5 m/s^2
             and 1 rad/s biases; the speed bound is a walking person's, [A]).
         bias_sigma_acc / bias_sigma_gyro: prior sigma of the initial biases (m/s^2, rad/s).
@@ -96,6 +99,7 @@ class WindowConfig:
     depth_factors: bool = True
     max_iterations: int = 8
     min_features: int = 10
+    min_landmarks: int = 2
     max_speed_mps: float = 8.0
     max_accel_bias: float = 2.5
     max_gyro_bias: float = 1.0
@@ -111,6 +115,7 @@ class WindowConfig:
         check_range("kernel_k", self.kernel_k, 0.0, 100.0, low_open=True)
         check_int("max_iterations", self.max_iterations, 1, 100)
         check_int("min_features", self.min_features, 0, 1000)
+        check_int("min_landmarks", self.min_landmarks, 0, 1000)
         check_range("max_speed_mps", self.max_speed_mps, 0.0, 100.0, low_open=True)
         check_range("max_accel_bias", self.max_accel_bias, 0.0, 50.0, low_open=True)
         check_range("max_gyro_bias", self.max_gyro_bias, 0.0, 10.0, low_open=True)
@@ -132,6 +137,18 @@ class _Landmark:
     key: int
     host: int  # serial of the host keyframe
     obs: set[int] = field(default_factory=set)  # serials with factors in the graph (host included)
+    u_host: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    d_host: float = math.nan
+    observations: list[tuple[int, np.ndarray, float]] = field(default_factory=list)  # (pose key, u, depth)
+
+
+@dataclass(eq=False)
+class _Group:
+    """The smoother's factor of the landmarks one keyframe hosts (:func:`.grouped.host_group_factor`)
+    and its index in the smoother's graph (None until the update that adds it has run)."""
+
+    factor: gtsam.CustomFactor
+    index: int | None = None
 
 
 class SlidingWindow:
@@ -159,6 +176,7 @@ class SlidingWindow:
         self._kfs: list[_Keyframe] = []
         self._serial = 0
         self._landmarks: dict[int, _Landmark] = {}
+        self._groups: dict[int, _Group] = {}  # host serial -> its landmarks' factor
         self._next_lm = 0
         self._smoother: gtsam.BatchFixedLagSmoother | None = None
         self._nav: gtsam.NavState | None = None
@@ -207,7 +225,8 @@ class SlidingWindow:
         if not is_keyframe:
             return "ok", self._motion_only(stamp_s, feats).matrix()
         try:
-            self._add_keyframe(stamp_s, feats)
+            if not self._add_keyframe(stamp_s, feats):
+                return self._fail("too few landmarks")
         except RuntimeError as err:  # gtsam: an indeterminant system, a singular marginal
             self.stats["optimisation_failures"] += 1
             self.last_error = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
@@ -332,12 +351,13 @@ class SlidingWindow:
         graph.add(gtsam.PriorFactorConstantBias(B(n0), bias, gtsam.noiseModel.Diagonal.Sigmas(
             np.array([c.bias_sigma_acc] * 3 + [c.bias_sigma_gyro] * 3))))
         poses = {kf.serial: gtsam.Pose3(T_G[k]) for k, kf in enumerate(self._kfs)}
-        self._landmarks = {}
-        self._add_landmarks(graph, values, stamps, poses)
-        self._update(graph, values, stamps)
+        self._landmarks, self._groups = {}, {}
+        self._update(graph, values, stamps, self._add_landmarks(graph, values, stamps, poses))
 
     # -- window ---------------------------------------------------------------------------------
-    def _add_keyframe(self, stamp_s: float, feats: dict) -> None:
+    def _add_keyframe(self, stamp_s: float, feats: dict) -> bool:
+        """The keyframe into the window and the window optimised; False, before any optimisation,
+        when the keyframe observes fewer than ``min_landmarks`` of the window's landmarks."""
         prev = self._kfs[-1]
         kf = _Keyframe(self._serial, stamp_s, feats, self._take_samples(stamp_s))
         self._serial += 1
@@ -356,21 +376,28 @@ class SlidingWindow:
         oldest = n - self.config.window + 1
         self._kfs = [k for k in self._kfs if k.serial >= oldest]
         self._landmarks = {f: lm for f, lm in self._landmarks.items() if lm.host >= oldest}
+        self._groups = {h: g for h, g in self._groups.items() if h >= oldest}
         poses = {k.serial: self._estimate.atPose3(X(k.serial)) for k in self._kfs[:-1]}
         poses[n] = nav.pose()
-        self._add_landmarks(graph, values, stamps, poses)
-        self._update(graph, values, stamps)
+        remove = self._add_landmarks(graph, values, stamps, poses)
+        if sum(n in lm.obs for lm in self._landmarks.values()) < self.config.min_landmarks:
+            return False
+        self._update(graph, values, stamps, remove)
+        return True
 
     def _add_landmarks(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                       stamps: gtsam.FixedLagSmootherKeyTimestampMap, poses: Mapping[int, gtsam.Pose3]) -> None:
-        """Factors of every observation in the window not yet in the graph; new landmarks for
-        features seen twice or more in the window."""
+                       stamps: gtsam.FixedLagSmootherKeyTimestampMap, poses: Mapping[int, gtsam.Pose3]) -> list[int]:
+        """New landmarks for features seen twice or more in the window, and every observation not
+        yet in the graph: the factor of each host keyframe whose landmarks changed is replaced by
+        one holding all their observations (:mod:`.grouped`). Returns the graph indices of the
+        factors it replaces, for the smoother to remove."""
         c, kfs = self.config, self._kfs
         seen: dict[int, list[_Keyframe]] = {}
         for kf in kfs:
             for f, (uu, _) in kf.features.items():
                 if np.all(np.isfinite(uu)):
                     seen.setdefault(f, []).append(kf)
+        changed: set[int] = set()
         for f, where in seen.items():
             lm = self._landmarks.get(f)
             if lm is None:
@@ -380,35 +407,41 @@ class SlidingWindow:
                 xi = self._start_depth(host, where[1:], f, poses)
                 if xi is None:
                     continue
-                lm = self._landmarks[f] = _Landmark(L(self._next_lm), host.serial, {host.serial})
+                uu, d = host.features[f]
+                lm = self._landmarks[f] = _Landmark(L(self._next_lm), host.serial, {host.serial}, uu, d)
                 self._next_lm += 1
                 self.stats["landmarks"] += 1
                 values.insert(lm.key, np.array([xi]))
                 stamps.insert((lm.key, float(host.serial)))
-                if c.depth_factors:
-                    fac = host_depth_factor(lm.key, host.features[f][1], self.depth, c.kernel, c.kernel_k)
-                    if fac is not None:
-                        graph.add(fac)
                 # A landmark seen from two close keyframes (or whose factors the robust kernel has
                 # all but switched off) is barely constrained along its ray, and the smoother's
                 # marginalisation eliminates it without damping: a weak prior (sigma 2 m^-1 around
                 # its start) keeps that definite without pulling a well-observed landmark.
                 graph.add(gtsam.PriorFactorVector(lm.key, np.array([xi]), gtsam.noiseModel.Isotropic.Sigma(1, 2.0)))
-            host_u = next(kf for kf in kfs if kf.serial == lm.host).features[f][0]
             for kf in where:
                 if kf.serial in lm.obs:
                     continue
                 lm.obs.add(kf.serial)
                 uu, d = kf.features[f]
-                fac = reprojection_factor(X(lm.host), X(kf.serial), lm.key, host_u, uu, self.ext, self.sigma,
-                                          c.kernel, c.kernel_k)
-                if fac is not None:
-                    graph.add(fac)
-                if c.depth_factors:
-                    fac = projection_depth_factor(X(lm.host), X(kf.serial), lm.key, host_u, d, self.ext, self.depth,
-                                                  c.kernel, c.kernel_k)
-                    if fac is not None:
-                        graph.add(fac)
+                lm.observations.append((X(kf.serial), uu, d))
+                changed.add(lm.host)
+        by_host: dict[int, list[_Landmark]] = {}
+        for lm in self._landmarks.values():
+            if lm.host in changed:
+                by_host.setdefault(lm.host, []).append(lm)
+        remove = []
+        depth = self.depth if c.depth_factors else None
+        for h in sorted(by_host):
+            hosted = [HostedLandmark(lm.key, lm.u_host, lm.d_host, tuple(lm.observations))
+                      for lm in sorted(by_host[h], key=lambda lm: lm.key)]
+            fac = host_group_factor(X(h), hosted, self.ext, self.sigma, depth, c.kernel, c.kernel_k)
+            old = self._groups.pop(h, None)
+            if old is not None and old.index is not None:
+                remove.append(old.index)
+            if fac is not None:
+                graph.add(fac)
+                self._groups[h] = _Group(fac)
+        return remove
 
     def _start_depth(self, host: _Keyframe, others: Sequence[_Keyframe], f: int,
                      poses: Mapping[int, gtsam.Pose3]) -> float | None:
@@ -436,8 +469,17 @@ class SlidingWindow:
         return 1.0 / best[0]
 
     def _update(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values,
-                stamps: gtsam.FixedLagSmootherKeyTimestampMap) -> None:
-        result = self._smoother.update(graph, values, stamps)
+                stamps: gtsam.FixedLagSmootherKeyTimestampMap, remove: Sequence[int] = ()) -> None:
+        result = self._smoother.update(graph, values, stamps, list(remove))
+        # Where the smoother put the new host factors, to replace them at the next keyframe (it
+        # fills the slots of removed factors first, so the index is read back, not predicted).
+        pending = {id(g.factor): g for g in self._groups.values() if g.index is None}
+        if pending:
+            factors = self._smoother.getFactors()
+            for i in range(factors.size()):
+                g = pending.get(id(factors.at(i)))
+                if g is not None:
+                    g.index = i
         self.stats["lm_iterations"] += int(result.getIterations())
         est = self._smoother.calculateEstimate()
         newest = self._kfs[-1].serial
