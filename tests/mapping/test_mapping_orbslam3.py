@@ -68,7 +68,7 @@ def test_settings_hold_the_calibration_and_the_camera_in_the_imu_frame(tmp_path)
                                                ({"n_levels": 0}, "n_levels"), ({"ini_th_fast": 300}, "ini_th_fast"),
                                                ({"min_th_fast": 30}, "min_th_fast"), ({"th_depth": 0.5}, "th_depth"),
                                                ({"gyro_noise_density": -1}, "gyro_noise_density"),
-                                               ({"frame_timeout_s": 0}, "frame_timeout_s"),
+                                               ({"frame_timeout_s": 0}, "frame_timeout_s"), ({"max_wait_s": -0.1}, "max_wait_s"),
                                                ({"n_features": "many"}, "n_features")])  # fmt: skip
 def test_bad_config_values_are_refused_by_name(values, field):
     with pytest.raises(ConfigError, match=field):
