@@ -68,7 +68,7 @@ def test_settings_hold_the_calibration_and_the_camera_in_the_imu_frame(tmp_path)
                                                ({"n_levels": 0}, "n_levels"), ({"ini_th_fast": 300}, "ini_th_fast"),
                                                ({"min_th_fast": 30}, "min_th_fast"), ({"th_depth": 0.5}, "th_depth"),
                                                ({"gyro_noise_density": -1}, "gyro_noise_density"),
-                                               ({"frame_timeout_s": 0}, "frame_timeout_s"),
+                                               ({"frame_timeout_s": 0}, "frame_timeout_s"), ({"max_wait_s": -0.1}, "max_wait_s"),
                                                ({"n_features": "many"}, "n_features")])  # fmt: skip
 def test_bad_config_values_are_refused_by_name(values, field):
     with pytest.raises(ConfigError, match=field):
@@ -219,3 +219,86 @@ def test_faults_in_its_streams_are_counted_as_every_pipeline_counts_them(vocab):
     assert sum(c.ignored for c in est.counts.values()) == len(ignored)
     # a NaN or absurd depth image is still tracked (no depth): one pose slot per RGB-D frame used
     assert len(est.stamps_s) == est.counts["rgbd"].used
+
+
+class _RecordingWorker:
+    """Stands in for the ORB-SLAM3 process: keeps the IMU rows given with each frame, tracks all."""
+
+    calls: list = []
+
+    def __init__(self, folder, **_):
+        self.pid = 0
+
+    def request(self, header, arrays=None, timeout_s=10.0):
+        if header.get("op") == "track":
+            _RecordingWorker.calls.append((header["t"], np.array(arrays["imu"])))
+        return {"op": "tracked", "state": "OK"}, {"pose_wc": np.eye(4)}
+
+    def finish(self, path, timeout_s=10.0):
+        return "nothing saved (stand-in)"
+
+    def kill(self):
+        pass
+
+    def close(self, timeout_s=10.0):
+        pass
+
+
+def _camera_imu_stream(shift_s, frames=12, imu_silent_after_s=None):
+    """A camera at 30 Hz and its IMU at 200 Hz stamped ``shift_s`` later on its own clock (kalibr:
+    t_imu = t_cam + shift), in delivery (stamp) order, as the simulation streams them."""
+    rgb, depth = np.zeros((240, 424, 3), np.uint8), np.ones((240, 424), np.float32)
+    K = np.array([[212.0, 0, 211.5], [0, 213.0, 119.5], [0, 0, 1]])
+    cams = [RgbdFrame(k / 30.0, "rgbd_head", rgb, depth, K) for k in range(1, frames + 1)]
+    end = cams[-1].stamp_s + 0.05
+    imus = [ImuSample(k / 200.0 + shift_s, "imu_head", np.array([1.0, 0, 0, 0]), np.zeros(3), np.array([0, -9.81, 0]))
+            for k in range(int(end * 200)) if imu_silent_after_s is None or k / 200.0 < imu_silent_after_s]  # fmt: skip
+    return sorted([*cams, *imus], key=lambda f: f.stamp_s), [f.stamp_s for f in cams], [f.stamp_s - shift_s for f in imus]
+
+
+@pytest.mark.parametrize("shift_s", [0.0, 0.0025, 0.02])
+def test_each_frame_gets_all_the_imu_samples_of_its_interval_on_the_camera_clock(tmp_path, monkeypatch, shift_s):
+    # An IMU stamped later than the camera (a D455's colour camera: 2.5 ms, docs/vio-realism.md)
+    # delivers the last samples of a frame's interval after the frame; ORB-SLAM3 integrates the
+    # interval when it tracks the frame, so the frame must wait for them.
+    from exobench.mapping.odometry.orbslam3 import adapter
+
+    monkeypatch.setattr(adapter, "OrbSlam3Worker", _RecordingWorker)
+    _RecordingWorker.calls = []
+    (tmp_path / "voc.txt").write_text("stand-in")
+    stream, cam_t, imu_t = _camera_imu_stream(shift_s)
+    pipe = OrbSlam3Pipeline(OrbSlam3Config(vocabulary=str(tmp_path / "voc.txt")))
+    pipe.reset(calibration(shift_s=shift_s))
+    for f in stream:
+        pipe.process(f)
+    est = pipe.finalize()
+    assert [t for t, _ in _RecordingWorker.calls] == cam_t and len(est.stamps_s) == len(cam_t)
+    imu_t = np.array(imu_t)
+    prev = -np.inf
+    for t, rows in _RecordingWorker.calls:
+        want = imu_t[(imu_t > prev) & (imu_t <= t)]  # the interval (previous frame, this frame]
+        np.testing.assert_allclose(rows[:, 0], want, atol=1e-12, err_msg=f"frame at {t:.4f} s")
+        prev = t
+
+
+def test_a_silent_imu_holds_a_frame_no_longer_than_max_wait_s(tmp_path, monkeypatch):
+    from exobench.mapping.odometry.orbslam3 import adapter
+
+    monkeypatch.setattr(adapter, "OrbSlam3Worker", _RecordingWorker)
+    _RecordingWorker.calls = []
+    (tmp_path / "voc.txt").write_text("stand-in")
+    stream, cam_t, imu_t = _camera_imu_stream(0.0, frames=30, imu_silent_after_s=0.2)
+    pipe = OrbSlam3Pipeline(OrbSlam3Config(vocabulary=str(tmp_path / "voc.txt"), max_wait_s=0.11))
+    pipe.reset(calibration(shift_s=0.0))
+    tracked_before = []
+    for f in stream:
+        pipe.process(f)
+        if isinstance(f, RgbdFrame):
+            tracked_before.append((f.stamp_s, len(_RecordingWorker.calls)))
+    # a frame is tracked when the IMU has passed its time or, the IMU silent (after 0.195 s), when a
+    # frame more than max_wait_s newer arrives; never before
+    for t, n in tracked_before:
+        reached = max([s for s in imu_t if s < t], default=-1.0)
+        assert n == sum(c <= max(reached, t - 0.11) for c in cam_t), (t, n)
+    assert tracked_before[-1][1] < len(cam_t) - 2
+    assert len(pipe.finalize().stamps_s) == len(cam_t)  # and the rest at the end

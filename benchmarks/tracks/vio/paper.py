@@ -14,6 +14,7 @@ chest and thigh in turn, users of 1.65-1.88 m (the paper's subjects); then close
 where they start (the whole corridor ring; a walk there and back), and the stair and ramp courses
 (locomotion's worlds). EuRoC's lengths and speeds (Burri et al., IJRR 2016, the dataset's
 overview; seeds/002 ref. [35]) are a guide only: the sequences are a flying MAV's, ours a walker's.
+They were checked against the dataset itself (:data:`EUROC_LENGTH_SPEED`).
 """
 
 from __future__ import annotations
@@ -39,7 +40,14 @@ TABLE_V = {  # loop drift x / y / z, m, seeds/002 Table V (VINS-Mono: > 10 m eac
     "dvio": (-0.216, 0.023, 0.136),
     "VINS-RGBD": (-0.485, 0.148, 0.226),
 }
-# EuRoC (Burri et al. 2016): length (m), mean speed (m/s) of each sequence
+# EuRoC (Burri et al. 2016): length (m), mean speed (m/s) of each sequence. Verified against the
+# dataset's ground truth (state_groundtruth_estimate0 of each sequence, as OpenVINS redistributes it
+# in github.com/rpng/open_vins ov_data/euroc_mav/<sequence>.txt, commit 69488123): path length over
+# the 200 Hz poses and length / duration give these figures to the digit (MH03: 130.9 m in 131.5 s,
+# 0.995 m/s, which the overview rounds to 0.99); OpenVINS's docs/gs-datasets.dox lists the same
+# lengths to the metre. V101: the original ground truth (V1_01_easy_original.txt; OpenVINS's re-estimated
+# one gives 58.4 m). Durations, s: MH01-05 181.9, 150.0, 131.5, 98.8, 111.1; V101-103 143.6, 83.5,
+# 104.7; V201-202 112.0, 115.5.
 EUROC_LENGTH_SPEED = {
     "MH01": (80.6, 0.44), "MH02": (73.5, 0.49), "MH03": (130.9, 0.99), "MH04": (91.7, 0.93), "MH05": (97.6, 0.88),
     "V101": (58.6, 0.41), "V102": (75.9, 0.91), "V103": (79.0, 0.75), "V201": (36.5, 0.33), "V202": (83.2, 0.72),

@@ -5,7 +5,9 @@ ORB-SLAM3 is GPL-3.0. It is an optional extra (``pip install 'exobench[orbslam3]
 module of exobench imports it: ``reset`` writes ORB-SLAM3's settings from the calibration
 (:mod:`.settings`) into a temporary folder of the pipeline's own and starts the worker script
 ``orbslam3-worker.py`` with this interpreter (:mod:`.worker_client`); ``process`` sends it each
-RGB-D frame of the camera with the camera IMU's samples since the previous frame.
+RGB-D frame of the camera with the camera IMU's samples since the previous frame, once the IMU has
+reached the frame's time (an IMU clock offset or latency delivers a frame's last samples after the
+frame), or after ``max_wait_s`` of frames when the IMU is silent.
 
 Output: a :class:`~exobench.core.estimates.TrajectoryEstimate` of the camera optical frame's pose
 at every RGB-D stamp used, with a status per frame: ``"ok"`` when ORB-SLAM3 tracked it (state OK),
@@ -131,6 +133,8 @@ class OrbSlam3Pipeline:
         self._times: list[float] = []
         self._status: list[str] = []
         self._imu: list[tuple[float, ...]] = []
+        self._imu_time = -math.inf
+        self._queue: list[tuple[RgbdFrame, Any]] = []
         self._last_frame_s = -math.inf
         self._stats: dict[str, Any] = {"states": {}, "map_resets": 0, "map_starts": [], "worker_failed": False,
                                        "pose_source": "online"}  # fmt: skip
@@ -179,6 +183,8 @@ class OrbSlam3Pipeline:
             else:
                 c.used += 1
                 self._imu.append(row)
+                self._imu_time = max(self._imu_time, row[0])
+                self._flush(self._imu_time)
             return None
         if not (isinstance(frame, RgbdFrame) and frame.sensor_id == self._cam_id):
             self._counters.admit(frame, consumed=False)
@@ -186,10 +192,19 @@ class OrbSlam3Pipeline:
         c = self._counters.admit(frame)
         if c is None:
             return None
-        self._track(frame, c)
+        # ORB-SLAM3 integrates a frame's IMU interval once, when it tracks the frame: the frame
+        # waits until the IMU (on the camera's clock) has reached its time, so that no sample of
+        # the interval arrives too late to be given; a silent IMU holds it max_wait_s at most.
+        self._queue.append((frame, c))
+        self._flush(max(self._imu_time, float(frame.stamp_s) - self.config.max_wait_s))
         return None
 
+    def _flush(self, until_s: float) -> None:
+        while self._queue and float(self._queue[0][0].stamp_s) <= until_s:
+            self._track(*self._queue.pop(0))
+
     def finalize(self) -> TrajectoryEstimate:
+        self._flush(math.inf)
         if self._worker is not None and self._folder is not None:
             path = self._folder / "trajectory_euroc.txt"
             try:

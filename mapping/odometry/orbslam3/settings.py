@@ -52,6 +52,9 @@ class OrbSlam3Config:
         camera_id: the RGB-D camera used (empty: the calibration's ``extra["camera"]``).
         vocabulary: path of an ``ORBvoc.txt`` (empty: exobench's vocabulary built from simulated
             images, :mod:`.vocabulary`, which the harness builds on first use).
+        max_wait_s: longest a frame waits for the IMU to reach its time, s (an IMU stamped later
+            than the camera, ``timeshift_cam_imu_s`` > 0 or a latency, delivers the samples of a
+            frame's interval after the frame; a silent IMU must not hold frames without bound).
         init_timeout_s: time allowed to start ORB-SLAM3 and load the vocabulary, s.
         frame_timeout_s: time allowed for one frame, s; a worker slower than that is killed.
         close_timeout_s: time allowed to shut ORB-SLAM3 down and export its trajectory, s.
@@ -70,6 +73,7 @@ class OrbSlam3Config:
     accel_random_walk: float = 0.0
     camera_id: str = ""
     vocabulary: str = ""
+    max_wait_s: float = 0.5
     init_timeout_s: float = 300.0
     frame_timeout_s: float = 10.0
     close_timeout_s: float = 120.0
@@ -83,6 +87,7 @@ class OrbSlam3Config:
         check_range("th_depth", self.th_depth, 1.0, 1000.0)
         for name in ("gyro_noise_density", "gyro_random_walk", "accel_noise_density", "accel_random_walk"):
             check_range(name, getattr(self, name), 0.0, 10.0)
+        check_range("max_wait_s", self.max_wait_s, 0.0, 10.0)
         check_range("init_timeout_s", self.init_timeout_s, 1.0, 3600.0)
         check_range("frame_timeout_s", self.frame_timeout_s, 0.1, 600.0)
         check_range("close_timeout_s", self.close_timeout_s, 1.0, 3600.0)
