@@ -149,6 +149,21 @@ def test_a_camera_that_never_moves_scores_the_spread_of_the_true_path():
     assert m["ate_m"] > 0.9
 
 
+def test_a_straight_walk_is_scored_though_evo_refuses_to_align_a_line():
+    """Every position on one line (a straight corridor): Umeyama's rotation about the line is free
+    and evo refuses it; the ATE is the minimum all those rotations share (Kabsch here), and the
+    record keeps its counts. It used to fail whole, with lost_frac NaN."""
+    n = 90
+    T = np.stack([make_T(np.eye(3), [0.5 * k / RATE_HZ, 0.0, 1.5]) for k in range(n)])
+    est = T.copy()
+    est[:, 0, 3] += np.random.default_rng(4).normal(0.0, 0.02, n)  # errors along the line only
+    status = ["lost"] * 10 + ["ok"] * (n - 10)
+    m = TRACK.score(_episode(T), _estimate(np.arange(n) / RATE_HZ, _in_frame(G_EST, est), status=status))
+    assert not m["failed"], m["failed_reason"]
+    assert m["ate_m"] == pytest.approx(_kabsch_rmse(est[10:, :3, 3], T[10:, :3, 3]), rel=1e-6)
+    assert m["ate_m"] > 0.01 and m["lost_frac"] == pytest.approx(10 / n) and m["n_poses"] == n - 10
+
+
 def test_the_truth_is_read_at_the_measurement_time_of_a_late_frame():
     T = _rectangle_walk()
     latency = 5 / RATE_HZ

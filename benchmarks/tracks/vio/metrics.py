@@ -90,6 +90,14 @@ def ate_rmse(p_est: np.ndarray, p_true: np.ndarray, e_traj: tj.Trajectory, r_tra
     gives it: the true positions' spread about their mean."""
     if np.ptp(p_est, axis=0).max() <= 1e-12:
         return float(np.sqrt(np.mean(np.sum((p_true - p_true.mean(axis=0)) ** 2, axis=1))))
+    xc, yc = p_est - p_est.mean(axis=0), p_true - p_true.mean(axis=0)
+    d = np.linalg.svd(yc.T @ xc / len(xc), compute_uv=False)
+    if np.count_nonzero(d > np.finfo(float).eps) < 2:
+        # collinear estimate or truth (a straight walk): evo refuses Umeyama (the rotation about the line is
+        # free), but every minimising rotation moves the points alike, so the minimum is Umeyama's
+        # closed form var_true + var_est - 2 d_1 (d_2 = d_3 = 0 here, so no reflection sign enters)
+        var = float(np.mean(np.sum(xc * xc, axis=1)) + np.mean(np.sum(yc * yc, axis=1)))
+        return float(np.sqrt(max(var - 2.0 * d[0], 0.0)))
     return float(tj.ate(e_traj, r_traj)["rmse"])
 
 
@@ -140,6 +148,16 @@ def score_vio(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any]:
         if n_used < 3:
             out.update(failed=True, failed_reason=f"{n_used} scored poses (status ok, finite, inside the truth)")
             return out
+        return _alignment_metrics(episode, out, stamps, P, use)
+    except Exception as e:  # a scorer never raises on an estimate
+        return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")
+
+
+def _alignment_metrics(episode: Episode, out: dict[str, Any], stamps: np.ndarray, P: np.ndarray,
+                       use: np.ndarray) -> dict[str, Any]:
+    """The metrics against the truth; should one raise, the record fails but keeps its counts
+    (``lost_frac``, ``n_poses``): how much was tracked is known whatever the alignment does."""
+    try:
         truth = camera_truth(episode)
         out["init_s"] = float(stamps[use][0] - (truth[0, 0] + camera_latency_s(episode)))
         _, Q = interpolate_poses(truth, stamps[use] - camera_latency_s(episode))
@@ -155,6 +173,7 @@ def score_vio(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any]:
         out["path_m"] = r_traj.path_length_m()
         if np.linalg.norm(truth[-1, 1:4] - truth[0, 1:4]) < LOOP_TOL_M and out["path_m"] > 4 * LOOP_TOL_M:
             out.update(loop_metrics(P[use], Q))
-        return out
     except Exception as e:  # a scorer never raises on an estimate
-        return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")
+        out.update({k: math.nan for k in ("ate_m", "rpe_1m_m", "drift_per_m")},
+                   failed=True, failed_reason=f"scoring raised {type(e).__name__}: {e}")  # fmt: skip
+    return out
