@@ -61,6 +61,7 @@ from typing import Any
 
 import numpy as np
 
+from exobench.core.episode import Episode
 from exobench.core.estimates import LOCOMOTION_MODES, LocomotionEstimate, ModePrediction
 from exobench.core.truth import StepTruth
 
@@ -341,3 +342,78 @@ def failure_metrics(n_steps: int, reason: str) -> dict[str, Any]:
     m = empty_metrics(n_steps)
     m["failed_reason"] = reason
     return m
+
+
+# The footprints' world frame: the given odometry's, or the poses an estimate on its own odometry used
+
+
+def local_odometry_alignment(episode: Episode) -> Callable[[float], np.ndarray] | np.ndarray | None:
+    """T_world_odom at a time: the true camera pose (times the calibration's ``T_camera_body``)
+    times the inverse of the odometry's body pose at the odometry sample nearest to it (the odometry named in the calibration, which
+    tracks the camera's optical frame; truth ``camera_T_world`` at ``camera_stamps_s``). Without
+    those, the fixed ``T_world_estimator`` (None if absent)."""
+    from exobench.core.frames import OdometrySample
+
+    truth = episode.truth
+    extra = truth.extra or {}
+    info = (episode.calibration.extra or {}).get("odometry") if episode.calibration is not None else None
+    odom_id = info.get("sensor_id") if isinstance(info, dict) else None
+    try:
+        T_fixed = np.asarray(truth.T_world_estimator, dtype=float).reshape(4, 4)
+    except (TypeError, ValueError):
+        T_fixed = None
+    if odom_id is None or "camera_T_world" not in extra or "camera_stamps_s" not in extra:
+        return T_fixed
+    t_cam = np.asarray(extra["camera_stamps_s"], dtype=float)
+    T_cam = np.asarray(extra["camera_T_world"], dtype=float)
+    odo = [f for f in episode.frames if isinstance(f, OdometrySample) and f.sensor_id == odom_id]
+    if not odo or len(t_cam) == 0:
+        return T_fixed
+    t_odo = np.array([float(f.stamp_s) for f in odo])
+    k_cam = _nearest(t_cam, t_odo)
+    try:  # the tracked body in the camera frame (identity: the optical frame itself)
+        T_cb = np.asarray(info.get("T_camera_body", np.eye(4)), dtype=float).reshape(4, 4)
+    except (TypeError, ValueError):
+        T_cb = np.eye(4)
+    aligned = np.array([T_cam[k] @ T_cb @ np.linalg.inv(np.asarray(f.T_odom_body, dtype=float)) for k, f in zip(k_cam, odo)])
+
+    def at(t_s: float) -> np.ndarray:
+        return aligned[int(_nearest(t_odo, np.array([t_s]))[0])]
+
+    return at
+
+
+def own_pose_alignment(episode: Episode, estimate: LocomotionEstimate) -> Callable[[float], np.ndarray] | None:
+    """T_world_odom at a prediction's stamp for an estimate on its own odometry
+    (``estimate.odometry`` not ``"given"``): the true camera pose at the truth stamp nearest to it
+    times the inverse of the camera pose the prediction was made with (``T_odom_camera``); NaN
+    where the prediction had none. The footprint is so scored where the prediction puts it
+    relative to the camera, as the controller uses it (docs/tracks/locomotion.md). None without
+    the camera truth."""
+    extra = episode.truth.extra or {}
+    if "camera_T_world" not in extra or "camera_stamps_s" not in extra:
+        return None
+    t_cam = np.asarray(extra["camera_stamps_s"], dtype=float)
+    T_cam = np.asarray(extra["camera_T_world"], dtype=float)
+    if len(t_cam) == 0:
+        return None
+    used: dict[float, np.ndarray] = {}
+    for p in estimate.predictions:
+        T = p.T_odom_camera
+        if T is not None and np.shape(T) == (4, 4) and np.all(np.isfinite(T)):
+            used[float(p.stamp_s)] = np.asarray(T, dtype=float)
+    nan = np.full((4, 4), np.nan)
+
+    def at(t_s: float) -> np.ndarray:
+        T = used.get(float(t_s))
+        if T is None:
+            return nan
+        return T_cam[int(_nearest(t_cam, np.array([t_s]))[0])] @ np.linalg.inv(T)
+
+    return at
+
+
+def _nearest(sorted_s: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+    """Index of the nearest of the sorted stamps to each time (the earlier on a tie)."""
+    k = np.clip(np.searchsorted(sorted_s, t_s), 0, len(sorted_s) - 1)
+    return np.where((k > 0) & (np.abs(sorted_s[k - 1] - t_s) <= np.abs(sorted_s[k] - t_s)), k - 1, k)

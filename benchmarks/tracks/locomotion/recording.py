@@ -38,7 +38,7 @@ from exobench.core.episode import Episode
 from exobench.core.estimates import LocomotionEstimate, ModePrediction
 from exobench.core.frames import OdometrySample, RgbdFrame
 
-from .metrics import MODE_INDEX
+from .metrics import MODE_INDEX, own_pose_alignment
 
 IMAGE_EVERY_S = 0.2
 TSDF_EVERY_S = 1.0
@@ -185,7 +185,6 @@ def _log_tsdf(rr: Any, rec: Any, episode: Episode, every_s: float) -> None:
 
 
 def _log_estimate(rr: Any, rec: Any, episode: Episode, name: str, est: Any) -> None:
-    from .track import own_pose_alignment
 
     preds, final = _series(est)
     T = T_fixed = np.asarray(episode.truth.T_world_estimator, dtype=float)
