@@ -5,6 +5,8 @@ and passed in as ``rr``, or inside :func:`write_lidar_recording`).
 - :func:`log_scans`: every ``every``-th scan in the world, coloured by intensity and by true
   return kind, optional keep masks per pipeline;
 - :func:`log_trajectory`: a line strip of positions; :func:`kind_colors`, :func:`intensity_colors`;
+- :func:`log_rgbd_frames`: a camera's true pose, pinhole, colour and depth images over time
+  (the vio and locomotion recordings);
 - :func:`write_lidar_recording`: the recording of the odometry and lidar-filter tracks (scans,
   kept points, true and estimated trajectories, maps and loop edges).
 """
@@ -110,6 +112,31 @@ def log_trajectory(rr: Any, rec: Any, path: str, positions_xyz: np.ndarray, rgb:
     p = p[np.all(np.isfinite(p), axis=1)]
     if len(p) > 1:
         rec.log(path, rr.LineStrips3D([p], colors=[rgb], radii=0.02), static=True)
+
+
+def log_rgbd_frames(rr: Any, rec: Any, frames: Sequence[Any], traj: np.ndarray, image_every_s: float,
+                    entity: str = "world/camera") -> None:
+    """Every RGB-D frame at least ``image_every_s`` after the last one logged: the true pose
+    (the row of ``traj``, rows ``[t, x, y, z, qw, qx, qy, qz]``, at or after its stamp; none when
+    ``traj`` is empty), its pinhole, the colour image (JPEG) and the depth (millimetres)."""
+    traj = np.asarray(traj, dtype=float).reshape(-1, 8)
+    last = -np.inf
+    for f in frames:
+        t = float(f.stamp_s)
+        if t - last < image_every_s:
+            continue
+        last = t
+        rec.set_time("sim_time", duration=t)
+        if len(traj):
+            row = traj[min(int(np.searchsorted(traj[:, 0], t - 1e-9)), len(traj) - 1)]
+            q = row[4:8]
+            rec.log(entity, rr.Transform3D(translation=row[1:4], quaternion=rr.Quaternion(xyzw=[q[1], q[2], q[3], q[0]])))
+        h, w = np.asarray(f.depth_m).shape[:2]
+        rec.log(entity, rr.Pinhole(image_from_camera=np.asarray(f.K, dtype=float), resolution=[w, h], image_plane_distance=0.3))
+        if f.rgb is not None:
+            rec.log(f"{entity}/rgb", rr.Image(np.asarray(f.rgb, dtype=np.uint8)).compress(jpeg_quality=80))
+        depth_mm = np.clip(np.nan_to_num(np.asarray(f.depth_m, dtype=float)) * 1000.0, 0, 65535).astype(np.uint16)
+        rec.log(f"{entity}/depth", rr.DepthImage(depth_mm, meter=1000.0))
 
 
 def _final(est: Any) -> Any:

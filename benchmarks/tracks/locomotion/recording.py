@@ -38,6 +38,7 @@ from exobench.core.episode import Episode
 from exobench.core.estimates import LocomotionEstimate, ModePrediction
 from exobench.core.frames import OdometrySample, RgbdFrame
 
+from ..office_recording import log_rgbd_frames
 from .metrics import MODE_INDEX, own_pose_alignment
 
 IMAGE_EVERY_S = 0.2
@@ -112,23 +113,7 @@ def _log_world(rr: Any, rec: Any, episode: Episode) -> None:
 
 def _log_camera(rr: Any, rec: Any, episode: Episode, image_every_s: float) -> None:
     traj = np.asarray(episode.truth.trajectory_w, dtype=float).reshape(-1, 8)
-    last = -np.inf
-    for f in _rgbd_frames(episode):
-        t = float(f.stamp_s)
-        if t - last < image_every_s:
-            continue
-        last = t
-        rec.set_time("sim_time", duration=t)
-        if len(traj):
-            row = traj[min(int(np.searchsorted(traj[:, 0], t - 1e-9)), len(traj) - 1)]
-            q = row[4:8]
-            rec.log("world/camera", rr.Transform3D(translation=row[1:4], quaternion=rr.Quaternion(xyzw=[q[1], q[2], q[3], q[0]])))
-        h, w = np.asarray(f.depth_m).shape[:2]
-        rec.log("world/camera", rr.Pinhole(image_from_camera=np.asarray(f.K, dtype=float), resolution=[w, h], image_plane_distance=0.3))
-        if f.rgb is not None:
-            rec.log("world/camera/rgb", rr.Image(np.asarray(f.rgb, dtype=np.uint8)).compress(jpeg_quality=80))
-        depth_mm = np.clip(np.nan_to_num(np.asarray(f.depth_m, dtype=float)) * 1000.0, 0, 65535).astype(np.uint16)
-        rec.log("world/camera/depth", rr.DepthImage(depth_mm, meter=1000.0))
+    log_rgbd_frames(rr, rec, _rgbd_frames(episode), traj, image_every_s)
     peds = episode.truth.extra.get("pedestrian_tracks") if isinstance(episode.truth.extra, dict) else None
     if peds is None or np.size(peds) == 0:
         return

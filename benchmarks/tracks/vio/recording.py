@@ -20,13 +20,11 @@ import os
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from exobench.core.episode import Episode
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import RgbdFrame
 
-from ..office_recording import log_office_world, log_trajectory
+from ..office_recording import log_office_world, log_rgbd_frames, log_trajectory
 from .metrics import aligned_or_centred, camera_truth, scored_mask
 
 IMAGE_EVERY_S = 0.2
@@ -64,22 +62,7 @@ def write_vio_recording(episode: Episode, estimates_by_pipeline: dict[str, Any],
     log_office_world(rr, rec, episode)
     truth = camera_truth(episode)
     log_trajectory(rr, rec, "world/truth", truth[:, 1:4], (20, 20, 20))
-    last = -np.inf
-    for f in (f for f in episode.frames if isinstance(f, RgbdFrame)):
-        t = float(f.stamp_s)
-        if t - last < image_every_s:
-            continue
-        last = t
-        rec.set_time("sim_time", duration=t)
-        row = truth[min(int(np.searchsorted(truth[:, 0], t - 1e-9)), len(truth) - 1)]
-        q = row[4:8]
-        rec.log("world/camera", rr.Transform3D(translation=row[1:4], quaternion=rr.Quaternion(xyzw=[q[1], q[2], q[3], q[0]])))
-        h, w = np.asarray(f.depth_m).shape[:2]
-        rec.log("world/camera", rr.Pinhole(image_from_camera=np.asarray(f.K, dtype=float), resolution=[w, h], image_plane_distance=0.3))
-        if f.rgb is not None:
-            rec.log("world/camera/rgb", rr.Image(np.asarray(f.rgb, dtype=np.uint8)).compress(jpeg_quality=80))
-        depth_mm = np.clip(np.nan_to_num(np.asarray(f.depth_m, dtype=float)) * 1000.0, 0, 65535).astype(np.uint16)
-        rec.log("world/camera/depth", rr.DepthImage(depth_mm, meter=1000.0))
+    log_rgbd_frames(rr, rec, [f for f in episode.frames if isinstance(f, RgbdFrame)], truth, image_every_s)
     for k, name in enumerate(sorted(estimates_by_pipeline)):
         est = _final(estimates_by_pipeline[name])
         if not isinstance(est, TrajectoryEstimate) or not len(est.stamps_s):
