@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from exobench.core.errors import ConfigError
 from exobench.core.limits import finite_rows
 
 from .normal_kernels import candidate_cells
@@ -153,7 +152,8 @@ def range_image_normal_candidates(
     (returns across a depth jump are passed over); none when there is no such return.
     The normal ``t_az x t_ring`` is flipped towards the sensor (origin); NaN when the tangents
     are nearly parallel (sine of their angle below ``min_sin``). None when the scan is not
-    ring-organised (:func:`range_image_index`).
+    ring-organised (:func:`range_image_index`) or has fewer columns than ``col_halfwidth`` (the
+    caller falls back to knn, as for any scan without a usable ring layout).
     """
     p = np.asarray(points_xyz, dtype=float).reshape(-1, 3)
     organised = range_image_index(p, ring)
@@ -174,8 +174,8 @@ def range_image_normal_candidates(
     rw = np.concatenate([rc[:, n_cols - cw :], rc, rc[:, :cw]], axis=1)
     Pr = np.concatenate([P[:, -1:], P, P[:, :1]], axis=1)  # one wrapped column each side
     rr = np.concatenate([rg[:, -1:], rg, rg[:, :1]], axis=1)
-    if Pw.shape[1] != n_cols + 2 * cw:  # fewer columns than the half-width: no wrap of whole tangents
-        raise ConfigError("col_halfwidth", cw, f"at most the range image's {n_cols} columns")
+    if Pw.shape[1] != n_cols + 2 * cw:  # a sparse scan with fewer columns than the half-width: no tangent wraps whole
+        return None
     # one compiled pass per cell (:mod:`.normal_kernels`); the tolerances are float32, as numpy
     # multiplies a float32 image by a Python float
     cells = candidate_cells(index, p, Pw, rw, Pr, rr, rc, cw, np.float32(azimuth_jump_rel), np.float32(ring_jump_rel),
