@@ -9,7 +9,8 @@
   normals, the cross products of an azimuth tangent (left / right) and a ring tangent (up / down)
   that skip neighbours across a depth jump. A point on a crease (floor meeting a wall) lies on
   both surfaces, so the filter reads eq. (4.19) as "some one-sided normal is parallel to the
-  footprint's z axis". Scans without a ring layout fall back to ``"knn"``.
+  footprint's z axis". Scans without a ring layout fall back to ``"knn"``. The tangents and
+  normals of the cells are computed in one compiled pass (:mod:`.normal_kernels`).
 """
 
 from __future__ import annotations
