@@ -27,7 +27,7 @@ _F1 = np.float32(1.0)
 
 @_jit
 def _unit3(x, y, z):  # noqa: ANN001, ANN202 - numba infers the types
-    """``_unit_components`` of one float32 vector: float64, the norm summed ``(x*x + y*y) + z*z``."""
+    """A float32 vector as a float64 unit vector, the norm summed ``(x*x + y*y) + z*z`` as the numpy code did."""
     x, y, z = np.float64(x), np.float64(y), np.float64(z)
     n = math.sqrt(x * x + y * y + z * z)
     return x / n, y / n, z / n

@@ -121,16 +121,6 @@ def _unit(v: np.ndarray) -> np.ndarray:
         return v / n
 
 
-def _unit_components(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``_unit(v.astype(float)).T`` of (M, 3) vectors as three contiguous arrays, the same bits:
-    the norm summed in the same order, ``(x*x + y*y) + z*z`` (``np.linalg.norm`` along an axis
-    of three and strided components cost more than the arithmetic)."""
-    x, y, z = (np.ascontiguousarray(c, dtype=float) for c in np.asarray(v).reshape(-1, 3).T)
-    n = np.sqrt(x * x + y * y + z * z)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return x / n, y / n, z / n
-
-
 def range_image_normal_candidates(
     points_xyz: np.ndarray,
     ring: np.ndarray | None,
