@@ -10,6 +10,10 @@ temporary file, and keeps in memory only a few numbers per scan (stamp, start, p
 whether a pipeline uses it). :class:`ScanPairs` reads them back one scan at a time, in order,
 as often as the scorer needs; nothing of the scans stays in memory between two reads.
 
+Each scan is written as its arrays' raw bytes, each padded to 16 bytes, and read back with one
+read into one buffer: the scorer reads every scan once per filter, and parsing ``.npy`` headers
+(ten a scan, each an ``ast.literal_eval``) cost more than reading the bytes.
+
 The file is unlinked when it is created, so it goes away with the process (or :meth:`ScanSpool.close`)
 even when a worker is killed. On disk a scan takes its own bytes plus ~21 bytes a point.
 
@@ -34,6 +38,11 @@ from exobench.core.counters import StreamCounters
 
 _SCAN_ARRAYS = ("points_xyz", "intensity", "ring", "time_offset_s")
 _TRUTH_ARRAYS = ("true_range_m", "geom_id", "surface_id", "kind", "via_geom_id", "signal")
+_ALIGN = 16  # each array starts on a multiple of this in the scan's buffer: aligned for any dtype
+
+
+def _padded(n: int) -> int:
+    return -(-n // _ALIGN) * _ALIGN
 
 
 @dataclass(frozen=True)
@@ -46,6 +55,8 @@ class SpooledScan:
     sweep_start_s: float
     n_points: int
     used: bool
+    layout: tuple[tuple[str, str, tuple[int, ...]], ...] = ()  # (name, dtype, shape) of each array, in order
+    n_bytes: int = 0
 
 
 class ScanSpool:
@@ -63,21 +74,37 @@ class ScanSpool:
                 or len(truth.kind) != len(scan.points_xyz)):  # fmt: skip
             return  # lidar_pairs would find it no truth either
         small = compact_truth(truth)
+        arrays = [(n, np.asarray(getattr(scan, n))) for n in _SCAN_ARRAYS] + [(n, np.asarray(getattr(small, n))) for n in _TRUTH_ARRAYS]
+        layout, chunks, n_bytes = [], [], 0
+        for name, a in arrays:
+            if a.dtype.hasobject:
+                raise TypeError(f"cannot spool {name} of dtype object")
+            raw = np.ascontiguousarray(a).tobytes()
+            chunks.append(raw + bytes(_padded(len(raw)) - len(raw)))
+            layout.append((name, a.dtype.str, tuple(a.shape)))
+            n_bytes += len(chunks[-1])
         f = self._file
         f.seek(0, 2)
         offset = f.tell()
-        for name in _SCAN_ARRAYS:
-            np.lib.format.write_array(f, np.asarray(getattr(scan, name)), allow_pickle=False)
-        for name in _TRUTH_ARRAYS:
-            np.lib.format.write_array(f, np.asarray(getattr(small, name)), allow_pickle=False)
-        self.entries.append(SpooledScan(offset, float(scan.stamp_s), scan.sensor_id, float(scan.sweep_start_s), len(scan.points_xyz), used))
+        f.write(b"".join(chunks))
+        self.entries.append(SpooledScan(offset, float(scan.stamp_s), scan.sensor_id, float(scan.sweep_start_s), len(scan.points_xyz),
+                                        used, tuple(layout), n_bytes))  # fmt: skip
 
     def load(self, entry: SpooledScan) -> tuple[LidarScan, LidarTruth]:
         """The scan and its compact truth as they were added (arrays equal bit for bit)."""
         f = self._file
         f.seek(entry.offset)
-        scan = {n: np.lib.format.read_array(f, allow_pickle=False) for n in _SCAN_ARRAYS}
-        truth = {n: np.lib.format.read_array(f, allow_pickle=False) for n in _TRUTH_ARRAYS}
+        buf = bytearray(entry.n_bytes)  # writable: the arrays are views of it, as np.load's are their own
+        if f.readinto(buf) != entry.n_bytes:
+            raise OSError(f"the scan spool ends inside the scan at {entry.stamp_s} s")
+        arrays, at = {}, 0
+        for name, dtype, shape in entry.layout:
+            dt = np.dtype(dtype)
+            count = int(np.prod(shape, dtype=np.int64))
+            arrays[name] = np.frombuffer(buf, dtype=dt, count=count, offset=at).reshape(shape)
+            at += _padded(count * dt.itemsize)
+        scan = {n: arrays[n] for n in _SCAN_ARRAYS}
+        truth = {n: arrays[n] for n in _TRUTH_ARRAYS}
         empty3 = np.zeros((0, 3), dtype=np.float32)
         return (
             LidarScan(stamp_s=entry.stamp_s, sensor_id=entry.sensor_id, sweep_start_s=entry.sweep_start_s, **scan),

@@ -9,7 +9,8 @@
   normals, the cross products of an azimuth tangent (left / right) and a ring tangent (up / down)
   that skip neighbours across a depth jump. A point on a crease (floor meeting a wall) lies on
   both surfaces, so the filter reads eq. (4.19) as "some one-sided normal is parallel to the
-  footprint's z axis". Scans without a ring layout fall back to ``"knn"``.
+  footprint's z axis". Scans without a ring layout fall back to ``"knn"``. The tangents and
+  normals of the cells are computed in one compiled pass (:mod:`.normal_kernels`).
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from exobench.core.limits import finite_rows
+
+from .normal_kernels import candidate_cells
 
 
 def estimate_normals(
@@ -118,16 +121,6 @@ def _unit(v: np.ndarray) -> np.ndarray:
         return v / n
 
 
-def _unit_components(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``_unit(v.astype(float)).T`` of (M, 3) vectors as three contiguous arrays, the same bits:
-    the norm summed in the same order, ``(x*x + y*y) + z*z`` (``np.linalg.norm`` along an axis
-    of three and strided components cost more than the arithmetic)."""
-    x, y, z = (np.ascontiguousarray(c, dtype=float) for c in np.asarray(v).reshape(-1, 3).T)
-    n = np.sqrt(x * x + y * y + z * z)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return x / n, y / n, z / n
-
-
 def range_image_normal_candidates(
     points_xyz: np.ndarray,
     ring: np.ndarray | None,
@@ -150,7 +143,8 @@ def range_image_normal_candidates(
     (returns across a depth jump are passed over); none when there is no such return.
     The normal ``t_az x t_ring`` is flipped towards the sensor (origin); NaN when the tangents
     are nearly parallel (sine of their angle below ``min_sin``). None when the scan is not
-    ring-organised (:func:`range_image_index`).
+    ring-organised (:func:`range_image_index`) or has fewer columns than ``col_halfwidth`` (the
+    caller falls back to knn, as for any scan without a usable ring layout).
     """
     p = np.asarray(points_xyz, dtype=float).reshape(-1, 3)
     organised = range_image_index(p, ring)
@@ -169,57 +163,15 @@ def range_image_normal_candidates(
     cw = int(col_halfwidth)
     Pw = np.concatenate([Pc[:, n_cols - cw :], Pc, Pc[:, :cw]], axis=1)  # columns wrap round (360 deg)
     rw = np.concatenate([rc[:, n_cols - cw :], rc, rc[:, :cw]], axis=1)
-    t_az = {}
-    with np.errstate(invalid="ignore", divide="ignore"):
-        tol = azimuth_jump_rel * rc
-        for s in (-1, 1):
-            # least-squares line through the point and its kept neighbours j on this side, in
-            # coordinates relative to the point: direction sum_j (j - mean j) q_j = S_jq - S_j S_q / n
-            s_q = np.zeros((n_rows, n_cols, 3), dtype=np.float32)
-            s_jq = np.zeros((n_rows, n_cols, 3), dtype=np.float32)
-            s_j = np.zeros((n_rows, n_cols), dtype=np.float32)
-            k = np.zeros((n_rows, n_cols), dtype=np.float32)
-            for j in range(1, cw + 1):
-                lo = cw + s * j
-                ok = np.abs(rw[:, lo : lo + n_cols] - rc) <= tol  # False where either is empty
-                q = np.where(ok[..., None], Pw[:, lo : lo + n_cols] - Pc, np.float32(0.0))
-                s_q += q
-                s_jq += np.float32(j) * q
-                s_j += np.float32(j) * ok
-                k += ok
-            t = s_jq - (s_j / (k + 1))[..., None] * s_q
-            t[k < min_neighbours] = np.nan
-            t_az[s] = s * t
-
-        t_ring = {}
-        Pr = np.concatenate([P[:, -1:], P, P[:, :1]], axis=1)  # one wrapped column each side
-        rr = np.concatenate([rg[:, -1:], rg, rg[:, :1]], axis=1)
-        for s in (1, -1):
-            nb = np.full((n_rows, n_cols, 3), np.nan, dtype=np.float32)
-            for k in range(pad, 0, -1):  # nearer rings overwrite farther ones
-                r0 = pad + s * k
-                for dc in (1, -1, 0):  # the same column overwrites its neighbours
-                    qs = rr[r0 : r0 + n_rows, 1 + dc : 1 + dc + n_cols]
-                    # a return, and no depth jump: range ratio within 1 + ring_jump_rel (False where empty)
-                    m = np.abs(qs - rc) <= ring_jump_rel * np.fmin(qs, rc)
-                    np.copyto(nb, Pr[r0 : r0 + n_rows, 1 + dc : 1 + dc + n_cols], where=m[..., None])
-            d = s * (nb - Pc)
-            t_ring[s] = d
-
-        # the cells with a return only, as component arrays (cheaper than strided (.., 3) ops)
-        idx = index[has]
-        az_u = {k: _unit_components(v[has]) for k, v in t_az.items()}
-        ring_u = {k: _unit_components(v[has]) for k, v in t_ring.items()}
-        px, py, pz = (np.ascontiguousarray(c) for c in p[idx].T)
-        cells = np.empty((len(idx), 4, 3))
-        for c, (sa, sr) in enumerate(((-1, 1), (-1, -1), (1, 1), (1, -1))):
-            (ax, ay, az), (bx, by, bz) = az_u[sa], ring_u[sr]
-            nx, ny, nz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-            sin = np.sqrt(nx * nx + ny * ny + nz * nz)
-            # unit normal, NaN when the tangents are (nearly) parallel; towards the sensor: n . (0 - p) >= 0
-            scale = np.where(sin > min_sin, 1.0, np.nan) / sin
-            scale = np.where(nx * px + ny * py + nz * pz > 0, -scale, scale)
-            cells[:, c, 0], cells[:, c, 1], cells[:, c, 2] = nx * scale, ny * scale, nz * scale
+    Pr = np.concatenate([P[:, -1:], P, P[:, :1]], axis=1)  # one wrapped column each side
+    rr = np.concatenate([rg[:, -1:], rg, rg[:, :1]], axis=1)
+    if Pw.shape[1] != n_cols + 2 * cw:  # a sparse scan with fewer columns than the half-width: no tangent wraps whole
+        return None
+    # one compiled pass per cell (:mod:`.normal_kernels`); the tolerances are float32, as numpy
+    # multiplies a float32 image by a Python float
+    cells = candidate_cells(index, p, Pw, rw, Pr, rr, rc, cw, np.float32(azimuth_jump_rel), np.float32(ring_jump_rel),
+                            pad, int(min_neighbours), float(min_sin))  # fmt: skip
+    idx = index[has]
     out = np.full((len(p), 4, 3), np.nan)
     out[idx] = cells  # one scatter of whole rows: a cell's point is never another cell's
     return out

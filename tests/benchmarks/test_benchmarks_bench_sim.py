@@ -14,7 +14,7 @@ import time
 import numpy as np
 
 import exobench
-from exobench.benchmarks.bench.sim import STAGES, stage_of, stages_of
+from exobench.benchmarks.bench.sim import STAGES, cpu_profile, stage_of, stages_of
 
 # the package's own folder, whatever the checkout is named (/work/main is not named exobench)
 PKG = os.path.dirname(os.path.abspath(exobench.__file__))
@@ -62,3 +62,21 @@ def test_stage_rules():
     assert stage_of(f"{PKG}/mapping/odometry/kiss_icp.py", "process") == "pipelines"
     assert stage_of(f"{PKG}/envs/motion/walk.py", "plan_walk") == "motion"
     assert stage_of(f"{PKG}/benchmarks/runner.py", "_run_job") == "other"
+
+
+def test_bench_profiles_count_cpu_time_not_the_time_a_process_waits():
+    # on the shared machine a wall-clock profile put several times an episode's CPU time in its
+    # stages (load 18: 96 s of stages for 18 CPU-s)
+    cast = _module(f"{PKG}/envs/sensors/lidar/cast.py")
+    a = np.random.default_rng(0).random(300_000)
+    profile = cpu_profile()
+    c0 = time.process_time()
+    profile.enable()
+    cast(a, 3)
+    time.sleep(0.5)  # waiting, as for a core another process holds
+    cast(a, 3)
+    profile.disable()
+    cpu = time.process_time() - c0
+    got = stages_of(profile)
+    assert got["casting"] > 0
+    assert sum(got.values()) < cpu + 0.05 < 0.5

@@ -69,7 +69,8 @@ def test_bench_commands_report_json():
     assert set(ep["pipelines_wall_s"]) == set(default_registry().names(track="stairs")) and not ep["failed"]
     stages = ep["stages_s"]
     assert stages["casting"] > 0 and stages["pipelines"] > 0 and stages["motion"] > 0  # ToF cones, RTLS, the walk
-    assert 0.5 * ep["wall_s"] < sum(stages.values()) < 1.1 * ep["wall_s"]  # every stage of the episode's time
+    assert 0.5 * ep["cpu_s"] < sum(stages.values()) < 1.1 * ep["cpu_s"]  # every stage of the episode's CPU time
+    assert 0 < ep["cpu_s"] < 3 * ep["wall_s"]  # the profile counts CPU time, whatever else the machine runs
     assert 0.1 < ep["peak_rss_gb"] < 8
     bad = CliRunner().invoke(cli, ["bench", "sim", "--track", "nope"])
     assert bad.exit_code == 2 and "nope" in bad.stderr
@@ -82,6 +83,7 @@ def test_bench_sim_case_runs_one_paper_episode_whole_in_its_own_process():
     assert out["case"] == "B" and not out["failed"]
     assert set(out["pipelines_wall_s"]) == set(default_registry().names(track="stairs"))
     assert 0 < out["sim_wall_s"] < out["wall_s"] and 0.1 < out["peak_rss_gb"] < 8
+    assert 0 < out["cpu_s"] < 3 * out["wall_s"]
     for args, says in ((["--case", "B"], "exactly one --track"), (["--track", "stairs", "--case", "nope"], "nope"),
                        (["--track", "stairs", "--track", "odometry", "--case", "B"], "exactly one --track")):  # fmt: skip
         bad = CliRunner().invoke(cli, ["bench", "sim", *args])
