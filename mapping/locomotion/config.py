@@ -28,7 +28,7 @@ STATUSES = ("ok", "no_depth", "bad_frame", "no_odometry", "no_planes", "error", 
 # unknowns (velocities, gravity, scale) from 6(M - 1) equations, overdetermined from M = 4; 5
 # keeps a margin. A walker sets off at the first frame and the predictor needs three heel
 # strikes with a pose, so a chest camera's 10 keyframes (1.5-3 s of slow parallax at the start)
-# left the first steps undecided (docs/tracks/locomotion.md, "Why the courses are textured").
+# left the first steps undecided (docs/tracks/locomotion.md, "Why D-VIO started late or never").
 LOCOMOTION_INIT_KEYFRAMES = 5
 MODE_REFERENCES = ("swing", "stance")
 DIRECTIONS = ("stride", "velocity")

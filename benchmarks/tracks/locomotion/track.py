@@ -24,9 +24,10 @@ paper repeated each experiment three times: ``--seeds 3``):
   mounts at 1.75 m: depth noise x3, strong odometry drift, 20 % dropped frames, every noise and
   drift off, and the thigh mount.
 
-Every course is textured (:data:`COURSE_LOOK`: posters, wood grain, carpet; colour only, so
-the depth is the as-built course's) and starts with a level approach of :data:`APPROACH_M` so that the three warm-up steps
-the scoring leaves out (eq. 17 needs three heel strikes) are level walking.
+Every course is textured (:data:`COURSE_LOOK`: posters, wood grain, carpet; the depth is the
+as-built course's but on the posters) and starts with a level approach of :data:`APPROACH_M` so
+that the three warm-up steps the scoring leaves out (eq. 17 needs three heel strikes) are level
+walking.
 
 Groups: the six terrains (Table III's rows), the three protocols and the variations. The
 summary prints Table III's figure (and Sec. IV's for the protocols) beside ours; the report adds
@@ -61,10 +62,11 @@ MIDDLE_HEIGHT_M = 1.75
 APPROACH_M = 2.2
 # What the cameras see on the courses: posters and notice boards on the side walls, wood grain
 # on the treads, carpet on carpeted floors (docs/vio-realism.md), as on the real stairs and
-# ramps of the paper's trials. Colour only: depth, the scene truth and so terrain-recon on the
-# given odometry are those of the as-built courses; D-VIO (terrain-recon-dvio) tracks too few
-# corners on the flat-shaded as-built walls to start in time (docs/tracks/locomotion.md, "Why
-# the courses are textured"). ``--set surfaces=default`` gives the as-built courses back.
+# ramps of the paper's trials. The treads, ramps and floors keep their depth (the posters, 1 mm
+# panels, read 1-5 mm nearer), so terrain-recon on the given odometry keeps its metrics; D-VIO
+# (terrain-recon-dvio) tracks too few corners on the flat-shaded as-built walls to start in
+# time (docs/tracks/locomotion.md, "Why D-VIO started late or never"). ``--set
+# surfaces=default`` gives the as-built courses back.
 COURSE_LOOK: dict[str, Any] = {"surfaces": "textured"}
 QUICK_COURSE: dict[str, Any] = {"n_steps": 3, "approach_m": 2.0, "landing_m": 1.2, "ramp_length_m": 1.5, "rate_hz": 10.0}
 QUICK_CASES: tuple[tuple[str, float, str], ...] = (
