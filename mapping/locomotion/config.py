@@ -23,6 +23,13 @@ __all__ = ["LocomotionConfig", "TerrainReconConfig", "TerrainReconDvioConfig", "
 
 STATUSES = ("ok", "no_depth", "bad_frame", "no_odometry", "no_planes", "error", "few_strikes", "no_direction",
             "no_terrain", "extrapolated", "current_unknown")
+# D-VIO's depth-enhanced SfM is metric, so its initialisation needs no long baseline for the
+# scale (VINS-Mono's 10 keyframes): the visual-inertial alignment of M keyframes solves 3M + 4
+# unknowns (velocities, gravity, scale) from 6(M - 1) equations, overdetermined from M = 4; 5
+# keeps a margin. A walker sets off at the first frame and the predictor needs three heel
+# strikes with a pose, so a chest camera's 10 keyframes (1.5-3 s of slow parallax at the start)
+# left the first steps undecided (docs/tracks/locomotion.md, "Why D-VIO started late or never").
+LOCOMOTION_INIT_KEYFRAMES = 5
 MODE_REFERENCES = ("swing", "stance")
 DIRECTIONS = ("stride", "velocity")
 STRIKE_PADS = ("any", "heel")
@@ -119,13 +126,14 @@ class TerrainReconConfig(LocomotionConfig):
     refinement cost about a quarter; the planes stay those of the full-resolution cast on
     the quick suite]. ``odometry``: where the camera poses come from: ``"given"``, the odometry
     stream (``odometry_sensor_id``), or ``"dvio"``, D-VIO run inside the pipeline on the camera's
-    RGB-D frames and IMU samples with the config ``dvio`` (:mod:`.own_odometry`)."""
+    RGB-D frames and IMU samples with the config ``dvio`` (:mod:`.own_odometry`; D-VIO's defaults but
+    ``init_keyframes`` :data:`LOCOMOTION_INIT_KEYFRAMES`)."""
 
     tsdf: TsdfConfig = field(default_factory=TsdfConfig)
     raycast_downsample: int = 2
     upsample_jump_m: float = 0.05
     odometry: str = "given"
-    dvio: DvioConfig = field(default_factory=DvioConfig)
+    dvio: DvioConfig = field(default_factory=lambda: DvioConfig(init_keyframes=LOCOMOTION_INIT_KEYFRAMES))
 
     def __post_init__(self) -> None:
         check_locomotion_config(self)

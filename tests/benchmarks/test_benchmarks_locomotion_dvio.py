@@ -127,18 +127,37 @@ def test_frames_without_a_dvio_pose_predict_nothing_and_are_never_scored_as_good
 
 # ------------------------------------------------------------------ a course walk on D-VIO
 
-# a short textured walk (D-VIO needs texture and the resolution to initialise) with a small
-# window so that it initialises within the walk and the test stays short
-WALK = {"surfaces": "textured", "duration_cap_s": 2.5}
+# a short walk on the track's textured course (D-VIO needs texture and the resolution to
+# initialise) with a small window so that the test stays short
+WALK = {"duration_cap_s": 2.5}
 SMALL_DVIO = {"dvio.window": "5", "dvio.init_keyframes": "5", "dvio.max_iterations": "4"}
 
 
 @pytest.fixture(scope="module")
-def dvio_walk(track):
-    case = track.cases("quick")[0]  # stairs, head camera, 10 Hz
-    episode = track.simulate(track.validate_scenario({**case.scenario, **WALK}), 0)
-    pipe, est = _run("terrain-recon-dvio", episode, **SMALL_DVIO)
-    return episode, pipe, est
+def walk(track):
+    case = track.cases("quick")[0]  # stairs, head camera, 10 Hz, textured
+    return track.simulate(track.validate_scenario({**case.scenario, **WALK}), 0)
+
+
+@pytest.fixture(scope="module")
+def dvio_walk(walk):
+    pipe, est = _run("terrain-recon-dvio", walk, **SMALL_DVIO)
+    return walk, pipe, est
+
+
+def test_terrain_recon_dvio_starts_from_fewer_keyframes_than_dvio_alone(walk):
+    """The walker sets off at the first frame and the predictor needs three heel strikes with a
+    pose: terrain-recon-dvio's D-VIO starts from 5 keyframes (its metric SfM needs no long
+    baseline), not D-VIO's 10. A frame is at most one keyframe, so 10 keyframes cannot start
+    before the tenth 10 Hz frame (0.9 s after the first); the head camera makes a keyframe of
+    nearly every frame here, so 5 can from 0.4 s."""
+    stamps = sorted(float(f.stamp_s) for f in walk.frames if isinstance(f, RgbdFrame))
+    _, est = _run("terrain-recon-dvio", walk)
+    init_s = est.stats["dvio_init_s"]
+    assert init_s < stamps[9] - stamps[0]
+    assert init_s <= 0.5 + 1e-9
+    assert est.stats["n_frames_without_pose"]["initialising"] <= 5
+    assert any(p.T_odom_camera is not None for p in est.predictions)
 
 
 def _truth_pose(episode, stamp):

@@ -325,3 +325,14 @@ def test_footprints_on_a_pipelines_own_odometry_are_placed_with_the_poses_it_car
     blind = LocomotionEstimate(tuple(ModePrediction(p.stamp_s, p.mode, p.footprint_odom, p.strike_index, 0.001)
                                      for p in preds), odometry="dvio")
     assert math.isnan(track.score(episode, blind)["footprint_error_m"])
+
+
+def test_the_courses_are_textured_and_as_built_on_request(track):
+    """Every course of every suite carries the textures real stairs and ramps have (posters,
+    wood grain, carpet: what D-VIO tracks); ``--set surfaces=default`` gives the as-built ones."""
+    from exobench.benchmarks.runner import plan_run
+
+    for suite in track.suites:
+        assert {track.validate_scenario(c.scenario)["surfaces"] for c in track.cases(suite)} == {"textured"}
+    plan = plan_run("locomotion", "quick", ["terrain-recon"], [0], {"surfaces": "default"})
+    assert {e.scenario.get("surfaces", "default") for e in plan.episodes} == {"default"}
