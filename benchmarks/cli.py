@@ -104,6 +104,8 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.argument("suite", required=False)
 @click.option("--track", default="all", show_default=True, help="Track to run, or 'all' (each track in turn).")
 @click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
+@click.option("--case", "case_patterns", multiple=True, metavar="PATTERN",
+              help="Only the suite's cases of this name or shell-style glob ('multi-direction/*'; repeatable; one track); default: every case.")
 @click.option("--seed", type=int, default=None, help="Run seed (default 0).")
 @click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
@@ -120,6 +122,7 @@ def run(
     suite: str | None,
     track: str,
     pipelines: tuple[str, ...],
+    case_patterns: tuple[str, ...],
     seed: int | None,
     seeds: int | None,
     assignments: tuple[str, ...],
@@ -168,9 +171,10 @@ def run(
         pipelines = pipelines or tuple(stored.get("pipelines", ()))
         run_seeds = run_seeds if seed is not None or seeds is not None else stored.get("seeds", run_seeds)
         overrides = overrides if assignments else stored.get("overrides", {})
+        case_patterns = case_patterns or tuple(stored.get("cases", ()))
         stored_tracks = stored.get("tracks")
     if track != "all":
-        plan = plan_run(track, suite, pipelines or None, run_seeds, overrides)
+        plan = plan_run(track, suite, pipelines or None, run_seeds, overrides, cases=case_patterns)
         out = out or _default_out(f"{plan.track.name}-{plan.suite}")
         check_out_dir("--out", out)
         if rerun_path is not None:
@@ -179,6 +183,8 @@ def run(
             errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report, ray_ex), ray_ex)
         _exit_on_harness_errors(errors)
         return
+    if case_patterns:  # case names are a suite's own: another track's suite has others
+        raise ConfigError("--case", ",".join(case_patterns), "one track (--track NAME), not --track all")
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
@@ -258,7 +264,7 @@ def _stored_settings(out: str, *, must: bool = True) -> dict[str, Any]:
         c = read_run_config(folder)
         pipeline_sets = {f"{p}.{k}": v for p, d in c["pipeline_overrides"].items() for k, v in d.items()}
         return {"track": c["track"], "suite": c["suite"], "pipelines": [p["name"] for p in c["pipelines"]],
-                "seeds": c["seeds"], "overrides": {**c["overrides"], **pipeline_sets}}  # fmt: skip
+                "seeds": c["seeds"], "overrides": {**c["overrides"], **pipeline_sets}, "cases": c["cases"]}  # fmt: skip
     if (folder / RUN_ALL_FILE).exists():
         c = read_run_all(folder)
         return {"track": "all", "suite": c["suite"], "seeds": c["seeds"], "tracks": c["tracks"]}
@@ -355,6 +361,8 @@ def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, 
         click.echo(f"exobench: warning: {len(outcome.figure_errors)} figures not saved ({first}); their records are kept", err=True)
     names = [p.name for p in plan.pipelines]
     click.echo(summary_text(outcome.records, plan.track, names, [e.key for e in plan.episodes]))
+    if plan.cases:  # a part of the suite: the table is not the suite's
+        click.echo(f"\nonly the cases matching --case {', '.join(plan.cases)}: {len(plan.episodes)} episodes")
     failed = sum(bool(r["metrics"].get("failed")) for r in outcome.records)
     click.echo(f"\n{len(outcome.records)} records ({failed} failed) in {outcome.out_dir / 'results.jsonl'}")
     if not no_report:
