@@ -1,5 +1,9 @@
 """The `exobench` command: a thin shell over the runner, report, bench and session functions.
 
+This module holds the group, `run` (with its helpers) and `list`/`orbvoc`; `bench` is in
+:mod:`.cli_bench`, `record`/`replay` in :mod:`.cli_sessions`, `report`/`compare`/`leaderboard`
+in :mod:`.cli_results`.
+
 Only click is imported at module level so that `exobench --help` answers at once; each
 command imports what it needs. Every :class:`exobench.core.errors.ExobenchError` becomes one
 line on stderr, ``exobench: error: <message>``, and exit status 2; everything is validated
@@ -18,6 +22,10 @@ from pathlib import Path
 from typing import Any
 
 import click
+
+from .cli_bench import bench
+from .cli_results import compare, leaderboard, report
+from .cli_sessions import record, replay
 
 EXIT_FAILED = 1
 EXIT_USAGE = 2
@@ -96,6 +104,8 @@ def _seeds(seed: int | None, seeds: int | None) -> list[int]:
 @click.argument("suite", required=False)
 @click.option("--track", default="all", show_default=True, help="Track to run, or 'all' (each track in turn).")
 @click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
+@click.option("--case", "case_patterns", multiple=True, metavar="PATTERN",
+              help="Only the suite's cases of this name or shell-style glob ('multi-direction/*'; repeatable; one track); default: every case.")
 @click.option("--seed", type=int, default=None, help="Run seed (default 0).")
 @click.option("--seeds", type=int, default=None, help="Run seeds 0..N-1.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario (riser_m=0.17) or pipeline (rtls.th_z_m=0.01) parameter.")
@@ -112,6 +122,7 @@ def run(
     suite: str | None,
     track: str,
     pipelines: tuple[str, ...],
+    case_patterns: tuple[str, ...],
     seed: int | None,
     seeds: int | None,
     assignments: tuple[str, ...],
@@ -160,9 +171,10 @@ def run(
         pipelines = pipelines or tuple(stored.get("pipelines", ()))
         run_seeds = run_seeds if seed is not None or seeds is not None else stored.get("seeds", run_seeds)
         overrides = overrides if assignments else stored.get("overrides", {})
+        case_patterns = case_patterns or tuple(stored.get("cases", ()))
         stored_tracks = stored.get("tracks")
     if track != "all":
-        plan = plan_run(track, suite, pipelines or None, run_seeds, overrides)
+        plan = plan_run(track, suite, pipelines or None, run_seeds, overrides, cases=case_patterns)
         out = out or _default_out(f"{plan.track.name}-{plan.suite}")
         check_out_dir("--out", out)
         if rerun_path is not None:
@@ -171,6 +183,8 @@ def run(
             errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report, ray_ex), ray_ex)
         _exit_on_harness_errors(errors)
         return
+    if case_patterns:  # case names are a suite's own: another track's suite has others
+        raise ConfigError("--case", ",".join(case_patterns), "one track (--track NAME), not --track all")
     if pipelines or overrides:
         raise ConfigError("--track", "all", "one track (--track NAME) when --pipeline or --set is given")
     # every plan is validated before anything runs, so a bad suite name writes nothing
@@ -250,7 +264,7 @@ def _stored_settings(out: str, *, must: bool = True) -> dict[str, Any]:
         c = read_run_config(folder)
         pipeline_sets = {f"{p}.{k}": v for p, d in c["pipeline_overrides"].items() for k, v in d.items()}
         return {"track": c["track"], "suite": c["suite"], "pipelines": [p["name"] for p in c["pipelines"]],
-                "seeds": c["seeds"], "overrides": {**c["overrides"], **pipeline_sets}}  # fmt: skip
+                "seeds": c["seeds"], "overrides": {**c["overrides"], **pipeline_sets}, "cases": c["cases"]}  # fmt: skip
     if (folder / RUN_ALL_FILE).exists():
         c = read_run_all(folder)
         return {"track": "all", "suite": c["suite"], "seeds": c["seeds"], "tracks": c["tracks"]}
@@ -347,6 +361,8 @@ def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, 
         click.echo(f"exobench: warning: {len(outcome.figure_errors)} figures not saved ({first}); their records are kept", err=True)
     names = [p.name for p in plan.pipelines]
     click.echo(summary_text(outcome.records, plan.track, names, [e.key for e in plan.episodes]))
+    if plan.cases:  # a part of the suite: the table is not the suite's
+        click.echo(f"\nonly the cases matching --case {', '.join(plan.cases)}: {len(plan.episodes)} episodes")
     failed = sum(bool(r["metrics"].get("failed")) for r in outcome.records)
     click.echo(f"\n{len(outcome.records)} records ({failed} failed) in {outcome.out_dir / 'results.jsonl'}")
     if not no_report:
@@ -402,265 +418,9 @@ def orbvoc(as_json: bool) -> None:
     click.echo(json.dumps(info) if as_json else "\n".join(f"{k}: {v}" for k, v in info.items()))
 
 
-@cli.command()
-@click.argument("what", type=click.Choice(["rtls", "sim", "lidar", "locomotion", "executor", "multisession"]))
-@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
-@click.option("--seed", type=int, default=0, show_default=True)
-@click.option("--session", type=click.Path(file_okay=False), default=None, help="rtls: a recorded case-A session instead of simulating one.")
-@click.option("--track", "tracks", multiple=True, help="sim: a track whose paper episode to break down (repeatable; default: every track); executor: the track whose suite to time (default stairs: its paper suite).")
-@click.option("--case", "case", default=None, help="sim: run this paper case of the one --track whole, unprofiled: wall time and peak memory.")
-def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tuple[str, ...], case: str | None) -> None:
-    """Time the RTLS update against a batch refit (rtls), the simulator (sim: the stairs real-time
-    factor, and per track a paper episode cut short: time per stage and pipeline, peak memory),
-    the LiDAR (lidar) or the locomotion track at 640x480 (locomotion: latency per prediction,
-    TSDF and rendering fps) or the executors (executor: episodes per second of the stairs paper
-    suite on the pool at 1 and 2 workers and on a local Ray at 2, Ray's overhead per episode) or
-    the multisession merge (multisession: peak memory merging two and ten sessions, and the ratio)."""
-    from exobench.core.errors import ConfigError
-
-    from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
-    from .results import json_safe
-    from .tracks import get_track
-
-    if session and what != "rtls":
-        raise ConfigError("--session", session, "bench rtls only")
-    if case is not None and (what != "sim" or len(tracks) != 1):
-        raise ConfigError("--case", case, "bench sim with exactly one --track")
-    if tracks and what not in ("sim", "executor") or (what == "executor" and len(tracks) > 1):
-        raise ConfigError("--track", ",".join(tracks), "bench sim (any number) or bench executor (one)")
-    for name in tracks:
-        get_track(name)  # an unknown name is refused before anything runs
-    if case is not None:
-        from .runner import load_case
-
-        load_case(get_track(tracks[0]), "paper", case)
-    if what == "rtls":
-        if session:
-            from exobench.envs.session import read_meta, read_session
-
-            recorded = read_meta(session).get("track")
-            if recorded not in (None, "stairs"):
-                raise ConfigError("--session", session, f"a session of track 'stairs' (this one is of {recorded!r})")
-            episode = read_session(session)
-        else:
-            episode = case_a_episode(seed)
-        result = bench_rtls(episode)
-    elif what == "lidar":
-        result = bench_lidar(seed=seed)
-    elif what == "locomotion":
-        from .bench import bench_locomotion
-
-        result = bench_locomotion(seed=seed)
-    elif what == "multisession":
-        from .bench.multisession import bench_multisession
-
-        result = bench_multisession(seed=seed)
-    elif what == "executor":
-        from .bench.executor import SUITES, bench_executor
-        from .ray_executor import executor_from_options
-        from .runner import plan_run
-
-        name = tracks[0] if tracks else "stairs"
-        executor_from_options("ray", None, 2, None, None)  # refused at once when Ray is not installed
-        result = bench_executor(plan_run(name, SUITES.get(name, "quick"), None, [seed]))
-    elif case is not None:
-        from .bench.sim import bench_episode_alone
-
-        result = {"episode": bench_episode_alone(tracks[0], case, seed)}
-        if "error" in result["episode"]:
-            result["error"] = result["episode"]["error"]
-    else:
-        from .bench.sim import bench_sim_tracks
-
-        result = {**bench_sim(seed=seed), "episodes": bench_sim_tracks(tracks or None, seed)}
-    if result.get("error"):  # nothing to time: never a table of zeros with exit 0
-        if session:
-            raise ConfigError("--session", session, f"a stairs session the RTLS pipeline finds surfaces in ({result['error']})")
-        click.echo(f"exobench: bench {what}: {result['error']}", err=True)
-        sys.exit(EXIT_FAILED)
-    if as_json:
-        click.echo(json.dumps(json_safe(result), indent=2))
-        return
-    if what in ("lidar", "locomotion", "sim", "executor", "multisession"):  # one figure per line: exobench.static.ms_per_sweep ...
-        result = _flat(result)
-    w = max(28, *(len(k) + 1 for k in result))
-    for key, value in json_safe(result).items():
-        click.echo(f"{key:<{w}} {value:.4g}" if isinstance(value, float) else f"{key:<{w}} {value}")
-
-
-def _flat(d: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested dicts as one level of dotted keys."""
-    out: dict[str, Any] = {}
-    for k, v in d.items():
-        out.update(_flat(v, f"{prefix}{k}.") if isinstance(v, dict) else {f"{prefix}{k}": v})
-    return out
-
-
-@cli.command()
-@click.argument("session_dir", type=click.Path(file_okay=False))
-@click.option("--track", default=None, help="Track to score on (default: the track the session was recorded for; stairs for old sessions).")
-@click.option("--pipeline", "pipelines", multiple=True, help="Pipeline (repeatable); default: all of the track.")
-@click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE",
-              help="Pipeline parameter (NAME.KEY=VALUE) or a scoring setting of the track (e.g. revisit_m).")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON record per pipeline.")
-def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assignments: tuple[str, ...], as_json: bool) -> None:
-    """Score pipelines on a recorded session (SESSION_DIR written by `exobench record`), after
-    checking it against its meta.json (track, file hashes, frame and truth counts)."""
-    from exobench.envs.session import check_track, content_checked, read_meta, read_session
-
-    from .overrides import parse_assignments
-    from .report import summary_text
-    from .results import json_safe
-    from .runner import plan_run, run_pipelines, setup_pipelines
-
-    meta = read_meta(session_dir)
-    check_track(session_dir, meta, track)
-    track = track or meta.get("track") or "stairs"
-    overrides = parse_assignments(assignments)
-    plan = plan_run(track, None, pipelines or None, [0], overrides)
-    scoring_keys = plan.track.scoring_keys
-    recorded = [k for k in plan.scenario_overrides if k not in scoring_keys]
-    if recorded:
-        from exobench.core.errors import ConfigError
-
-        allowed = "pipeline parameters (NAME.KEY=VALUE)" + (f" and scoring settings ({', '.join(sorted(scoring_keys))})" if scoring_keys else "")
-        raise ConfigError("--set", ",".join(recorded), allowed)
-    episode = read_session(session_dir, track=plan.track.name)  # a refused session: its one error line only
-    for name, why in plan.skipped.items():
-        click.echo(f"exobench: skipping pipeline {name}: {why}", err=True)
-    setup_pipelines(plan.pipelines)
-    if not content_checked(meta):
-        click.echo(f"exobench: note: session version {meta['version']} has no file hashes; its files are not verified, only its frames against their truth", err=True)
-    scorer_errors: dict[str, str] = {}
-    # sessions recorded before scoring settings left the episode carry them in their scenario
-    scoring = {**{k: v for k, v in episode.scenario.items() if k in scoring_keys},
-               **{k: v for k, v in plan.scenario_overrides.items() if k in scoring_keys}}  # fmt: skip
-    _, metrics, walls, _ = run_pipelines(plan.track, episode, plan.pipelines, scoring=scoring, scorer_errors=scorer_errors)
-    records = [
-        {"episode": "session", "group": "session", "pipeline": p.name, "config": p.config_dict(), "metrics": metrics[p.name], "wall_s": walls[p.name]}
-        for p in plan.pipelines
-    ]
-    if as_json:
-        for r in records:
-            click.echo(json.dumps(json_safe({**r, "session": str(session_dir), "scenario": episode.scenario, "seed": episode.seed})))
-    else:
-        click.echo(summary_text(json_safe(records), plan.track, [p.name for p in plan.pipelines]))
-    _exit_on_harness_errors([f"session {name}: {reason}" for name, reason in scorer_errors.items()])
-
-
-@cli.command()
-@click.argument("out_dir", type=click.Path())
-@click.option("--track", default="stairs", show_default=True)
-@click.option("--case", "case_name", default=None, help="Start from a named case of the paper suite (A, B, C, ...).")
-@click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario parameter.")
-@click.option("--seed", type=int, default=0, show_default=True)
-def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[str, ...], seed: int) -> None:
-    """Simulate one episode and write it as a session folder OUT_DIR."""
-
-    from exobench.core.errors import ConfigError
-    from exobench.envs.session import write_session
-
-    from .out_paths import check_out_dir, reserve_dir
-    from .overrides import check_scenario_overrides, parse_assignments
-    from .runner import load_case
-    from .tracks import get_track
-
-    trk = get_track(track)
-    base = load_case(trk, "paper", case_name).scenario if case_name else {}
-    given = check_scenario_overrides(trk, parse_assignments(assignments))
-    scoring = sorted(k for k in given if k in trk.scoring_keys)
-    if scoring:  # not part of the episode: they would be silently lost
-        raise ConfigError("--set", ",".join(scoring), "simulation parameters; scoring settings are given to `exobench replay`")
-    scenario = trk.validate_scenario({**base, **given})
-    if seed < 0:
-        raise ConfigError("--seed", seed, "--seed >= 0")
-    check_out_dir("OUT_DIR", out_dir, existing=False)
-    with reserve_dir(out_dir, "record"):  # a second `record` into it is refused before simulating
-        episode = trk.simulate(scenario, seed)
-        path = write_session(episode, out_dir, track=trk.name)
-    click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed}, track {trk.name})")
-
-
-@cli.command()
-@click.argument("run_dir", type=click.Path(file_okay=False))
-def report(run_dir: str) -> None:
-    """Rewrite report.md (and plots) of a run folder and print its summary (of a run of every
-    track: of each track's folder)."""
-    from exobench.core.errors import ConfigError
-
-    from .out_paths import check_out_dir
-    from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, read_run_all
-
-    folder = Path(run_dir)
-    check_out_dir("RUN_DIR", run_dir, existing=True)  # it is written into: refused before anything
-    if (folder / RUN_CONFIG_FILE).exists():
-        _report_folder(folder)
-    elif (folder / RUN_ALL_FILE).exists():
-        for name in read_run_all(folder)["tracks"]:
-            if (folder / name / RUN_CONFIG_FILE).exists():
-                check_out_dir("RUN_DIR", str(folder / name), existing=True)
-                click.echo(f"\n== track {name}")
-                _report_folder(folder / name)
-    else:
-        raise ConfigError("RUN_DIR", run_dir, f"a run folder with {RUN_CONFIG_FILE} (or {RUN_ALL_FILE} of a run of every track)")
-
-
-def _report_folder(folder: Path) -> None:
-    from .report import summary_text, write_report
-    from .results import RESULTS_FILE, read_records, read_run_config, sort_records
-    from .tracks import get_track
-
-    config = read_run_config(folder)
-    names = [p["name"] for p in config["pipelines"]]
-    records = sort_records(read_records(folder / RESULTS_FILE), names)
-    click.echo(summary_text(records, get_track(config["track"]), names, config["episodes"]))
-    click.echo(f"report: {write_report(folder)}")
-
-
-@cli.command()
-@click.argument("run_a", type=click.Path(file_okay=False))
-@click.argument("run_b", type=click.Path(file_okay=False))
-@click.option("--threshold", type=float, default=0.05, show_default=True,
-              help="A change is flagged when its whole 95 % interval is beyond this fraction of A's mean (0: any significant change).")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object per comparison.")
-def compare(run_a: str, run_b: str, threshold: float, as_json: bool) -> None:
-    """Compare run B against run A (same tracks and suites): per track, group, pipeline and
-    headline metric, B - A with its 95 % confidence interval (paired t over the episodes both
-    have; Welch's t where none pair). Exit status 1 when a headline metric is worse beyond
-    --threshold, so a CI can gate on it."""
-    import dataclasses
-
-    from .compare import compare_folders, format_comparisons
-    from .results import json_safe
-
-    changes, comps, digits = compare_folders(run_a, run_b, threshold)
-    if as_json:
-        for c in comps:
-            click.echo(json.dumps(json_safe(dataclasses.asdict(c))))
-    else:
-        click.echo("\n".join([*changes, format_comparisons(comps, digits)]))
-    worse = [c for c in comps if c.verdict == "worse"]
-    if worse:
-        first = "; ".join(f"{c.track} {c.group} {c.pipeline} {c.metric}" for c in worse[:3])
-        more = f" (and {len(worse) - 3} more)" if len(worse) > 3 else ""
-        click.echo(f"exobench: {len(worse)} headline comparisons worse beyond the threshold {threshold:g}: {first}{more}", err=True)
-        sys.exit(EXIT_FAILED)
-
-
-@cli.command()
-@click.argument("runs", nargs=-1, required=True, type=click.Path(file_okay=False))
-@click.option("--out", default="leaderboard", show_default=True, type=click.Path(), help="Folder of leaderboard.md and its figures.")
-def leaderboard(runs: tuple[str, ...], out: str) -> None:
-    """Rank the pipelines of RUNS... per track on its headline metrics, beside the published
-    figures: OUT/leaderboard.md (printed too) and a figure per track, with the versions and
-    configs that produced each entry."""
-    from .leaderboard import write_leaderboard
-    from .out_paths import check_out_dir
-
-    check_out_dir("--out", out)
-    path = write_leaderboard(runs, out)
-    click.echo(path.read_text())
-    click.echo(f"leaderboard: {path}")
+# commands of their own modules (each imports only click at module level)
+for _command in (bench, replay, record, report, compare, leaderboard):
+    cli.add_command(_command)
 
 
 def main(argv: list[str] | None = None) -> None:

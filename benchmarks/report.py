@@ -177,7 +177,8 @@ def _write_report(out: Path) -> Path:
         f"# exobench run: {config['track']} / {config['suite']}",
         "",
         f"{len({r['episode'] for r in records})} of {len(order)} episodes finished; "
-        f"seeds {config['seeds']}; scenario overrides {config.get('overrides') or 'none'}.",
+        f"seeds {config['seeds']}; scenario overrides {config.get('overrides') or 'none'}"
+        + (f"; only the cases matching --case {', '.join(config['cases'])}." if config.get("cases") else "."),
         track.report_intro,
         "",
         "## Summary (mean ± std over episodes)",

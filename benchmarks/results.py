@@ -235,10 +235,11 @@ def read_run_config(folder: str | os.PathLike) -> dict[str, Any]:
         "pipelines": lambda v: isinstance(v, list) and bool(v) and all(isinstance(p, dict) and isinstance(p.get("name"), str) for p in v),
         "seeds": _seed_list,
     })  # fmt: skip
-    optional = {"overrides": ({}, dict), "pipeline_overrides": ({}, dict), "episodes": ([], list)}
+    # "cases": the --case patterns of the run (none, and absent before --case existed: every case)
+    optional = {"overrides": ({}, dict), "pipeline_overrides": ({}, dict), "episodes": ([], list), "cases": ([], list)}
     for key, (default, kind) in optional.items():
         config.setdefault(key, default)
-        if not isinstance(config[key], kind) or (key == "episodes" and not _str_list(config[key])):
+        if not isinstance(config[key], kind) or (key in ("episodes", "cases") and not _str_list(config[key])):
             raise FolderError(f"{path}: damaged, field {key!r} is {str(config[key])[:60]!r}")
     if not all(isinstance(v, dict) for v in config["pipeline_overrides"].values()):
         raise FolderError(f"{path}: damaged, field 'pipeline_overrides' is {str(config['pipeline_overrides'])[:60]!r}")

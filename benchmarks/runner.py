@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import fnmatch
 import os
 import time
 import zlib
@@ -96,6 +97,7 @@ class RunPlan:
     scenario_overrides: dict[str, Any]
     pipeline_overrides: dict[str, dict[str, Any]]
     skipped: dict[str, str] = field(default_factory=dict)  # pipelines of the track left out: name -> why
+    cases: list[str] = field(default_factory=list)  # the --case patterns that chose the episodes (none: every case)
 
     def run_config(self) -> dict[str, Any]:
         return {
@@ -108,6 +110,7 @@ class RunPlan:
             "seeds": list(self.seeds),
             "overrides": dict(self.scenario_overrides),
             "pipeline_overrides": self.pipeline_overrides,
+            "cases": list(self.cases),
             "episodes": [e.key for e in self.episodes],
             "created": _dt.datetime.now().astimezone().isoformat(timespec="seconds"),
             "versions": versions(),
@@ -142,12 +145,16 @@ def plan_run(
     overrides: Mapping[str, Any] | None = None,
     *,
     registry: PipelineRegistry | None = None,
+    cases: Sequence[str] = (),
 ) -> RunPlan:
     """Validate a run and list its episodes; raises ConfigError / UnknownNameError, writes nothing.
 
     ``overrides`` keys are scenario parameters (``riser_m``) or pipeline parameters prefixed by
     the pipeline name (``rtls.th_z_m``, ``kiss-icp.filter.band_m``: see :func:`split_overrides`);
-    string values are converted to the parameter's type.
+    string values are converted to the parameter's type. ``cases`` (``--case``): keep only the
+    suite's cases named by one of these patterns (a name, or a shell-style glob such as
+    ``multi-direction/*``: :func:`case_matches`), in the suite's order, for every seed; a
+    pattern that names no case of the suite is refused.
     """
     trk = get_track(track) if isinstance(track, str) else track
     suite = suite or trk.default_suite
@@ -200,8 +207,19 @@ def plan_run(
     planned: list[tuple[int, int, EpisodePlan]] = []
     typed: dict[str, Any] = {}
     defaults = {p.name: p.default for p in trk.params()} if scen else {}
+    suite_cases = {s: trk.cases(suite, s) for s in seeds}
+    patterns = [str(p) for p in cases]
+    if patterns:  # each pattern must name a case (of some seed: a drawn suite differs per seed)
+        names = {c.name for cs in suite_cases.values() for c in cs}
+        for pattern in patterns:
+            if not any(case_matches(n, [pattern]) for n in names):
+                raise UnknownNameError(f"--case of suite {suite!r} of track {trk.name!r}", pattern, names)
+        if len(set(patterns)) != len(patterns):
+            raise ConfigError("--case", ",".join(patterns), "each pattern once")
     for j, s in enumerate(seeds):
-        for i, case in enumerate(trk.cases(suite, s)):
+        for i, case in enumerate(suite_cases[s]):
+            if patterns and not case_matches(case.name, patterns):
+                continue
             scenario = trk.validate_scenario({**case.scenario, **scen})
             # a scenario may leave out a parameter at its neutral default (segmentation_truth=false)
             typed = {k: scenario.get(k, defaults[k]) for k in scen}
@@ -210,7 +228,13 @@ def plan_run(
     episodes = [e for _, _, e in sorted(planned, key=lambda x: (x[0], x[1]))]
     if len({e.key for e in episodes}) != len(episodes):
         raise ConfigError("suite", suite, "cases whose names are unique within each seed")
-    return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()}, skipped)
+    return RunPlan(trk, suite, runs, episodes, seeds, typed, {k: dict(v) for k, v in pipe_raw.items()}, skipped, patterns)
+
+
+def case_matches(name: str, patterns: Sequence[str]) -> bool:
+    """Whether a case is chosen by one of ``patterns``: its name exactly (a name may hold ``[``),
+    or a shell-style glob of it, case-sensitive (``*`` also spans ``/``: ``h1.60/*``)."""
+    return any(name == p or fnmatch.fnmatchcase(name, p) for p in patterns)
 
 
 # ---------------------------------------------------------------- one episode (runs in workers)
@@ -438,10 +462,11 @@ def _records(
 
 def check_resume(out: str | os.PathLike, plan: RunPlan) -> None:
     """ConfigError unless ``plan`` is the run whose folder ``out`` is (same track, suite,
-    pipelines and their configs, seeds, overrides); FolderError if the folder is damaged."""
+    pipelines and their configs, seeds, overrides, --case patterns); FolderError if the folder
+    is damaged."""
     old = read_run_config(out)
     new = json_safe(plan.run_config())
-    for key in ("track", "suite", "pipelines", "seeds", "overrides", "pipeline_overrides"):
+    for key in ("track", "suite", "pipelines", "seeds", "overrides", "pipeline_overrides", "cases"):
         if old.get(key) != new.get(key):
             raise ConfigError(f"--resume {key}", new.get(key), f"the value of the run being resumed: {old.get(key)!r}")
 
