@@ -29,7 +29,14 @@ from __future__ import annotations
 import numpy as np
 
 from .edges import TUBE_M, EdgeTubes
-from .kernels import MJMINVAL, exact_hits_into, face_hits_into, first_hits, odd_crossings, seams
+from .kernels import (
+    MJMINVAL,
+    exact_hits_into,
+    face_hits_into,
+    first_hits,
+    odd_crossings,
+    seams,
+)
 
 _PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
 
@@ -205,6 +212,19 @@ class StaticBvh:
         self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + TUBE_M
         self.edges = EdgeTubes(self.pos, self.mat, self.size, self.plane, far_m)
         self._no_skip = np.zeros(len(self.geom), dtype=bool)
+        self._row = np.full(int(m.ngeom), -1, dtype=np.int64)  # type: ignore[attr-defined]
+        self._row[self.geom] = np.arange(len(self.geom))
+
+    def exact_on(self, geoms: np.ndarray, o: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """MuJoCo's distance from each ray (``o, u``) to its geom of ``geoms`` (original ids), -1 where
+        the ray misses it or the geom is not one of these."""
+        k = np.where(geoms >= 0, self._row[np.maximum(geoms, 0)], -1)
+        x = np.full(len(o), -1.0)
+        rows = np.flatnonzero(k >= 0)
+        if len(rows):
+            g = k[rows]
+            x[rows] = exact_hits(self.pos[g], self.mat[g], self.size[g], self.plane[g], o[rows], u[rows])[0]
+        return x
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,

@@ -214,28 +214,7 @@ class RayCaster:
         parts = self._bvh(model, data)
         if parts is None:
             return lambda o, d: cast_rays(model, data, self.group, o, d)
-        proxies: list[Proxies] = []  # built at the sweep's first secondary ray (most sweeps have none)
-        k = self._n_threads(model)
-
-        small = _MJ_RAY_GEOM_RAYS // max(1, int(model.ngeom))  # type: ignore[attr-defined]
-
-        def cast(o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            if len(o) <= small:  # a few rays: mj_ray (the reference) costs less than a batch's set-up
-                return cast_rays(model, data, self.group, o, d)
-            if not proxies:
-                proxies.append(Proxies(model, data, parts.others))
-            o = np.ascontiguousarray(o, dtype=float)
-            d = np.ascontiguousarray(d, dtype=float)
-            rays_f = embree_rays(o, d)
-            gid, r, nrm = parts.static.cast(o, d, k, inside=True, rays=rays_f)
-            gid = gid.astype(np.int64)
-            # the few rays that may meet a moving or curved geom first: exactly as the reference
-            near = np.flatnonzero(proxies[0].may_hit_before(o, d, r, k, rays=rays_f))
-            if len(near):
-                r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
-            return r, gid, nrm
-
-        return cast
+        return _SecondaryCast(model, data, self.group, parts, self._n_threads(model))
 
     def _bvh(self, model: object, data: object) -> BvhParts | None:
         """The BVH caster's parts for ``model`` (built on first use); None when casting with MuJoCo."""
@@ -278,6 +257,37 @@ class RayCaster:
             for name in _POSE_FIELDS:
                 getattr(d, name)[:] = getattr(data, name)
         return pool[:k]
+
+
+class _SecondaryCast:
+    """A sweep's secondary rays by the BVH caster (:meth:`RayCaster.secondary`), a batch per call."""
+
+    def __init__(self, model: object, data: object, group: np.ndarray, parts: BvhParts, nthreads: int) -> None:
+        self.model, self.data, self.group, self.parts, self.k = model, data, group, parts, nthreads
+        self.small = _MJ_RAY_GEOM_RAYS // max(1, int(model.ngeom))  # type: ignore[attr-defined]
+        self.proxies: Proxies | None = None  # built at the sweep's first batch (most sweeps have none)
+
+    def __call__(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        model, data = self.model, self.data
+        if len(o) <= self.small:  # a few rays: mj_ray (the reference) costs less than a batch's set-up
+            return cast_rays(model, data, self.group, o, d)
+        if self.proxies is None:
+            self.proxies = Proxies(model, data, self.parts.others)
+        o = np.ascontiguousarray(o, dtype=float)
+        d = np.ascontiguousarray(d, dtype=float)
+        rays_f = embree_rays(o, d)
+        gid, r, nrm = self.parts.static.cast(o, d, self.k, inside=True, rays=rays_f)
+        gid = gid.astype(np.int64)
+        # the few rays that may meet a moving or curved geom first: exactly as the reference
+        near = np.flatnonzero(self.proxies.may_hit_before(o, d, r, self.k, rays=rays_f))
+        if len(near):
+            r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
+        return r, gid, nrm
+
+    def exit_m(self, o: np.ndarray, d: np.ndarray, geoms: np.ndarray) -> np.ndarray:
+        """Where each ray would meet the geom ``geoms`` (MuJoCo's distance: what a cast reports if that
+        geom is the hit), -1 where it does not or is not a static box or plane (optics' ``_leave``)."""
+        return self.parts.static.exact_on(geoms, o, d)
 
 
 _MJ_RAY_GEOM_RAYS = 60_000
