@@ -82,3 +82,35 @@ def test_a_glazed_sweep_casts_one_batch_per_bounce_level(monkeypatch):
     # both branches; beams that meet a mirror first follow their own max_interactions levels
     k = config.max_interactions
     assert n_batched <= 2 * k < len(calls)
+
+
+def test_rays_near_moving_geoms_are_cast_once(monkeypatch):
+    """A walking sweep at 0.68 m, between the user's thighs: the rays that may meet a moving or
+    curved geom go to ``mj_multiRay`` on those geoms once each (a near pass first cast those without
+    a hit within ``cast_near_m`` twice), with the MuJoCo caster's sweep."""
+    model, data, truth, T0 = _scene()
+    pose = _walking_at(T0, 0.68)
+    bvh = LidarSensor("lidar_trunk", LidarConfig(caster="bvh"), model, 2)
+    ref = LidarSensor("lidar_trunk", LidarConfig(caster="mujoco"), model, 2)
+    sent: list[int] = []
+    cast_on_rest: list[int] = []
+    multi_ray, multi = mujoco.mj_multiRay, cast_module.RayCaster._multi_ray
+
+    def counting_multi_ray(m, *args):
+        if m is bvh.caster._bvh_parts[1].rest.model:
+            cast_on_rest.append(int(args[-2]))
+        return multi_ray(m, *args)
+
+    def counting_multi(self, model_, data_, jobs, dirs_w, n, max_r, scene=None, **kw):
+        if scene is not None:
+            sent.append(n)
+        return multi(self, model_, data_, jobs, dirs_w, n, max_r, scene=scene, **kw)
+
+    monkeypatch.setattr(mujoco, "mj_multiRay", counting_multi_ray)
+    monkeypatch.setattr(cast_module.RayCaster, "_multi_ray", counting_multi)
+    a = bvh.scan(model, data, pose, 0.0, truth)
+    b = ref.scan(model, data, pose, 0.0, truth)
+    for x, y in zip(_frame(a), _frame(b)):
+        np.testing.assert_array_equal(x, y)
+    assert sum(sent) > 1000  # the thighs' proxies: many rays
+    assert sum(cast_on_rest) == sum(sent)

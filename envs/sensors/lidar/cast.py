@@ -134,8 +134,10 @@ class RayCaster:
                 first = np.searchsorted(need, starts)
                 last = np.append(first[1:], len(need))
                 sub = [(o, int(a), int(b)) for o, a, b in zip(o_cast, first, last) if b > a]
+                # one pass: these geoms are few, so a near pass first saves little and casts the rays
+                # without a hit that near twice (the same hits either way)
                 g2, d2, n2 = self._multi_ray(model, data, sub, np.ascontiguousarray(dirs_w[need]), len(need), max_r,
-                                             scene=parts.rest)  # fmt: skip
+                                             scene=parts.rest, one_pass=True)  # fmt: skip
                 take = (d2 >= 0.0) & (g2 >= 0) & ((dist[need] < 0.0) | (d2 < dist[need]))
                 gid[need[take]], dist[need[take]], nrm[need[take]] = g2[take], d2[take], n2[take]
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
@@ -153,9 +155,10 @@ class RayCaster:
 
     def _multi_ray(
         self, model: object, data: object, jobs: list[tuple[np.ndarray, int, int]], dirs_w: np.ndarray, n: int,
-        max_r: float, scene: RayScene | None = None,
+        max_r: float, scene: RayScene | None = None, one_pass: bool = False,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``mj_multiRay`` of each job (origin, first ray, end) on the zoned copy (or ``scene``, or the model)."""
+        """``mj_multiRay`` of each job (origin, first ray, end) on the zoned copy (or ``scene``, or the model);
+        ``one_pass``: every ray against every geom at once, without the near pass first."""
         import mujoco
 
         scene = scene if scene is not None else self._zoned(model, data)
@@ -174,6 +177,8 @@ class RayCaster:
         groups = _partition(jobs, k)
 
         near = self.config.cast_near_m if 0.0 < self.config.cast_near_m < max_r else max_r
+        if one_pass:
+            near = max_r
 
         def run(d: object, group: list[tuple[np.ndarray, int, int]]) -> None:
             for o, s, e in group:
