@@ -10,7 +10,9 @@ import mujoco
 import numpy as np
 
 from exobench.envs.sensors.lidar import LidarConfig, LidarSensor
+from exobench.envs.sensors.lidar import bvh as bvh_module
 from exobench.envs.sensors.lidar import cast as cast_module
+from exobench.envs.sensors.lidar.optics import cast_rays
 from exobench.envs.sim.pose import site_pose
 
 
@@ -114,3 +116,39 @@ def test_rays_near_moving_geoms_are_cast_once(monkeypatch):
         np.testing.assert_array_equal(x, y)
     assert sum(sent) > 1000  # the thighs' proxies: many rays
     assert sum(cast_on_rest) == sum(sent)
+
+
+def test_rays_leaving_a_floor_and_panes_equal_mj_ray(monkeypatch):
+    """Rays mirrored off surfaces or continuing through them, from 1 um past the surface (as the
+    optics send them), in the 80 m corridor of 24 offices: far from the origin float32 rounds the
+    start back onto the surface, Embree names the surface just left, the exact test rejects it and
+    the ray's every listed intersection is judged (``nearest_listed``). The hits equal ``mj_ray``'s."""
+    model, data, truth, T0 = _scene(n_offices=24, corridor_length_m=80.0, **_GLAZED)
+    sensor = LidarSensor("lidar_trunk", LidarConfig(caster="bvh"), model, 0)
+    rng = np.random.default_rng(3)
+    d = rng.normal(size=(4000, 3)) * [1.0, 0.1, 0.1]  # along the corridor, far from the origin
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    o = np.broadcast_to(T0[:3, 3] + [2.0, 0.0, -0.5], d.shape).copy()  # in the corridor, ahead of the user
+    r, g, n = cast_rays(model, data, sensor.group, o, d)
+    hit = (g >= 0) & (r > 0)
+    p = o[hit] + r[hit, None] * d[hit]
+    u = d[hit].copy()
+    nv = n[hit]
+    mirror = rng.random(len(u)) < 0.5
+    u[mirror] -= 2.0 * np.einsum("ij,ij->i", u[mirror], nv[mirror])[:, None] * nv[mirror]
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    start = p + 1e-6 * u
+    r0, g0, n0 = cast_rays(model, data, sensor.group, start, u)
+    judged: list[int] = []
+    kernel = bvh_module.nearest_listed
+
+    def counting(redo, *args):
+        judged.append(len(redo))
+        return kernel(redo, *args)
+
+    monkeypatch.setattr(bvh_module, "nearest_listed", counting)
+    r1, g1, n1 = sensor.caster.secondary(model, data)(start, u)
+    np.testing.assert_array_equal(g1, g0)
+    np.testing.assert_array_equal(r1, r0)
+    np.testing.assert_array_equal(n1, n0)
+    assert sum(judged) > 20

@@ -34,6 +34,7 @@ from .kernels import (
     exact_hits_into,
     face_hits_into,
     first_hits,
+    nearest_listed,
     odd_crossings,
     seams,
 )
@@ -355,19 +356,10 @@ class StaticBvh:
 
         li = self.scene.list_intersections(o3d.core.Tensor(rays.numpy()))
         splits = li["ray_splits"].numpy().astype(np.int64)
-        k = li["geometry_ids"].numpy().astype(np.int64)
-        which = redo[np.repeat(np.arange(len(redo)), np.diff(splits))]
-        x, nv, _ = exact_hits(self.pos[k], self.mat[k], self.size[k], self.plane[k], o[which], u[which])
-        if cutoff is not None:
-            x = np.where(self._culled(k, o[which], cutoff), -1.0, x)
-        if skip is not None:
-            x = np.where(skip[k], -1.0, x)
-        ok = np.flatnonzero(x >= 0)
-        # nearest accepted per ray; of equal distances the first visited, as MuJoCo's loop keeps the first
-        order = ok[np.lexsort((rk[k[ok]], x[ok], which[ok]))]
-        first = order[np.append(True, which[order][1:] != which[order][:-1])] if len(order) else order
-        r = which[first]
-        gid[r], dist[r], nrm[r] = k[first], x[first], nv[first]
+        ids = li["geometry_ids"].numpy().astype(np.int64)
+        nearest_listed(_i64(redo), splits, ids, self.pos, self.mat, self.size, self.plane, self.rbound, _i64(rk),
+                       self._no_skip if skip is None else np.ascontiguousarray(skip, dtype=bool), o, u,
+                       -1.0 if cutoff is None else float(cutoff), gid, dist, nrm)  # fmt: skip
 
 
 class Proxies:

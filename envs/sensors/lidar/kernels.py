@@ -170,6 +170,30 @@ def first_hits(k, prim, tri_face, n_geom, t, pos, mat, size, plane, rbound, o, u
 
 
 @_jit
+def nearest_listed(redo, splits, ids, pos, mat, size, plane, rbound, rk, skip, o, u, cutoff, gid, x, nrm):  # noqa: ANN001, ANN201
+    """``StaticBvh._listed``: for each ray ``redo[i]``, of the geoms Embree listed along it
+    (``ids[splits[i]:splits[i + 1]]``), the nearest exact hit not culled beyond ``cutoff`` (< 0: none)
+    nor on a ``skip`` geom, of equal ones the first in ``rk``, into ``gid, x, nrm`` (rays with none
+    are left as they are)."""
+    for i in range(len(redo)):
+        r = redo[i]
+        o0, o1, o2, u0, u1, u2 = o[r, 0], o[r, 1], o[r, 2], u[r, 0], u[r, 1], u[r, 2]
+        bx, brank, bg, bf = -1.0, 0, -1, -1
+        for a in range(splits[i], splits[i + 1]):
+            q = np.int64(ids[a])
+            if skip[q]:
+                continue
+            x2, f2 = _geom_hit(pos, mat, size, plane, q, o0, o1, o2, u0, u1, u2)
+            if not x2 >= 0 or _beyond(pos[q, 0], pos[q, 1], pos[q, 2], rbound[q], o0, o1, o2, cutoff):
+                continue
+            if bg < 0 or x2 < bx or (x2 == bx and rk[q] < brank):
+                bx, brank, bg, bf = x2, rk[q], q, f2
+        if bg >= 0:
+            gid[r], x[r] = bg, bx
+            _normal(mat, bg, bf, nrm, r)
+
+
+@_jit
 def _in_box(lx, ly, lz, hx, hy, hz, px, py, pz):  # noqa: ANN001, ANN202
     return lx <= px <= hx and ly <= py <= hy and lz <= pz <= hz
 
@@ -347,4 +371,5 @@ def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom,
         out[i] = sid[best] if best >= 0 else -1
 
 
-__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "odd_crossings", "seams", "tube_pairs"]
+__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "nearest_listed", "odd_crossings", "seams",
+           "tube_pairs"]
