@@ -1,4 +1,4 @@
-"""Compiled loops (numba) of the BVH caster and the surface labels: one pass per ray or point.
+"""Compiled loops (numba) of the BVH caster, the surface labels and a sweep's returns: one pass per ray or point.
 
 After Embree names each ray's geom, the caster recomputes the hit with MuJoCo's arithmetic and
 judges the faces that share its plane (:mod:`~exobench.envs.sensors.lidar.bvh`); the labels test
@@ -343,6 +343,41 @@ def odd_crossings(rays, splits, ids, plane, n, in_start, in_geom):  # noqa: ANN0
 
 
 @_jit
+def returns(geom, path_m, cos_inc, gain, reflectivity, retro, u_drop, z, dirs_s, min_r, max_r, threshold, drop_p,
+            rho_ref, r_ref, signal_level, noise_m, res_m, idx, signal, points, intensity):  # noqa: ANN001, ANN201
+    """``LidarSensor.scan``'s returns in one pass over the beams: each beam with a surface (``geom``
+    >= 0) whose signal (``optics.return_signal``) is detected within the range limits and which
+    is not dropped (``u_drop``) is written at the next row: its index, signal, point (range plus
+    noise ``z``, quantised to ``res_m`` half to even as ``np.round``, at least 0, along ``dirs_s``)
+    and intensity byte (``optics.intensity_byte`` of the signal, or with ``signal_level`` False
+    of ``100 G rho |cos|``). Returns the number of rows. The same operations in the same order as
+    those numpy functions, so the same bits."""
+    m = 0
+    for i in range(len(geom)):
+        g = geom[i]
+        if g < 0:
+            continue
+        p = path_m[i]
+        rho = reflectivity[g]
+        q = r_ref / p
+        s = 100.0 * gain[i] * (rho / rho_ref) * cos_inc[i] * (q * q)
+        if not (p >= min_r and p <= max_r and s >= threshold and u_drop[i] >= drop_p):
+            continue
+        idx[m] = i
+        signal[m] = s
+        r = p + noise_m * z[i]
+        if res_m > 0.0:
+            r = np.rint(r / res_m) * res_m
+        r = r if r >= 0.0 else 0.0
+        points[m, 0], points[m, 1], points[m, 2] = r * dirs_s[i, 0], r * dirs_s[i, 1], r * dirs_s[i, 2]
+        lv = s if signal_level else 100.0 * gain[i] * rho * cos_inc[i]
+        v = (101.0 + (lv if lv < 154.0 else 154.0)) if retro[g] else (lv if lv < 100.0 else 100.0)
+        intensity[m] = np.uint8(np.rint(v))
+        m += 1
+    return m
+
+
+@_jit
 def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom, hit, tol, out):  # noqa: ANN001, ANN201
     """``labels.label_surfaces`` point by point: of the geom's surfaces whose plane passes within
     ``tol`` of the hit and whose polygon contains it, the nearest plane, the last listed of ties."""
@@ -371,5 +406,5 @@ def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom,
         out[i] = sid[best] if best >= 0 else -1
 
 
-__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "nearest_listed", "odd_crossings", "seams",
-           "tube_pairs"]
+__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "nearest_listed", "odd_crossings",
+           "returns", "seams", "tube_pairs"]
