@@ -139,3 +139,36 @@ def test_returns_equal_the_numpy_functions_bit_for_bit():
         np.testing.assert_array_equal(out[2][:k], r[:, None] * dirs[idx])
         np.testing.assert_array_equal(out[3][:k], intensity_byte(level[idx], retro[g[idx]]))
         assert 1000 < k < n and len(np.unique(out[3][:k])) > 100
+
+
+def test_hits_moved_to_the_rays_own_origins_equal_numpys():
+    """kernels.to_own_origins against the numpy computation it replaced in RayCaster.cast (its
+    einsum dot products included), on rays cast from their own origin or from a window's, grazing
+    faces, moved behind their origin, and without a hit."""
+    rng = np.random.default_rng(13)
+    n = 20000
+    gid = rng.integers(-1, 50, n).astype(np.int32)
+    dist = np.where(rng.random(n) < 0.1, -1.0, rng.uniform(0.0, 30.0, n))
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    graze = rng.random(n) < 0.2  # u . n within 1e-6 of 0
+    u[graze] -= (np.einsum("ij,ij->i", u[graze], nrm[graze]) - rng.uniform(-2e-6, 2e-6, graze.sum()))[:, None] * nrm[graze]
+    o_own = rng.uniform(-40.0, 40.0, (n, 3))
+    o_cast = o_own + np.where(rng.random(n) < 0.2, 0.0, 1.0)[:, None] * rng.normal(0.0, 0.5, (n, 3))
+    # the numpy reference, as RayCaster.cast computed it before
+    g0, d0 = gid.copy(), dist.copy()
+    delta = o_cast - o_own
+    fix = np.flatnonzero((g0 >= 0) & (d0 >= 0.0) & ((delta[:, 0] != 0.0) | (delta[:, 1] != 0.0) | (delta[:, 2] != 0.0)))
+    un = np.einsum("ij,ij->i", u[fix], nrm[fix])
+    grazing = np.abs(un) < 1e-6
+    r = d0[fix] + np.einsum("ij,ij->i", delta[fix], nrm[fix]) / np.where(grazing, 1.0, un)
+    r = np.where(grazing, d0[fix] + np.einsum("ij,ij->i", delta[fix], u[fix]), r)
+    g0[fix] = np.where(r >= 0.0, g0[fix], -1)
+    d0[fix] = np.where(r >= 0.0, r, -1.0)
+    g1, d1 = gid.copy(), dist.copy()
+    kernels.to_own_origins(g1, d1, nrm, u, o_cast, o_own)
+    np.testing.assert_array_equal(g1, g0)
+    np.testing.assert_array_equal(d1, d0)
+    assert np.count_nonzero(grazing) > 500 and np.count_nonzero(r < 0.0) > 500 and len(fix) > 10000

@@ -33,6 +33,7 @@ import numpy as np
 
 from .bvh import Proxies, StaticBvh, embree_rays
 from .config import LidarConfig
+from .kernels import to_own_origins
 from .optics import RayCastFn, cast_rays
 from .pattern import RayTable
 from .ray_scene import PRIMITIVE_TYPES, RayScene, build_ray_scene, ray_visible_geoms
@@ -141,16 +142,7 @@ class RayCaster:
                 take = (d2 >= 0.0) & (g2 >= 0) & ((dist[need] < 0.0) | (d2 < dist[need]))
                 gid[need[take]], dist[need[take]], nrm[need[take]] = g2[take], d2[take], n2[take]
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
-        delta = o_ray - origins_w
-        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & ((delta[:, 0] != 0.0) | (delta[:, 1] != 0.0) | (delta[:, 2] != 0.0)))
-        if len(fix):
-            u, nv, dl = dirs_w[fix], nrm[fix], delta[fix]
-            un = np.einsum("ij,ij->i", u, nv)
-            grazing = np.abs(un) < 1e-6
-            r = dist[fix] + np.einsum("ij,ij->i", dl, nv) / np.where(grazing, 1.0, un)
-            r = np.where(grazing, dist[fix] + np.einsum("ij,ij->i", dl, u), r)
-            gid[fix] = np.where(r >= 0.0, gid[fix], -1)
-            dist[fix] = np.where(r >= 0.0, r, -1.0)
+        to_own_origins(gid, dist, nrm, dirs_w, o_ray, origins_w)
         return gid, dist, nrm
 
     def _multi_ray(

@@ -343,6 +343,35 @@ def odd_crossings(rays, splits, ids, plane, n, in_start, in_geom):  # noqa: ANN0
 
 
 @_jit
+def _dot3(a0, a1, a2, b0, b1, b2):  # noqa: ANN001, ANN202
+    """``np.einsum("ij,ij->i", a, b)`` of one row as numpy sums three products: in two lanes (the
+    first and third product, then the second added)."""
+    return (a0 * b0 + a2 * b2) + a1 * b1
+
+
+@_jit
+def to_own_origins(gid, dist, nrm, dirs_w, o_cast, o_own):  # noqa: ANN001, ANN201
+    """``RayCaster.cast``: each hit (``gid, dist, nrm``, updated in place) of a ray cast from
+    ``o_cast`` moved to the ray's own origin ``o_own`` on the plane of the face hit, ``r = dist +
+    (o_cast - o_own) . n / (u . n)`` (along the ray where it grazes the face: ``|u . n| < 1e-6``);
+    no hit where ``r < 0``."""
+    for i in range(len(gid)):
+        e0, e1, e2 = o_cast[i, 0] - o_own[i, 0], o_cast[i, 1] - o_own[i, 1], o_cast[i, 2] - o_own[i, 2]
+        if gid[i] < 0 or not dist[i] >= 0.0 or (e0 == 0.0 and e1 == 0.0 and e2 == 0.0):
+            continue
+        u0, u1, u2, n0, n1, n2 = dirs_w[i, 0], dirs_w[i, 1], dirs_w[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2]
+        un = _dot3(u0, u1, u2, n0, n1, n2)
+        if abs(un) < 1e-6:
+            r = dist[i] + _dot3(e0, e1, e2, u0, u1, u2)
+        else:
+            r = dist[i] + _dot3(e0, e1, e2, n0, n1, n2) / un
+        if r >= 0.0:
+            dist[i] = r
+        else:
+            gid[i], dist[i] = -1, -1.0
+
+
+@_jit
 def returns(geom, path_m, cos_inc, gain, reflectivity, retro, u_drop, z, dirs_s, min_r, max_r, threshold, drop_p,
             rho_ref, r_ref, signal_level, noise_m, res_m, idx, signal, points, intensity):  # noqa: ANN001, ANN201
     """``LidarSensor.scan``'s returns in one pass over the beams: each beam with a surface (``geom``
@@ -407,4 +436,4 @@ def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom,
 
 
 __all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "nearest_listed", "odd_crossings",
-           "returns", "seams", "tube_pairs"]
+           "returns", "seams", "to_own_origins", "tube_pairs"]
