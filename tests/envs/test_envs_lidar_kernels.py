@@ -99,3 +99,76 @@ def test_kernels_are_cached_on_disk_and_release_the_gil():
         if callable(fn):
             assert fn._cache.__class__.__name__ == "FunctionCache", name
             assert fn.targetoptions.get("nogil"), name
+
+
+def test_returns_equal_the_numpy_functions_bit_for_bit():
+    """The scan's detected returns (kernels.returns) against optics.return_signal, np.round and
+    optics.intensity_byte on beams at the range limits, the detection threshold, ranges exactly
+    half a quantum off the grid, bright and retro-reflective surfaces and no surface."""
+    from exobench.envs.sensors.lidar.optics import intensity_byte, return_signal
+
+    rng = np.random.default_rng(11)
+    n, n_geoms = 5000, 40
+    geom = rng.integers(-1, n_geoms, n)
+    res, noise, lo, hi, thr = 0.002, 0.015, 0.9, 100.0, 1.5
+    path = rng.choice([lo, hi, np.nextafter(lo, 0.0), np.nextafter(hi, 200.0), 3.0], n) + rng.choice([0.0, 1.0], n) * rng.uniform(0.0, 60.0, n)
+    path = np.where(geom >= 0, path, np.nan)
+    z = rng.standard_normal(n)
+    z[: n // 4] = ((np.round(path[: n // 4] / res) + 0.5) * res - path[: n // 4]) / noise  # ties of the quantisation
+    cos_inc, gain = rng.uniform(0.0, 1.0, n), rng.choice([1.0, 0.01, 0.3], n)
+    refl = rng.uniform(0.02, 3.0, n_geoms)
+    retro = rng.random(n_geoms) < 0.3
+    u_drop = rng.random(n)
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    for signal_level in (True, False):
+        # the numpy reference, as the scan computed it before
+        ok = geom >= 0
+        g = np.where(ok, geom, 0)
+        p = np.where(ok, path, 1.0)
+        signal = return_signal(refl[g], cos_inc, p, 0.8, 10.0, gain)
+        ok &= (p >= lo) & (p <= hi) & (signal >= thr) & (u_drop >= 0.01)
+        idx = np.flatnonzero(ok)
+        level = signal if signal_level else 100.0 * gain * refl[g] * cos_inc
+        r = np.maximum(np.round((p[idx] + noise * z[idx]) / res) * res, 0.0)
+        out = (np.empty(n, dtype=np.int64), np.empty(n), np.empty((n, 3)), np.empty(n, dtype=np.uint8))
+        k = kernels.returns(geom, path, cos_inc, gain, refl, retro, u_drop, z, dirs, lo, hi, thr, 0.01, 0.8, 10.0,
+                            signal_level, noise, res, *out)  # fmt: skip
+        np.testing.assert_array_equal(out[0][:k], idx)
+        np.testing.assert_array_equal(out[1][:k], signal[idx])
+        np.testing.assert_array_equal(out[2][:k], r[:, None] * dirs[idx])
+        np.testing.assert_array_equal(out[3][:k], intensity_byte(level[idx], retro[g[idx]]))
+        assert 1000 < k < n and len(np.unique(out[3][:k])) > 100
+
+
+def test_hits_moved_to_the_rays_own_origins_equal_numpys():
+    """kernels.to_own_origins against the numpy computation it replaced in RayCaster.cast (its
+    einsum dot products included), on rays cast from their own origin or from a window's, grazing
+    faces, moved behind their origin, and without a hit."""
+    rng = np.random.default_rng(13)
+    n = 20000
+    gid = rng.integers(-1, 50, n).astype(np.int32)
+    dist = np.where(rng.random(n) < 0.1, -1.0, rng.uniform(0.0, 30.0, n))
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    graze = rng.random(n) < 0.2  # u . n within 1e-6 of 0
+    u[graze] -= (np.einsum("ij,ij->i", u[graze], nrm[graze]) - rng.uniform(-2e-6, 2e-6, graze.sum()))[:, None] * nrm[graze]
+    o_own = rng.uniform(-40.0, 40.0, (n, 3))
+    o_cast = o_own + np.where(rng.random(n) < 0.2, 0.0, 1.0)[:, None] * rng.normal(0.0, 0.5, (n, 3))
+    # the numpy reference, as RayCaster.cast computed it before
+    g0, d0 = gid.copy(), dist.copy()
+    delta = o_cast - o_own
+    fix = np.flatnonzero((g0 >= 0) & (d0 >= 0.0) & ((delta[:, 0] != 0.0) | (delta[:, 1] != 0.0) | (delta[:, 2] != 0.0)))
+    un = np.einsum("ij,ij->i", u[fix], nrm[fix])
+    grazing = np.abs(un) < 1e-6
+    r = d0[fix] + np.einsum("ij,ij->i", delta[fix], nrm[fix]) / np.where(grazing, 1.0, un)
+    r = np.where(grazing, d0[fix] + np.einsum("ij,ij->i", delta[fix], u[fix]), r)
+    g0[fix] = np.where(r >= 0.0, g0[fix], -1)
+    d0[fix] = np.where(r >= 0.0, r, -1.0)
+    g1, d1 = gid.copy(), dist.copy()
+    kernels.to_own_origins(g1, d1, nrm, u, o_cast, o_own)
+    np.testing.assert_array_equal(g1, g0)
+    np.testing.assert_array_equal(d1, d0)
+    assert np.count_nonzero(grazing) > 500 and np.count_nonzero(r < 0.0) > 500 and len(fix) > 10000

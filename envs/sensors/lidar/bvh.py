@@ -29,7 +29,15 @@ from __future__ import annotations
 import numpy as np
 
 from .edges import TUBE_M, EdgeTubes
-from .kernels import MJMINVAL, exact_hits_into, face_hits_into, first_hits, odd_crossings, seams
+from .kernels import (
+    MJMINVAL,
+    exact_hits_into,
+    face_hits_into,
+    first_hits,
+    nearest_listed,
+    odd_crossings,
+    seams,
+)
 
 _PROXY_MARGIN_M = 1e-3  # proxy boxes are this much larger than the geom's box, beyond float32 rounding
 
@@ -205,6 +213,19 @@ class StaticBvh:
         self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + TUBE_M
         self.edges = EdgeTubes(self.pos, self.mat, self.size, self.plane, far_m)
         self._no_skip = np.zeros(len(self.geom), dtype=bool)
+        self._row = np.full(int(m.ngeom), -1, dtype=np.int64)  # type: ignore[attr-defined]
+        self._row[self.geom] = np.arange(len(self.geom))
+
+    def exact_on(self, geoms: np.ndarray, o: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """MuJoCo's distance from each ray (``o, u``) to its geom of ``geoms`` (original ids), -1 where
+        the ray misses it or the geom is not one of these."""
+        k = np.where(geoms >= 0, self._row[np.maximum(geoms, 0)], -1)
+        x = np.full(len(o), -1.0)
+        rows = np.flatnonzero(k >= 0)
+        if len(rows):
+            g = k[rows]
+            x[rows] = exact_hits(self.pos[g], self.mat[g], self.size[g], self.plane[g], o[rows], u[rows])[0]
+        return x
 
     def cast(
         self, o: np.ndarray, u: np.ndarray, nthreads: int, cutoff: float | None = None, rank: np.ndarray | None = None,
@@ -335,19 +356,10 @@ class StaticBvh:
 
         li = self.scene.list_intersections(o3d.core.Tensor(rays.numpy()))
         splits = li["ray_splits"].numpy().astype(np.int64)
-        k = li["geometry_ids"].numpy().astype(np.int64)
-        which = redo[np.repeat(np.arange(len(redo)), np.diff(splits))]
-        x, nv, _ = exact_hits(self.pos[k], self.mat[k], self.size[k], self.plane[k], o[which], u[which])
-        if cutoff is not None:
-            x = np.where(self._culled(k, o[which], cutoff), -1.0, x)
-        if skip is not None:
-            x = np.where(skip[k], -1.0, x)
-        ok = np.flatnonzero(x >= 0)
-        # nearest accepted per ray; of equal distances the first visited, as MuJoCo's loop keeps the first
-        order = ok[np.lexsort((rk[k[ok]], x[ok], which[ok]))]
-        first = order[np.append(True, which[order][1:] != which[order][:-1])] if len(order) else order
-        r = which[first]
-        gid[r], dist[r], nrm[r] = k[first], x[first], nv[first]
+        ids = li["geometry_ids"].numpy().astype(np.int64)
+        nearest_listed(_i64(redo), splits, ids, self.pos, self.mat, self.size, self.plane, self.rbound, _i64(rk),
+                       self._no_skip if skip is None else np.ascontiguousarray(skip, dtype=bool), o, u,
+                       -1.0 if cutoff is None else float(cutoff), gid, dist, nrm)  # fmt: skip
 
 
 class Proxies:

@@ -33,6 +33,7 @@ import numpy as np
 
 from .bvh import Proxies, StaticBvh, embree_rays
 from .config import LidarConfig
+from .kernels import to_own_origins
 from .optics import RayCastFn, cast_rays
 from .pattern import RayTable
 from .ray_scene import PRIMITIVE_TYPES, RayScene, build_ray_scene, ray_visible_geoms
@@ -134,28 +135,22 @@ class RayCaster:
                 first = np.searchsorted(need, starts)
                 last = np.append(first[1:], len(need))
                 sub = [(o, int(a), int(b)) for o, a, b in zip(o_cast, first, last) if b > a]
+                # one pass: these geoms are few, so a near pass first saves little and casts the rays
+                # without a hit that near twice (the same hits either way)
                 g2, d2, n2 = self._multi_ray(model, data, sub, np.ascontiguousarray(dirs_w[need]), len(need), max_r,
-                                             scene=parts.rest)  # fmt: skip
+                                             scene=parts.rest, one_pass=True)  # fmt: skip
                 take = (d2 >= 0.0) & (g2 >= 0) & ((dist[need] < 0.0) | (d2 < dist[need]))
                 gid[need[take]], dist[need[take]], nrm[need[take]] = g2[take], d2[take], n2[take]
         # move each range from the cast origin to the ray's own origin, on the plane of the face hit
-        delta = o_ray - origins_w
-        fix = np.flatnonzero((gid >= 0) & (dist >= 0.0) & ((delta[:, 0] != 0.0) | (delta[:, 1] != 0.0) | (delta[:, 2] != 0.0)))
-        if len(fix):
-            u, nv, dl = dirs_w[fix], nrm[fix], delta[fix]
-            un = np.einsum("ij,ij->i", u, nv)
-            grazing = np.abs(un) < 1e-6
-            r = dist[fix] + np.einsum("ij,ij->i", dl, nv) / np.where(grazing, 1.0, un)
-            r = np.where(grazing, dist[fix] + np.einsum("ij,ij->i", dl, u), r)
-            gid[fix] = np.where(r >= 0.0, gid[fix], -1)
-            dist[fix] = np.where(r >= 0.0, r, -1.0)
+        to_own_origins(gid, dist, nrm, dirs_w, o_ray, origins_w)
         return gid, dist, nrm
 
     def _multi_ray(
         self, model: object, data: object, jobs: list[tuple[np.ndarray, int, int]], dirs_w: np.ndarray, n: int,
-        max_r: float, scene: RayScene | None = None,
+        max_r: float, scene: RayScene | None = None, one_pass: bool = False,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``mj_multiRay`` of each job (origin, first ray, end) on the zoned copy (or ``scene``, or the model)."""
+        """``mj_multiRay`` of each job (origin, first ray, end) on the zoned copy (or ``scene``, or the model);
+        ``one_pass``: every ray against every geom at once, without the near pass first."""
         import mujoco
 
         scene = scene if scene is not None else self._zoned(model, data)
@@ -174,6 +169,8 @@ class RayCaster:
         groups = _partition(jobs, k)
 
         near = self.config.cast_near_m if 0.0 < self.config.cast_near_m < max_r else max_r
+        if one_pass:
+            near = max_r
 
         def run(d: object, group: list[tuple[np.ndarray, int, int]]) -> None:
             for o, s, e in group:
@@ -214,28 +211,7 @@ class RayCaster:
         parts = self._bvh(model, data)
         if parts is None:
             return lambda o, d: cast_rays(model, data, self.group, o, d)
-        proxies: list[Proxies] = []  # built at the sweep's first secondary ray (most sweeps have none)
-        k = self._n_threads(model)
-
-        small = _MJ_RAY_GEOM_RAYS // max(1, int(model.ngeom))  # type: ignore[attr-defined]
-
-        def cast(o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            if len(o) <= small:  # a few rays: mj_ray (the reference) costs less than a batch's set-up
-                return cast_rays(model, data, self.group, o, d)
-            if not proxies:
-                proxies.append(Proxies(model, data, parts.others))
-            o = np.ascontiguousarray(o, dtype=float)
-            d = np.ascontiguousarray(d, dtype=float)
-            rays_f = embree_rays(o, d)
-            gid, r, nrm = parts.static.cast(o, d, k, inside=True, rays=rays_f)
-            gid = gid.astype(np.int64)
-            # the few rays that may meet a moving or curved geom first: exactly as the reference
-            near = np.flatnonzero(proxies[0].may_hit_before(o, d, r, k, rays=rays_f))
-            if len(near):
-                r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
-            return r, gid, nrm
-
-        return cast
+        return _SecondaryCast(model, data, self.group, parts, self._n_threads(model))
 
     def _bvh(self, model: object, data: object) -> BvhParts | None:
         """The BVH caster's parts for ``model`` (built on first use); None when casting with MuJoCo."""
@@ -278,6 +254,37 @@ class RayCaster:
             for name in _POSE_FIELDS:
                 getattr(d, name)[:] = getattr(data, name)
         return pool[:k]
+
+
+class _SecondaryCast:
+    """A sweep's secondary rays by the BVH caster (:meth:`RayCaster.secondary`), a batch per call."""
+
+    def __init__(self, model: object, data: object, group: np.ndarray, parts: BvhParts, nthreads: int) -> None:
+        self.model, self.data, self.group, self.parts, self.k = model, data, group, parts, nthreads
+        self.small = _MJ_RAY_GEOM_RAYS // max(1, int(model.ngeom))  # type: ignore[attr-defined]
+        self.proxies: Proxies | None = None  # built at the sweep's first batch (most sweeps have none)
+
+    def __call__(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        model, data = self.model, self.data
+        if len(o) <= self.small:  # a few rays: mj_ray (the reference) costs less than a batch's set-up
+            return cast_rays(model, data, self.group, o, d)
+        if self.proxies is None:
+            self.proxies = Proxies(model, data, self.parts.others)
+        o = np.ascontiguousarray(o, dtype=float)
+        d = np.ascontiguousarray(d, dtype=float)
+        rays_f = embree_rays(o, d)
+        gid, r, nrm = self.parts.static.cast(o, d, self.k, inside=True, rays=rays_f)
+        gid = gid.astype(np.int64)
+        # the few rays that may meet a moving or curved geom first: exactly as the reference
+        near = np.flatnonzero(self.proxies.may_hit_before(o, d, r, self.k, rays=rays_f))
+        if len(near):
+            r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
+        return r, gid, nrm
+
+    def exit_m(self, o: np.ndarray, d: np.ndarray, geoms: np.ndarray) -> np.ndarray:
+        """Where each ray would meet the geom ``geoms`` (MuJoCo's distance: what a cast reports if that
+        geom is the hit), -1 where it does not or is not a static box or plane (optics' ``_leave``)."""
+        return self.parts.static.exact_on(geoms, o, d)
 
 
 _MJ_RAY_GEOM_RAYS = 60_000

@@ -1,4 +1,4 @@
-"""Compiled loops (numba) of the BVH caster and the surface labels: one pass per ray or point.
+"""Compiled loops (numba) of the BVH caster, the surface labels and a sweep's returns: one pass per ray or point.
 
 After Embree names each ray's geom, the caster recomputes the hit with MuJoCo's arithmetic and
 judges the faces that share its plane (:mod:`~exobench.envs.sensors.lidar.bvh`); the labels test
@@ -170,6 +170,30 @@ def first_hits(k, prim, tri_face, n_geom, t, pos, mat, size, plane, rbound, o, u
 
 
 @_jit
+def nearest_listed(redo, splits, ids, pos, mat, size, plane, rbound, rk, skip, o, u, cutoff, gid, x, nrm):  # noqa: ANN001, ANN201
+    """``StaticBvh._listed``: for each ray ``redo[i]``, of the geoms Embree listed along it
+    (``ids[splits[i]:splits[i + 1]]``), the nearest exact hit not culled beyond ``cutoff`` (< 0: none)
+    nor on a ``skip`` geom, of equal ones the first in ``rk``, into ``gid, x, nrm`` (rays with none
+    are left as they are)."""
+    for i in range(len(redo)):
+        r = redo[i]
+        o0, o1, o2, u0, u1, u2 = o[r, 0], o[r, 1], o[r, 2], u[r, 0], u[r, 1], u[r, 2]
+        bx, brank, bg, bf = -1.0, 0, -1, -1
+        for a in range(splits[i], splits[i + 1]):
+            q = np.int64(ids[a])
+            if skip[q]:
+                continue
+            x2, f2 = _geom_hit(pos, mat, size, plane, q, o0, o1, o2, u0, u1, u2)
+            if not x2 >= 0 or _beyond(pos[q, 0], pos[q, 1], pos[q, 2], rbound[q], o0, o1, o2, cutoff):
+                continue
+            if bg < 0 or x2 < bx or (x2 == bx and rk[q] < brank):
+                bx, brank, bg, bf = x2, rk[q], q, f2
+        if bg >= 0:
+            gid[r], x[r] = bg, bx
+            _normal(mat, bg, bf, nrm, r)
+
+
+@_jit
 def _in_box(lx, ly, lz, hx, hy, hz, px, py, pz):  # noqa: ANN001, ANN202
     return lx <= px <= hx and ly <= py <= hy and lz <= pz <= hz
 
@@ -319,6 +343,70 @@ def odd_crossings(rays, splits, ids, plane, n, in_start, in_geom):  # noqa: ANN0
 
 
 @_jit
+def _dot3(a0, a1, a2, b0, b1, b2):  # noqa: ANN001, ANN202
+    """``np.einsum("ij,ij->i", a, b)`` of one row as numpy sums three products: in two lanes (the
+    first and third product, then the second added)."""
+    return (a0 * b0 + a2 * b2) + a1 * b1
+
+
+@_jit
+def to_own_origins(gid, dist, nrm, dirs_w, o_cast, o_own):  # noqa: ANN001, ANN201
+    """``RayCaster.cast``: each hit (``gid, dist, nrm``, updated in place) of a ray cast from
+    ``o_cast`` moved to the ray's own origin ``o_own`` on the plane of the face hit, ``r = dist +
+    (o_cast - o_own) . n / (u . n)`` (along the ray where it grazes the face: ``|u . n| < 1e-6``);
+    no hit where ``r < 0``."""
+    for i in range(len(gid)):
+        e0, e1, e2 = o_cast[i, 0] - o_own[i, 0], o_cast[i, 1] - o_own[i, 1], o_cast[i, 2] - o_own[i, 2]
+        if gid[i] < 0 or not dist[i] >= 0.0 or (e0 == 0.0 and e1 == 0.0 and e2 == 0.0):
+            continue
+        u0, u1, u2, n0, n1, n2 = dirs_w[i, 0], dirs_w[i, 1], dirs_w[i, 2], nrm[i, 0], nrm[i, 1], nrm[i, 2]
+        un = _dot3(u0, u1, u2, n0, n1, n2)
+        if abs(un) < 1e-6:
+            r = dist[i] + _dot3(e0, e1, e2, u0, u1, u2)
+        else:
+            r = dist[i] + _dot3(e0, e1, e2, n0, n1, n2) / un
+        if r >= 0.0:
+            dist[i] = r
+        else:
+            gid[i], dist[i] = -1, -1.0
+
+
+@_jit
+def returns(geom, path_m, cos_inc, gain, reflectivity, retro, u_drop, z, dirs_s, min_r, max_r, threshold, drop_p,
+            rho_ref, r_ref, signal_level, noise_m, res_m, idx, signal, points, intensity):  # noqa: ANN001, ANN201
+    """``LidarSensor.scan``'s returns in one pass over the beams: each beam with a surface (``geom``
+    >= 0) whose signal (``optics.return_signal``) is detected within the range limits and which
+    is not dropped (``u_drop``) is written at the next row: its index, signal, point (range plus
+    noise ``z``, quantised to ``res_m`` half to even as ``np.round``, at least 0, along ``dirs_s``)
+    and intensity byte (``optics.intensity_byte`` of the signal, or with ``signal_level`` False
+    of ``100 G rho |cos|``). Returns the number of rows. The same operations in the same order as
+    those numpy functions, so the same bits."""
+    m = 0
+    for i in range(len(geom)):
+        g = geom[i]
+        if g < 0:
+            continue
+        p = path_m[i]
+        rho = reflectivity[g]
+        q = r_ref / p
+        s = 100.0 * gain[i] * (rho / rho_ref) * cos_inc[i] * (q * q)
+        if not (p >= min_r and p <= max_r and s >= threshold and u_drop[i] >= drop_p):
+            continue
+        idx[m] = i
+        signal[m] = s
+        r = p + noise_m * z[i]
+        if res_m > 0.0:
+            r = np.rint(r / res_m) * res_m
+        r = r if r >= 0.0 else 0.0
+        points[m, 0], points[m, 1], points[m, 2] = r * dirs_s[i, 0], r * dirs_s[i, 1], r * dirs_s[i, 2]
+        lv = s if signal_level else 100.0 * gain[i] * rho * cos_inc[i]
+        v = (101.0 + (lv if lv < 154.0 else 154.0)) if retro[g] else (lv if lv < 100.0 else 100.0)
+        intensity[m] = np.uint8(np.rint(v))
+        m += 1
+    return m
+
+
+@_jit
 def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom, hit, tol, out):  # noqa: ANN001, ANN201
     """``labels.label_surfaces`` point by point: of the geom's surfaces whose plane passes within
     ``tol`` of the hit and whose polygon contains it, the nearest plane, the last listed of ties."""
@@ -347,4 +435,5 @@ def label_points(cand, count, sid, point_normal, edge_a, edge_m, edge_len, geom,
         out[i] = sid[best] if best >= 0 else -1
 
 
-__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "odd_crossings", "seams", "tube_pairs"]
+__all__ = ["MJMINVAL", "exact_hits_into", "face_hits_into", "first_hits", "label_points", "nearest_listed", "odd_crossings",
+           "returns", "seams", "to_own_origins", "tube_pairs"]

@@ -39,6 +39,7 @@ from exobench.core import ConfigError, LidarScan, LidarTruth, ReturnKind, SceneT
 from ..common import EXO_GROUP, WORLD_GROUP, sensor_rngs
 from .cast import RayCaster
 from .config import LidarConfig
+from .kernels import returns
 from .labels import SurfaceTable, label_surfaces
 from .optics import (
     KIND_CODE,
@@ -47,8 +48,6 @@ from .optics import (
     GeomOptics,
     follow_beams,
     geom_optics,
-    intensity_byte,
-    return_signal,
 )
 from .pane_shape import PaneShapes
 from .pattern import RayTable
@@ -137,23 +136,16 @@ class LidarSensor:
             model, data, self.group, origins_w, dirs_w, gid, dist, nrm.reshape(-1, 3), optics, u_opt,
             glass=c.glass, mirrors=c.mirrors, echo=self._echo, cast=self.caster.secondary(model, data),
         )  # fmt: skip
-        ok = beams.geom >= 0
-        g = np.where(ok, beams.geom, 0)
-        path = np.where(ok, beams.path_m, 1.0)
-        signal = return_signal(optics.reflectivity[g], beams.cos_inc, path, c.ref_reflectivity, c.ref_range_m, beams.gain)
-        ok &= (path >= pat.min_range_m) & (path <= pat.max_range_m) & (signal >= c.detection_threshold)
-        ok &= u_drop >= c.point_dropout_prob
-        idx = np.flatnonzero(ok)
-        level = signal if c.intensity_mode == "signal" else 100.0 * beams.gain * optics.reflectivity[g] * beams.cos_inc
-
-        r_m = path[idx] + c.range_noise_m * z[idx]
-        if c.resolution_m > 0.0:
-            r_m = np.round(r_m / c.resolution_m) * c.resolution_m
-        r_m = np.maximum(r_m, 0.0)
-        gk = g[idx]
+        # detection, range noise and quantisation, intensity: one compiled pass (kernels.returns)
+        idx, sig, points, intensity = np.empty(n, dtype=np.int64), np.empty(n), np.empty((n, 3)), np.empty(n, dtype=np.uint8)
+        k = returns(beams.geom, beams.path_m, beams.cos_inc, beams.gain, optics.reflectivity, optics.kind == RETRO_CODE,
+                    u_drop, z, np.ascontiguousarray(rays.dirs_s, dtype=float), pat.min_range_m, pat.max_range_m,
+                    c.detection_threshold, c.point_dropout_prob, c.ref_reflectivity, c.ref_range_m,
+                    c.intensity_mode == "signal", c.range_noise_m, c.resolution_m, idx, sig, points, intensity)  # fmt: skip
+        # copies of the rows kept, so that a scan does not hold the whole sweep's buffers
+        idx, sig, points, intensity = idx[:k].copy(), sig[:k].copy(), points[:k].copy(), intensity[:k].copy()
+        gk = beams.geom[idx]
         stamp = float(sweep_start_s) + pat.sweep_period_s + c.latency_s
-        points = r_m[:, None] * rays.dirs_s[idx]
-        intensity = intensity_byte(level[idx], optics.kind[gk] == RETRO_CODE)
         kind = beams.kind[idx]
         if u_nan is not None:
             bad = u_nan[idx] < c.nan_point_prob
@@ -173,14 +165,14 @@ class LidarSensor:
         lt = LidarTruth(
             stamp_s=stamp,
             sensor_id=self.sensor_id,
-            true_range_m=path[idx],
+            true_range_m=beams.path_m[idx],
             hit_w=beams.hit_w[idx],
             geom_id=gk,
             surface_id=surface,
             material=optics.name[gk],
             kind=kind,
             via_geom_id=beams.via_geom[idx],
-            signal=signal[idx],
+            signal=sig,
             origin_w=origins_w[idx],
             dir_w=dirs_w[idx],
         )

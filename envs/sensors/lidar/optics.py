@@ -245,20 +245,22 @@ def _split_first(
     T, S = pane_split(optics.transmission[geom], optics.specular[geom], optics.refractive_index[geom], cos0)
     cands = [(geom.copy(), path.copy(), hit_w.copy(), np.full(n, int(ReturnKind.GLASS), dtype=np.int8),
               np.full(n, -1, dtype=np.int64), np.ones(n), cos0.copy())]
-    for mirrored in (False, True):
-        d = dirs_w.copy()
-        if mirrored:
-            d -= 2.0 * np.einsum("ij,ij->i", d, normals_w)[:, None] * normals_w
-            d /= np.linalg.norm(d, axis=1)[:, None]
-        o, r, gi, nn = _leave(cast, hit_w, d, geom, np.full(n, mirrored))
-        lost = (r < 0.0) | (gi < 0)
-        q = o + np.where(lost, 0.0, r)[:, None] * d
-        nn = _local_normals(optics, data, gi, q, nn, u[:, 0] if u.shape[1] else None)
-        p2 = np.where(lost, np.nan, path + np.linalg.norm(q - hit_w, axis=1))
-        g2 = np.where(lost, -1, gi)
-        g_f, path_f, hit_f, kind_f, via_f, gain_f, cos_f = _follow(
-            model, data, geomgroup, g2, p2, q, d, nn, optics, u, glass=True, mirrors=mirrors, cast=cast,
-        )  # fmt: skip
+    # the crossing branch (rows :n) and the mirrored one (rows n:) follow their bounce levels
+    # together, one cast per level for both (every beam's path is its own: the same results)
+    d_m = dirs_w.copy()
+    d_m -= 2.0 * np.einsum("ij,ij->i", d_m, normals_w)[:, None] * normals_w
+    d_m /= np.linalg.norm(d_m, axis=1)[:, None]
+    d = np.concatenate([dirs_w, d_m])
+    g0, p0, h0, u2 = (np.concatenate([a, a]) for a in (geom, path, hit_w, u))
+    o, r, gi, nn = _leave(cast, h0, d, g0, np.repeat([False, True], n))
+    lost = (r < 0.0) | (gi < 0)
+    q = o + np.where(lost, 0.0, r)[:, None] * d
+    nn = _local_normals(optics, data, gi, q, nn, u2[:, 0] if u.shape[1] else None)
+    p2 = np.where(lost, np.nan, p0 + np.linalg.norm(q - h0, axis=1))
+    g2 = np.where(lost, -1, gi)
+    both = _follow(model, data, geomgroup, g2, p2, q, d, nn, optics, u2, glass=True, mirrors=mirrors, cast=cast)
+    for branch, mirrored in enumerate((False, True)):
+        g_f, path_f, hit_f, kind_f, via_f, gain_f, cos_f = (a[branch * n : (branch + 1) * n] for a in both)
         share = (S if mirrored else T) ** 2
         kind_b = np.where(mirrored | (kind_f == ReturnKind.GHOST), int(ReturnKind.GHOST), int(ReturnKind.THROUGH_GLASS))
         cands.append((g_f, path_f, hit_f, kind_b.astype(np.int8), np.where(via_f >= 0, via_f, geom), share * gain_f, cos_f))
@@ -358,16 +360,38 @@ def _local_normals(optics: GeomOptics, data: object, geom: np.ndarray, hit_w: np
 def _leave(cast: RayCastFn, p: np.ndarray, d: np.ndarray, own: np.ndarray, mirrored: np.ndarray) -> tuple[np.ndarray, ...]:
     """Secondary rays leaving the surfaces ``own`` at ``p`` along ``d``: (origin, distance, geom, normal).
 
-    A crossing beam passes every face of its pane; a mirrored one skips a grazing self-hit.
+    A crossing beam passes every face of its pane; a mirrored one skips a grazing self-hit. A ray
+    that meets its own geom again is cast anew from just past that hit (at most 8 times). Where the
+    caster can tell where a crossing ray would meet its own pane (``cast.exit_m``, MuJoCo's exact
+    distance), the ray from just past that point is cast in the same batch, and kept only where the
+    first cast reports that geom at exactly that distance: the same rays and results as casting
+    the redo after the first cast, in one batch instead of two.
     """
+    n = len(p)
     o = p + EPS_M * d
-    r, gi, nn = cast(o, d)
+    exit_m = getattr(cast, "exit_m", None)
+    ahead = np.flatnonzero(~mirrored) if exit_m is not None else np.zeros(0, dtype=np.int64)
+    if len(ahead):
+        x = exit_m(o[ahead], d[ahead], own[ahead])
+        ahead, x = ahead[x >= 0.0], x[x >= 0.0]
+    redos = np.zeros(n, dtype=np.int64)  # redo casts each ray has had
+    if len(ahead):
+        o2 = o[ahead] + (x + EPS_M)[:, None] * d[ahead]  # as the redo below moves the origin
+        r, gi, nn = cast(np.concatenate([o, o2]), np.concatenate([d, d[ahead]]))
+        r, gi, nn, r2, g2, n2 = r[:n], gi[:n], nn[:n], r[n:], gi[n:], nn[n:]
+        take = (r[ahead] >= 0.0) & (gi[ahead] == own[ahead]) & (r[ahead] == x)
+        s = ahead[take]
+        o[s], r[s], gi[s], nn[s] = o2[take], r2[take], g2[take], n2[take]
+        redos[s] = 1
+    else:
+        r, gi, nn = cast(o, d)
     for _ in range(8):
-        redo = np.flatnonzero((r >= 0.0) & (gi == own) & (~mirrored | (r < 1e-6)))
+        redo = np.flatnonzero((r >= 0.0) & (gi == own) & (~mirrored | (r < 1e-6)) & (redos < 8))
         if len(redo) == 0:
             break
         o[redo] += (r[redo] + EPS_M)[:, None] * d[redo]
         r[redo], gi[redo], nn[redo] = cast(o[redo], d[redo])
+        redos[redo] += 1
     return o, r, gi, nn
 
 
