@@ -25,6 +25,10 @@ IMU's pose ``T_GI`` in the gravity-aligned frame G, its velocity and the IMU bia
   likewise). Non-keyframes never enter the window (motion-only tracking instead, below), so
   VINS-Mono's MARGIN_SECOND_NEW (dropping a non-keyframe newest frame) does not arise.
 
+Gauge: an initialisation's first pose is held in yaw and position; roll and pitch take a weak
+prior only (the IMU factors observe gravity). Depth gate: a feature whose host depth does not fit
+its other sightings (``depth_gate_px``) keeps its reprojections and loses its depth factors.
+
 Robust kernel: Cauchy of scale 1 on whitened residuals, VINS-Mono's ``CauchyLoss(1.0)`` on its
 projection factors (the paper names a robust kernel ``rho`` without saying which).
 
@@ -89,15 +93,16 @@ class WindowConfig:
         max_speed_mps / max_accel_bias / max_gyro_bias: failure bounds (VINS-Mono: 2.5 m/s^2
             and 1 rad/s biases; the speed bound is a walking person's, [A]).
         bias_sigma_acc / bias_sigma_gyro: prior sigma of the initial biases (m/s^2, rad/s).
-        depth_gate_px: a landmark whose reprojections miss by more than this on average (px)
-            after a window update has its depths dropped for good (0: never): a depth that is not
+        depth_gate_px: a landmark whose reprojections miss by more than this on average (px),
+            started from its host depth when it is made or at the estimate after a window
+            update, has its depths dropped for good (0: never): a depth that is not
             the feature's (glass in front of it, a depth edge) otherwise holds the landmark off
             its rays and bends the window's poses (docs/dvio.md "Drift"). VINS-Fusion's
             ``outliersRejection`` drops such features (3 px at its 460 px focal length); here
             the feature stays, on its reprojections alone.
         tilt_sigma_rad: prior sigma of the roll and pitch of an initialisation's first pose, rad.
             The alignment's gravity is a least-squares fit to double-differenced SfM positions
-            over about a second: off by 2-3 deg on a walk (docs/dvio.md "Drift"), which the
+            over about a second: off by 2-14 deg on a walk (docs/dvio.md "Drift"), which the
             window's IMU factors correct unless the prior holds it. VINS-Mono holds none; a weak
             one [A: 0.1 rad] keeps the first window's system definite.
     """
