@@ -2,12 +2,16 @@
 the back end directly, the KLT front end bypassed): trajectory, depth factors, marginalisation,
 gyro bias, tracking loss."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from dvio_synthetic import EXT, NOISE, F, ate_m, camera_pose, imu_samples, landmarks, observe
 
 from exobench.benchmarks.trajectory import umeyama_alignment
 from exobench.core.errors import ConfigError
+from exobench.core.transforms import rot_x, rot_z
+from exobench.mapping.odometry.dvio import window as window_module
 from exobench.mapping.odometry.dvio.imu import ImuNoise
 from exobench.mapping.odometry.dvio.window import SlidingWindow, WindowConfig
 
@@ -15,10 +19,11 @@ RATE = 30.0
 
 
 def run(depth_factors=True, seed=0, dur=3.0, kf_every=4, window=10, max_features=40, gyro_bias=(0.0, 0.0, 0.0),
-        blind=(np.inf, np.inf), untracked=(np.inf, np.inf)):
+        blind=(np.inf, np.inf), untracked=(np.inf, np.inf), glass=0.0):
     """Frames at 30 Hz, a keyframe every ``kf_every``; no features during ``blind`` (t0, t1); during
     ``untracked`` (t0, t1) as many features as before, but each under a new id in every frame (a
-    front end that finds corners and holds none of them)."""
+    front end that finds corners and holds none of them); ``glass``: the share of landmarks seen
+    through a pane at half their distance, whose depth is the pane's."""
     rng = np.random.default_rng(seed)
     L = landmarks(rng)
     w = SlidingWindow(WindowConfig(window=window, init_keyframes=window, depth_factors=depth_factors), EXT,
@@ -34,6 +39,7 @@ def run(depth_factors=True, seed=0, dur=3.0, kf_every=4, window=10, max_features
             ids, u, d = ids[:0], u[:0], d[:0]
         if untracked[0] <= t < untracked[1]:
             ids = ids + 10_000 * (i + 1)
+        d = np.where(ids % 100 < 100 * glass, 0.5 * d, d)
         st, T = w.add_frame(t, ids, u, d, i % kf_every == 0)
         out.append((t, st, T, i % kf_every == 0))
     return out, w
@@ -102,8 +108,70 @@ def test_a_window_left_without_landmarks_is_a_tracking_loss_not_an_optimisation_
     assert lost and 1.3 <= min(lost) < 1.5  # within two keyframes of the last landmark seen
     assert w.loss_reasons == {"too few landmarks": 1} and w.stats["optimisation_failures"] == 0
     # One alignment fits both segments: the new one is anchored on 1.3 s of IMU propagation through
-    # the loss (measured 0.107 m).
-    assert status[-1] == "ok" and ate_m(*ok_poses(out)) < 0.15
+    # the loss (measured 0.107 m while an initialisation's roll and pitch were held, 0.184 m since
+    # the window re-estimates them: this 5-keyframe window without depth factors levels the new
+    # segment less well than the exact synthetic alignment had it).
+    assert status[-1] == "ok" and ate_m(*ok_poses(out)) < 0.25
+
+
+def test_depths_that_do_not_fit_their_features_are_gated():
+    """Glass in front of a feature (the office's partitions: the colour image shows the room
+    behind, the rendered depth is the pane's) gives a depth that is not the feature's. Before the
+    gate such landmarks were held at the pane by their depth factors and bent the window's poses:
+    with 30 % of the landmarks behind a pane at half their distance the ATE was 0.386 m against
+    9 mm without; the gate drops their depths (measured 0.057 m: what remains is the
+    initialisation's SfM, which takes every depth)."""
+    clean, _ = run(True)
+    glass, w = run(True, glass=0.3)
+    assert ate_m(*ok_poses(glass)) < 0.1
+    assert w.stats["depths_gated"] > 0 and w.stats["reinitialisations"] == 0
+    assert ate_m(*ok_poses(clean)) < 0.015  # the gate leaves consistent depths alone
+
+
+def _tilt_deg(t, T):
+    """Angle between the estimated and the true vertical seen from the camera, degrees."""
+    up = np.array([0.0, 0.0, 1.0])
+    return float(np.degrees(np.arccos(np.clip((T[:3, :3].T @ up) @ (camera_pose(t)[:3, :3].T @ up), -1.0, 1.0))))
+
+
+def test_a_tilted_initialisation_is_levelled_by_the_window(monkeypatch):
+    """The alignment's gravity is a fit to double-differenced SfM positions over about a second,
+    off by 2-3 deg on the vio track's walks; the window's IMU factors observe gravity and must
+    correct it. Before the fix the first pose's roll and pitch were held by the gauge prior (1e-3
+    rad) and the marginal prior carried the tilt through the walk (perfect sensors, a 20 m head
+    walk: 1.7 deg median, 5.1 % of the distance)."""
+    real = window_module.initialise
+    tilt = rot_x(np.radians(2.0))
+    injected = []
+
+    def tilted(*args, **kwargs):
+        res = real(*args, **kwargs)
+        if not res.ok:
+            return res
+        injected.append(res)
+        T = res.T_G_imu.copy()
+        T[:, :3, :3] = tilt @ T[:, :3, :3]
+        T[:, :3, 3] = T[:, :3, 3] @ tilt.T
+        return dataclasses.replace(res, T_G_imu=T, v_G=res.v_G @ tilt.T)
+
+    monkeypatch.setattr(window_module, "initialise", tilted)
+    out, w = run(True, dur=4.0)
+    ok = [(t, T) for t, st, T, _ in out if st == "ok"]
+    assert w.stats["reinitialisations"] == 0 and len(ok) >= 50
+    assert len(injected) == 1
+    assert max(_tilt_deg(t, T) for t, T in ok if t > 3.0) < 0.3
+
+
+def test_the_gauge_prior_holds_yaw_and_position_only():
+    """Its information along G's vertical (yaw) and on the position is the held one, across it
+    the tilt's, for a tilted body: compared with the covariance built in G's axes."""
+    R = rot_z(0.7) @ rot_x(0.4)
+    info = window_module.gauge_prior_model(R, 0.1, 1e-3).information()
+    # A rotation about G's z by d is the body-frame rotation vector d R^T e_z; about G's x, R^T e_x.
+    yaw, roll = R.T @ np.array([0.0, 0.0, 1.0]), R.T @ np.array([1.0, 0.0, 0.0])
+    assert yaw @ info[:3, :3] @ yaw == pytest.approx(1e6, rel=1e-6)
+    assert roll @ info[:3, :3] @ roll == pytest.approx(100.0, rel=1e-6)
+    assert np.allclose(info[3:, 3:], 1e6 * np.eye(3)) and np.allclose(info[:3, 3:], 0.0)
 
 
 def test_window_parameters_out_of_range_are_refused():
@@ -115,3 +183,7 @@ def test_window_parameters_out_of_range_are_refused():
         WindowConfig(kernel="tukey")
     with pytest.raises(ConfigError, match="min_landmarks"):
         WindowConfig(min_landmarks=-1)
+    with pytest.raises(ConfigError, match="tilt_sigma_rad"):
+        WindowConfig(tilt_sigma_rad=0.0)
+    with pytest.raises(ConfigError, match="depth_gate_px"):
+        WindowConfig(depth_gate_px=-1.0)

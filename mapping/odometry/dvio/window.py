@@ -25,6 +25,10 @@ IMU's pose ``T_GI`` in the gravity-aligned frame G, its velocity and the IMU bia
   likewise). Non-keyframes never enter the window (motion-only tracking instead, below), so
   VINS-Mono's MARGIN_SECOND_NEW (dropping a non-keyframe newest frame) does not arise.
 
+Gauge: an initialisation's first pose is held in yaw and position; roll and pitch take a weak
+prior only (the IMU factors observe gravity). Depth gate: a feature whose host depth does not fit
+its other sightings (``depth_gate_px``) keeps its reprojections and loses its depth factors.
+
 Robust kernel: Cauchy of scale 1 on whitened residuals, VINS-Mono's ``CauchyLoss(1.0)`` on its
 projection factors (the paper names a robust kernel ``rho`` without saying which).
 
@@ -55,7 +59,7 @@ import numpy as np
 
 from exobench.core.errors import ConfigError, check_int, check_range
 
-from .factors import KERNELS, DepthNoise, Extrinsics
+from .factors import KERNELS, DepthNoise, Extrinsics, landmark_in_camera
 from .grouped import HostedLandmark, host_group_factor
 from .imu import ImuNoise, ImuPreintegrator, combined_factor
 from .init import InitResult, KeyframeObs, initialise
@@ -89,6 +93,18 @@ class WindowConfig:
         max_speed_mps / max_accel_bias / max_gyro_bias: failure bounds (VINS-Mono: 2.5 m/s^2
             and 1 rad/s biases; the speed bound is a walking person's, [A]).
         bias_sigma_acc / bias_sigma_gyro: prior sigma of the initial biases (m/s^2, rad/s).
+        depth_gate_px: a landmark whose reprojections miss by more than this on average (px),
+            started from its host depth when it is made or at the estimate after a window
+            update, has its depths dropped for good (0: never): a depth that is not
+            the feature's (glass in front of it, a depth edge) otherwise holds the landmark off
+            its rays and bends the window's poses (docs/dvio.md "Drift"). VINS-Fusion's
+            ``outliersRejection`` drops such features (3 px at its 460 px focal length); here
+            the feature stays, on its reprojections alone.
+        tilt_sigma_rad: prior sigma of the roll and pitch of an initialisation's first pose, rad.
+            The alignment's gravity is a least-squares fit to double-differenced SfM positions
+            over about a second: off by 2-14 deg on a walk (docs/dvio.md "Drift"), which the
+            window's IMU factors correct unless the prior holds it. VINS-Mono holds none; a weak
+            one [A: 0.1 rad] keeps the first window's system definite.
     """
 
     window: int = 10
@@ -105,6 +121,8 @@ class WindowConfig:
     max_gyro_bias: float = 1.0
     bias_sigma_acc: float = 0.2
     bias_sigma_gyro: float = 0.02
+    depth_gate_px: float = 3.0
+    tilt_sigma_rad: float = 0.1
 
     def __post_init__(self) -> None:
         check_int("window", self.window, 3, 50)
@@ -121,6 +139,8 @@ class WindowConfig:
         check_range("max_gyro_bias", self.max_gyro_bias, 0.0, 10.0, low_open=True)
         check_range("bias_sigma_acc", self.bias_sigma_acc, 0.0, 10.0, low_open=True)
         check_range("bias_sigma_gyro", self.bias_sigma_gyro, 0.0, 1.0, low_open=True)
+        check_range("depth_gate_px", self.depth_gate_px, 0.0, 1000.0)
+        check_range("tilt_sigma_rad", self.tilt_sigma_rad, 0.0, math.pi, low_open=True)
 
 
 @dataclass(eq=False)
@@ -136,6 +156,7 @@ class _Keyframe:
 class _Landmark:
     key: int
     host: int  # serial of the host keyframe
+    feature: int  # the tracker's feature id
     obs: set[int] = field(default_factory=set)  # serials with factors in the graph (host included)
     u_host: np.ndarray = field(default_factory=lambda: np.zeros(2))
     d_host: float = math.nan
@@ -159,9 +180,14 @@ class SlidingWindow:
                  focal_px: float) -> None:
         self.config, self.ext, self.imu, self.depth = config, ext, imu, depth
         self.sigma = config.pixel_sigma_px / focal_px
+        self._focal_px = focal_px
+        # Features whose depths disagreed with their reprojections (depth_gate_px): no depth
+        # factor ever again (the glass stays in front of them).
+        self._depth_off: set[int] = set()
+        self._dirty_hosts: set[int] = set()
         self._T_IC = gtsam.Pose3(gtsam.Rot3(ext.R_IC), ext.p_IC)
         self.stats = {"keyframes": 0, "reinitialisations": 0, "init_attempts": 0, "optimisation_failures": 0,
-                      "pnp_refined": 0, "landmarks": 0,
+                      "pnp_refined": 0, "landmarks": 0, "depths_gated": 0,
                       "lm_iterations": 0}
         self.init_time_s: float | None = None  # stamp of the first pose
         self._anchor: gtsam.Pose3 | None = None  # last good IMU pose, for a re-initialised segment
@@ -177,6 +203,7 @@ class SlidingWindow:
         self._serial = 0
         self._landmarks: dict[int, _Landmark] = {}
         self._groups: dict[int, _Group] = {}  # host serial -> its landmarks' factor
+        self._dirty_hosts = set()
         self._next_lm = 0
         self._smoother: gtsam.BatchFixedLagSmoother | None = None
         self._nav: gtsam.NavState | None = None
@@ -344,9 +371,9 @@ class SlidingWindow:
                 prev = self._kfs[k - 1].serial
                 graph.add(combined_factor(X(prev), V(prev), X(n), V(n), B(prev), B(n), self._pim(kf, bias)))
         n0 = self._kfs[0].serial
-        # Gauge: yaw and position of G are unobservable; roll and pitch of the first pose come
-        # from the alignment's gravity and are held as firmly (a marginal prior takes over later).
-        graph.add(gtsam.PriorFactorPose3(X(n0), gtsam.Pose3(T_G[0]), gtsam.noiseModel.Isotropic.Sigma(6, 1e-3)))
+        # Gauge: yaw and position of G are unobservable and are held; roll and pitch are not
+        # (the window's IMU factors observe gravity) and take only the weak tilt prior.
+        graph.add(gtsam.PriorFactorPose3(X(n0), gtsam.Pose3(T_G[0]), gauge_prior_model(T_G[0, :3, :3], c.tilt_sigma_rad)))
         graph.add(gtsam.PriorFactorVector(V(n0), np.asarray(res.v_G[0], float), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
         graph.add(gtsam.PriorFactorConstantBias(B(n0), bias, gtsam.noiseModel.Diagonal.Sigmas(
             np.array([c.bias_sigma_acc] * 3 + [c.bias_sigma_gyro] * 3))))
@@ -397,7 +424,8 @@ class SlidingWindow:
             for f, (uu, _) in kf.features.items():
                 if np.all(np.isfinite(uu)):
                     seen.setdefault(f, []).append(kf)
-        changed: set[int] = set()
+        changed: set[int] = {h for h in self._dirty_hosts if any(lm.host == h for lm in self._landmarks.values())}
+        self._dirty_hosts = set()
         for f, where in seen.items():
             lm = self._landmarks.get(f)
             if lm is None:
@@ -408,7 +436,7 @@ class SlidingWindow:
                 if xi is None:
                     continue
                 uu, d = host.features[f]
-                lm = self._landmarks[f] = _Landmark(L(self._next_lm), host.serial, {host.serial}, uu, d)
+                lm = self._landmarks[f] = _Landmark(L(self._next_lm), host.serial, f, {host.serial}, uu, d)
                 self._next_lm += 1
                 self.stats["landmarks"] += 1
                 values.insert(lm.key, np.array([xi]))
@@ -432,8 +460,7 @@ class SlidingWindow:
         remove = []
         depth = self.depth if c.depth_factors else None
         for h in sorted(by_host):
-            hosted = [HostedLandmark(lm.key, lm.u_host, lm.d_host, tuple(lm.observations))
-                      for lm in sorted(by_host[h], key=lambda lm: lm.key)]
+            hosted = [self._hosted(lm) for lm in sorted(by_host[h], key=lambda lm: lm.key)]
             fac = host_group_factor(X(h), hosted, self.ext, self.sigma, depth, c.kernel, c.kernel_k)
             old = self._groups.pop(h, None)
             if old is not None and old.index is not None:
@@ -443,13 +470,47 @@ class SlidingWindow:
                 self._groups[h] = _Group(fac)
         return remove
 
+    def _hosted(self, lm: _Landmark) -> HostedLandmark:
+        if lm.feature not in self._depth_off:
+            return HostedLandmark(lm.key, lm.u_host, lm.d_host, tuple(lm.observations))
+        return HostedLandmark(lm.key, lm.u_host, math.nan, tuple((k, u, math.nan) for k, u, _ in lm.observations))
+
+    def _gate_depths(self, est: gtsam.Values) -> None:
+        """Depths off for the landmarks whose reprojections miss by more than ``depth_gate_px``
+        on average at the new estimate; their host factors are rebuilt at the next keyframe."""
+        gate = self.config.depth_gate_px
+        if not (self.config.depth_factors and gate > 0.0):
+            return
+        for lm in self._landmarks.values():
+            if lm.feature in self._depth_off or not lm.observations or not est.exists(lm.key):
+                continue
+            T_h = est.atPose3(X(lm.host))
+            xi = max(float(est.atVector(lm.key)[0]), 1e-3)
+            miss = [self._miss_px(T_h, est.atPose3(key), xi, lm.u_host, uu) for key, uu, _ in lm.observations]
+            if float(np.mean(miss)) > gate:
+                self._depth_off.add(lm.feature)
+                self._dirty_hosts.add(lm.host)
+                self.stats["depths_gated"] += 1
+
+    def _miss_px(self, T_h: gtsam.Pose3, T_o: gtsam.Pose3, xi: float, u_host: np.ndarray, u_obs: np.ndarray) -> float:
+        """How far (px) the landmark at inverse depth ``xi`` on the host's ray projects from its
+        sighting ``u_obs`` in another keyframe (inf behind that camera)."""
+        P = landmark_in_camera(T_h, T_o, xi, u_host, self.ext, jacobians=False)[0]
+        return float(np.linalg.norm(P[:2] / P[2] - u_obs) * self._focal_px) if P[2] > 1e-3 else math.inf
+
     def _start_depth(self, host: _Keyframe, others: Sequence[_Keyframe], f: int,
                      poses: Mapping[int, gtsam.Pose3]) -> float | None:
         """Start value of a landmark's inverse depth: its host depth (with depth factors), else
         the two-view midpoint triangulation with the farthest other keyframe."""
         uu, d = host.features[f]
-        if self.config.depth_factors and self.depth.valid(d):
-            return 1.0 / d
+        if self.config.depth_factors and self.depth.valid(d) and f not in self._depth_off:
+            gate = self.config.depth_gate_px
+            miss = [self._miss_px(poses[host.serial], poses[o.serial], 1.0 / d, uu, o.features[f][0]) for o in others]
+            if not (gate > 0.0 and float(np.mean(miss)) > gate):
+                return 1.0 / d
+            # The host's depth does not fit the feature's other sightings: gated from the start.
+            self._depth_off.add(f)
+            self.stats["depths_gated"] += 1
         T_h = poses[host.serial] * self._T_IC
         best = None
         for o in others:
@@ -484,6 +545,7 @@ class SlidingWindow:
         est = self._smoother.calculateEstimate()
         newest = self._kfs[-1].serial
         self._estimate = est
+        self._gate_depths(est)
         self._nav = gtsam.NavState(est.atPose3(X(newest)), est.atVector(V(newest)))
         self._bias = est.atConstantBias(B(newest))
         self.stats["keyframes"] += 1
@@ -534,6 +596,19 @@ class SlidingWindow:
             return T_pred
         self.stats["pnp_refined"] += 1
         return T
+
+
+def gauge_prior_model(R_GI: np.ndarray, tilt_sigma_rad: float, held_sigma: float = 1e-3) -> gtsam.noiseModel.Base:
+    """Noise model of the prior on an initialisation's first pose ``T_GI``: position and yaw (the
+    rotation about G's vertical) held to ``held_sigma``, roll and pitch to ``tilt_sigma_rad``.
+    gtsam's ``Pose3`` tangent is (rotation, translation) in the body's axes, where G's vertical
+    is ``R_GI^T e_z``: the rotation block is split along it, whatever the body's attitude."""
+    a = np.asarray(R_GI, dtype=float).T @ np.array([0.0, 0.0, 1.0])
+    up = np.outer(a, a)
+    cov = np.zeros((6, 6))
+    cov[:3, :3] = held_sigma**2 * up + tilt_sigma_rad**2 * (np.eye(3) - up)
+    cov[3:, 3:] = held_sigma**2 * np.eye(3)
+    return gtsam.noiseModel.Gaussian.Covariance(cov)
 
 
 def _anchored(T_G: np.ndarray, T_anchor: np.ndarray) -> np.ndarray:
