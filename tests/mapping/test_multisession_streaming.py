@@ -15,7 +15,7 @@ from exobench.mapping.multisession.keyframes import KeyframeStore
 from exobench.mapping.multisession.pipeline import LtExosense, LtExosenseConfig, _Session
 
 # the memory test traces every allocation of two merges (tracemalloc): about 40 s on 2 quiet cores,
-# the longest test of the suite but two, taken last in xdist's order before this mark
+# the second longest test of the suite, taken last in xdist's order before this mark
 pytestmark = pytest.mark.long(seconds=45)  # the workers take it first (tests/conftest.py)
 
 BOX_A = ((1.0, 2.6, 0.0), (1.4, 3.0, 0.6))
