@@ -14,6 +14,10 @@ from exobench.mapping.multisession.change import ChangeConfig, Scan, update_map
 from exobench.mapping.multisession.keyframes import KeyframeStore
 from exobench.mapping.multisession.pipeline import LtExosense, LtExosenseConfig, _Session
 
+# the memory test traces every allocation of two merges (tracemalloc): about 40 s on 2 quiet cores,
+# the second longest test of the suite, taken last in xdist's order before this mark
+pytestmark = pytest.mark.long(seconds=45)  # the workers take it first (tests/conftest.py)
+
 BOX_A = ((1.0, 2.6, 0.0), (1.4, 3.0, 0.6))
 BOX_B = ((2.6, 1.0, 0.0), (3.1, 1.4, 0.5))
 ORIGINS = ((2.0, 2.0, 1.0), (1.5, 1.5, 1.1), (2.2, 2.4, 0.9))
