@@ -143,3 +143,28 @@ def test_an_output_written_in_pieces_reads_back_mapped_padded_and_after_the_stor
             other.mapped("points", np.float64, (1, 3))  # shorter than what was written
         finally:
             other.close()
+
+
+@pytest.mark.parametrize("kind", ["octree", "dufomap"])
+def test_the_hit_guard_costs_memory_like_the_hits_not_27_times_them(kind):
+    """The guard (no change within a voxel of the other side's hits) tests each point's
+    neighbourhood against the hits; the dilated hits it replaced were 27 times their size and
+    grew with the prior's sessions: the bench's ten-session merge peaked there."""
+    from exobench.mapping.multisession.change import change_classifier
+
+    rng = np.random.default_rng(5)
+    origin = np.array([0.0, 0.0, 1.0])
+    shell = rng.standard_normal((80000, 3))
+    shell = origin + 3.0 * shell / np.linalg.norm(shell, axis=1, keepdims=True)  # a 3 m sphere of hits
+    prior, current = [Scan(shell, origin)], [Scan(shell[:2000] * 0.999, origin)]
+    n_voxels = len(np.unique(np.floor(shell / 0.05).astype(np.int64), axis=0))
+    tracemalloc.start()
+    try:
+        clf = change_classifier(prior, current, ChangeConfig(kind=kind))
+        clf.added(current[0].points_m)
+        clf.removed(shell)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert n_voxels > 20000  # a check of the scene
+    assert peak < 27 * 24 * n_voxels, (peak, n_voxels)  # below the dilated keys alone (27 int64 triples a voxel)
