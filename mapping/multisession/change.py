@@ -213,10 +213,20 @@ def _isin(keys: np.ndarray, table: np.ndarray) -> np.ndarray:
     return np.isin(_pack(keys), _pack(table))
 
 
-def _dilate(keys: np.ndarray, radius: int) -> np.ndarray:
+def _near(keys: np.ndarray, table: np.ndarray, radius: int) -> np.ndarray:
+    """Whether each voxel key lies within ``radius`` voxels (a cube) of a voxel of ``table``
+    (sorted unique packed keys). The same as membership in the table dilated by the cube, without
+    building it: that is 27 times the hits at a radius of one, and the hits of a prior grow with
+    its sessions (each one's noise fills neighbouring voxels), so it was the merge's peak memory."""
+    keys = np.asarray(keys, dtype=np.int64).reshape(-1, 3)
+    out = np.zeros(len(keys), dtype=bool)
+    if not len(table) or not len(keys):
+        return out
     r = np.arange(-radius, radius + 1)
-    offsets = np.stack(np.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3)
-    return _rows((keys[:, None, :] + offsets[None]).reshape(-1, 3))
+    for offset in np.stack(np.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3):
+        p = _pack(keys + offset)  # the cube is symmetric: key + offset in the table
+        out |= table[np.minimum(np.searchsorted(table, p), len(table) - 1)] == p
+    return out
 
 
 def voxel_changes(keys: np.ndarray, state_prior: np.ndarray, state_current: np.ndarray,
@@ -233,8 +243,8 @@ def voxel_changes(keys: np.ndarray, state_prior: np.ndarray, state_current: np.n
     if hit_guard_voxels > 0:
         if hits_prior is None or hits_current is None:
             raise ConfigError("voxel_changes.hits", None, "both sides' hit keys with hit_guard_voxels > 0")
-        gone &= ~_isin(keys, _dilate(_rows(hits_current), hit_guard_voxels))
-        new &= ~_isin(keys, _dilate(_rows(hits_prior), hit_guard_voxels))
+        gone &= ~_near(keys, np.unique(_pack(hits_current)), hit_guard_voxels)
+        new &= ~_near(keys, np.unique(_pack(hits_prior)), hit_guard_voxels)
     removed = _rows(keys[gone])
     added = _rows(keys[new])
     change_free = _rows(occ_p[~_isin(occ_p, removed)])  # eq. 2: O_p - O_r
@@ -279,6 +289,11 @@ class _Hits:
     @property
     def keys(self) -> np.ndarray:
         return _unpack(self._packed)
+
+    @property
+    def packed(self) -> np.ndarray:
+        """The keys packed, sorted and unique (:func:`_near`'s table)."""
+        return self._packed
 
 
 ScanSource = Callable[[], Iterable[Scan]]
@@ -363,11 +378,11 @@ def _dufomap(built_from: Iterable[Scan], cfg: DufomapConfig):  # -> dufomap.dufo
     return dufo
 
 
-def _dynamic(dufo, guard: np.ndarray | None, resolution_m: float, points: np.ndarray) -> np.ndarray:
+def _dynamic(dufo, guard: np.ndarray | None, guard_voxels: int, resolution_m: float, points: np.ndarray) -> np.ndarray:
     # the pose only places the cloud when cloud_transform is set; the points are in the map frame;
     # each point is labelled from the map alone, so a cloud may be labelled in parts
     out = dufo.segment(points, np.eye(4), cloud_transform=False).astype(bool)
-    return out if guard is None else out & ~_isin(voxel_keys(points, resolution_m), guard)
+    return out if guard is None else out & ~_near(voxel_keys(points, resolution_m), guard, guard_voxels)
 
 
 def _dufomap_classifier(prior: ScanSource, current: Sequence[Scan], cfg: DufomapConfig) -> ChangeClassifier:
@@ -376,9 +391,10 @@ def _dufomap_classifier(prior: ScanSource, current: Sequence[Scan], cfg: Dufomap
     from_prior = _dufomap((hits_p.add(s) for s in prior()), cfg)
     from_current = _dufomap((hits_c.add(s) for s in current), cfg)
     g = cfg.hit_guard_voxels
-    near_c = _dilate(hits_c.keys, g) if g > 0 else None
-    near_p = _dilate(hits_p.keys, g) if g > 0 else None
-    return ChangeClassifier(lambda p: _dynamic(from_current, near_c, res, p), lambda p: _dynamic(from_prior, near_p, res, p))
+    near_c = hits_c.packed if g > 0 else None
+    near_p = hits_p.packed if g > 0 else None
+    return ChangeClassifier(lambda p: _dynamic(from_current, near_c, g, res, p),
+                            lambda p: _dynamic(from_prior, near_p, g, res, p))
 
 
 def dufomap_changes(prior: Sequence[Scan], current: Sequence[Scan], config: DufomapConfig | None = None) -> ChangeResult:

@@ -6,6 +6,12 @@ is that file system part for one pipeline run: a temporary folder of its own (un
 temporary directory or a given parent), one ``.npy`` per keyframe and array (so features computed
 later join a keyframe without rewriting its image), removed by :meth:`close`
 (or on leaving a ``with`` block). Nothing of it is kept after the run.
+
+Outputs too large to hold (every session's points, the merged map) are written to the folder a
+piece at a time (:meth:`KeyframeStore.append_rows`) and handed out as read-only maps of their
+files (:meth:`KeyframeStore.mapped`): the reader pages them in from disk, and a map stays
+readable after :meth:`close` removed its file (POSIX keeps a removed file's data while it is
+mapped; the space is freed with the last map).
 """
 
 from __future__ import annotations
@@ -88,6 +94,34 @@ class KeyframeStore:
         if name not in self._names[k]:
             raise ConfigError("keyframe_array", name, f"one of {sorted(self._names[k])}")
         return np.load(self._path(k, name), allow_pickle=False)
+
+    def _output(self, name: str) -> Path:
+        if not name.isidentifier():
+            raise ConfigError("output_file", name, "a name of letters, digits and underscores")
+        return self.root / f"{name}.bin"
+
+    def append_rows(self, name: str, rows: np.ndarray) -> None:
+        """Append the raw bytes of ``rows`` (C order) to the output file ``name``."""
+        if self._closed:
+            raise FolderError(f"{self.root}: keyframe store closed (append after close)")
+        with open(self._output(name), "ab") as fh:
+            np.ascontiguousarray(rows).tofile(fh)
+
+    def mapped(self, name: str, dtype: np.dtype | type, shape: tuple[int, ...]) -> np.ndarray:
+        """Output file ``name`` as a read-only array of ``shape``, mapped from disk; bytes not
+        appended read as zeros (a mask padded with False). An empty shape needs no file."""
+        if self._closed:
+            raise FolderError(f"{self.root}: keyframe store closed (mapped after close)")
+        path = self._output(name)
+        size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+        have = path.stat().st_size if path.exists() else 0
+        if have > size:
+            raise ConfigError(f"output_file.{name}", shape, f"a shape of at least {have} bytes of {np.dtype(dtype)}")
+        if size == 0:
+            return np.zeros(shape, dtype=dtype)
+        with open(path, "ab") as fh:
+            fh.truncate(size)
+        return np.memmap(path, dtype=dtype, mode="r", shape=shape)
 
     def keys(self, session: int | None = None) -> list[tuple[int, int]]:
         """Stored keyframes (of ``session`` only when given), in order."""

@@ -33,7 +33,10 @@ At the end (``finalize``, offline as the paper merges):
    store, the prior's a keyframe at a time, into octrees (or DUFOMaps) and voxel sets as large
    as the area, not as the number of sessions; in memory only a flag per point (still in the
    map or not) and the points found changed. The detected static points of each run are given
-   as a mask over every session's points (``static_masks``).
+   as a mask over every session's points (``static_masks``). The outputs that grow with the
+   sessions (every session's points, the merged map, the masks) are written to files of the
+   store a keyframe at a time and given as read-only maps of them
+   (:meth:`~.keyframes.KeyframeStore.mapped`): the scorer reads them from disk.
 
 ``merge_time_s`` is the wall time of 1-4, ``peak_memory_mb`` the peak of the allocations traced
 by :mod:`tracemalloc` during them, above what was traced when they began (NumPy's and Python's;
@@ -335,10 +338,15 @@ class LtExosense:
         with the map on disk: a session's clouds are read from the store when it is the current
         one, the prior's a keyframe at a time (:func:`~.change.change_classifier`); in memory
         only which of every session's points are still in the map (a flag a point) and the
-        points found changed. The map's points are read back once, at the end, for the outputs."""
+        points found changed. The outputs that grow with the sessions go to files of the store
+        (each run's static mask when it is found; every session's points and the merged map
+        read back once, at the end, a keyframe at a time) and are given as read-only maps of
+        them: the paper keeps the sessions' clouds on disk, and these are its map."""
+        store = self._store
+        assert store is not None
         alive: list[np.ndarray] = []  # per session, its points (keyframe after keyframe) still in the map
         sizes: list[np.ndarray] = []  # per session, the points of each keyframe
-        pairs, removed, added, static = [], [], [], []
+        pairs, removed, added = [], [], []
 
         def prior() -> Iterator[Scan]:
             for i in range(len(alive)):
@@ -365,15 +373,22 @@ class LtExosense:
                 pairs.append((sessions[i - 1].session, s.session))
                 removed.append(np.concatenate([np.zeros((0, 3)), *gone]))
                 added.append(pts_c[new])
-                static.append([*(a.copy() for a in alive), ~new])
+                for flags in (*alive, ~new):  # the run's static points; later sessions' padded False
+                    store.append_rows(f"static_{len(pairs) - 1}", flags)
             alive.append(np.ones(int(sizes[-1].sum()), dtype=bool))
             del current
-        every = np.concatenate([_points(list(self._scans(s, T))) for s, T in zip(sessions, T_map)])
+        for s, T, flags, size in zip(sessions, T_map, alive, sizes):
+            bounds = np.concatenate([[0], np.cumsum(size)])
+            for k, scan in enumerate(self._scans(s, T)):
+                store.append_rows("every", scan.points_m)
+                store.append_rows("merged", scan.points_m[flags[bounds[k]:bounds[k + 1]]])
         n = [int(z.sum()) for z in sizes]
-        masks = tuple(np.concatenate([*m, *(np.zeros(k, dtype=bool) for k in n[len(m):])]) for m in static)
+        every = store.mapped("every", np.float64, (sum(n), 3))
+        masks = tuple(store.mapped(f"static_{r}", np.bool_, (sum(n),)) for r in range(len(pairs)))
+        merged = store.mapped("merged", np.float64, (sum(int(a.sum()) for a in alive), 3))
         return {"change_pairs": tuple(pairs), "removed_points": tuple(removed), "added_points": tuple(added),
-                "static_masks": masks, "merged_map_points": every[np.concatenate(alive)],
-                "map_points_no_change_detection": every, "map_points_single_session": every[len(every) - n[-1]:]}
+                "static_masks": masks, "merged_map_points": merged,
+                "map_points_no_change_detection": every, "map_points_single_session": every[sum(n) - n[-1]:]}
 
     def _inter_edges(self, sessions: list[_Session], stats: dict[str, Any]) -> list[PoseEdge]:
         t0 = time.perf_counter()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from box_scene import cast
 
+from exobench.core.errors import ConfigError
 from exobench.mapping.multisession.change import ChangeConfig, Scan, update_map
 from exobench.mapping.multisession.keyframes import KeyframeStore
 from exobench.mapping.multisession.pipeline import LtExosense, LtExosenseConfig, _Session
@@ -101,3 +102,73 @@ def test_memory_of_the_change_runs_grows_with_the_outputs_not_with_the_sessions_
     peak8, out8 = _merge_peak_mb(8)
     assert out8 > 3.5 * out2  # the outputs do grow (a check of the scene: 8 sessions of it)
     assert peak8 - out8 <= 1.5 * (peak2 - out2)
+
+
+def test_the_outputs_that_grow_with_the_sessions_are_on_disk_not_in_memory():
+    """Every session's points, the merged map and the runs' static masks are read-only maps of
+    the store's files (issue 28's memory target: the paper keeps the sessions' clouds on disk):
+    once the merge returns, the memory it still holds is the changes' (removed and added
+    points), not the outputs'."""
+    pipe, sessions, T_maps, scans = _pipeline_with([[BOX_A], [BOX_B], [BOX_A]], "dufomap", yaws=4, n_u=40, n_v=30)
+    try:
+        tracemalloc.start()
+        before = tracemalloc.get_traced_memory()[0]
+        out = pipe._changes(sessions, list(T_maps))
+        held = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+        pipe._store.close()
+    grows = [out["map_points_no_change_detection"], out["merged_map_points"], *out["static_masks"]]
+    changes = sum(a.nbytes for a in (*out["removed_points"], *out["added_points"]))
+    assert sum(a.nbytes for a in grows) > 4 * changes  # a check of the scene: the outputs dominate
+    assert held < changes + 0.1 * sum(a.nbytes for a in grows)
+    every = np.concatenate([s.points_m for sc in scans for s in sc])
+    np.testing.assert_array_equal(out["map_points_no_change_detection"], every)  # read after the store closed
+
+
+def test_an_output_written_in_pieces_reads_back_mapped_padded_and_after_the_store_is_closed():
+    store = KeyframeStore()
+    rows = [np.arange(6.0).reshape(2, 3), np.zeros((0, 3)), np.array([[7.0, 8.0, 9.0]])]
+    for r in rows:
+        store.append_rows("points", r)
+    store.append_rows("mask", np.array([True, False]))
+    points = store.mapped("points", np.float64, (3, 3))
+    mask = store.mapped("mask", np.bool_, (5,))  # three more points, not flagged
+    none = store.mapped("nothing", np.float64, (0, 3))
+    store.close()
+    assert not store.root.exists()
+    np.testing.assert_array_equal(points, np.concatenate(rows))
+    assert mask.tolist() == [True, False, False, False, False]
+    assert none.shape == (0, 3)
+    with pytest.raises(ConfigError, match="output_file.points"):
+        other = KeyframeStore()
+        try:
+            other.append_rows("points", np.ones((2, 3)))
+            other.mapped("points", np.float64, (1, 3))  # shorter than what was written
+        finally:
+            other.close()
+
+
+@pytest.mark.parametrize("kind", ["octree", "dufomap"])
+def test_the_hit_guard_costs_memory_like_the_hits_not_27_times_them(kind):
+    """The guard (no change within a voxel of the other side's hits) tests each point's
+    neighbourhood against the hits; the dilated hits it replaced were 27 times their size and
+    grew with the prior's sessions: the bench's ten-session merge peaked there."""
+    from exobench.mapping.multisession.change import change_classifier
+
+    rng = np.random.default_rng(5)
+    origin = np.array([0.0, 0.0, 1.0])
+    shell = rng.standard_normal((80000, 3))
+    shell = origin + 3.0 * shell / np.linalg.norm(shell, axis=1, keepdims=True)  # a 3 m sphere of hits
+    prior, current = [Scan(shell, origin)], [Scan(shell[:2000] * 0.999, origin)]
+    n_voxels = len(np.unique(np.floor(shell / 0.05).astype(np.int64), axis=0))
+    tracemalloc.start()
+    try:
+        clf = change_classifier(prior, current, ChangeConfig(kind=kind))
+        clf.added(current[0].points_m)
+        clf.removed(shell)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert n_voxels > 20000  # a check of the scene
+    assert peak < 27 * 24 * n_voxels, (peak, n_voxels)  # below the dilated keys alone (27 int64 triples a voxel)
