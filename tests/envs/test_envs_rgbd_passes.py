@@ -20,8 +20,9 @@ from exobench.models.exo_spec import ExoSpec
 
 # a person crosses the view, so that the geom ids show more than the course
 COURSE = {"width_px": 64, "height_px": 48, "rate_hz": 5.0, "duration_cap_s": 3.0, "pedestrians": 1}
-# the office walk with the thigh camera alone: no LiDAR to cast
-OFFICE_RIG = camera_rig("thigh", RgbdConfig(width_px=96, height_px=72, rate_hz=10.0))
+# the office walk with the thigh camera alone: no LiDAR to cast; the baseline renders the glass
+# panes' depth (mujoco.Renderer), as the two passes do without depth_through_glass
+OFFICE_RIG = camera_rig("thigh", RgbdConfig(width_px=96, height_px=72, rate_hz=10.0, depth_through_glass=False))
 
 
 def _rgbd(ep) -> list[RgbdFrame]:

@@ -63,6 +63,11 @@ class RgbdConfig:
         exposure_s: colour exposure time, s; > 0 blurs each colour image with the camera's
             motion during it (:mod:`.blur`; at most one frame period). 0 (default): sharp, as
             before. Indoors a D455's auto exposure runs about 5-33 ms [A].
+        depth_through_glass: the depth image looks through transparent geoms (glass, drawn
+            see-through in the colour image) to the surface behind them, as a D455's active IR
+            stereo does through clear glass (docs/vio-realism.md, "Depth through glass"); the
+            geom ids then name that surface too. False: the depth and ids are the pane's, as
+            before (True by default).
     """
 
     width_px: int = 640
@@ -85,6 +90,7 @@ class RgbdConfig:
     segmentation: bool = False
     segmentation_truth: bool = False
     exposure_s: float = 0.0
+    depth_through_glass: bool = True
 
     def __post_init__(self) -> None:
         w = check_int("rgbd.width_px", self.width_px, 1, 4096)
@@ -118,7 +124,7 @@ class RgbdConfig:
         check_range("rgbd.dropout_prob", self.dropout_prob, 0.0, 1.0, high_open=True)
         check_range("rgbd.pixel_dropout_prob", self.pixel_dropout_prob, 0.0, 1.0)
         check_range("rgbd.exposure_s", self.exposure_s, 0.0, 1.0 / self.rate_hz)
-        for name in ("shadows", "segmentation", "segmentation_truth"):
+        for name in ("shadows", "segmentation", "segmentation_truth", "depth_through_glass"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ConfigError(f"rgbd.{name}", getattr(self, name), "True or False")
 

@@ -28,6 +28,12 @@ segmentation and colour modes, bit for bit, from two passes instead of three:
    resolve takes a sample off the pixel centre: the depth differs in the last bits on every
    surface pixel) and draws the skybox at 0.7 of the far plane, where pass 1 leaves no surface.
 
+Glass. With ``RgbdConfig.depth_through_glass`` (the default) pass 1 leaves out the transparent
+geoms (rgba alpha < 1: the glass panes, which pass 2 draws see-through without writing depth), so
+the depth and the geom ids are those of the surface behind the pane, as a D455's IR projector and
+imagers see through clear glass (docs/vio-realism.md, "Depth through glass"). The colour image
+is unchanged. Without it, pass 1 is :class:`mujoco.Renderer`'s: the pane's depth and id.
+
 Both contexts live in one GL context (``mjr_render`` draws into whichever buffer is bound, so
 each pass binds its own first). The off-screen buffers are made exactly the image's size (the
 model's ``offwidth`` x ``offheight``, 1280 x 960 on exobench's worlds, would be cleared and kept
@@ -139,6 +145,7 @@ class RgbdRenderer:
         self._depth = np.empty((h, w), dtype=np.float32)
         self._flag = {n: int(getattr(mujoco.mjtRndFlag, f"mjRND_{n}")) for n in ("SEGMENT", "IDCOLOR", "SHADOW")}
         self._geom_type = int(mujoco.mjtObj.mjOBJ_GEOM)
+        self._box = int(mujoco.mjtGeom.mjGEOM_BOX)
 
     def update_scene(self, data: mujoco.MjData, camera: int) -> None:
         """The scene of ``data`` seen from the model's camera ``camera`` (then :func:`set_intrinsics`)."""
@@ -158,9 +165,12 @@ class RgbdRenderer:
         self._gl.make_current()
         flags = self.scene.flags
         flags[self._flag["SEGMENT"]] = flags[self._flag["IDCOLOR"]] = 1
+        hidden = self._hide_transparent() if self.config.depth_through_glass else []
         mujoco.mjr_setBuffer(self._offscreen, self._depth_con)
         mujoco.mjr_render(self._rect, self.scene, self._depth_con)
         mujoco.mjr_readPixels(self._ids if segmentation else None, self._depth, self._rect, self._depth_con)
+        for g, gtype, size in hidden:  # the colour pass draws the scene as it was updated
+            g.type, g.size[:] = gtype, size
         depth = self._metric_depth(self._depth[::-1])
         geom_id = self._geom_ids(self._ids[::-1]) if segmentation else None
         flags[self._flag["SEGMENT"]] = flags[self._flag["IDCOLOR"]] = 0
@@ -169,6 +179,19 @@ class RgbdRenderer:
         mujoco.mjr_render(self._rect, self.scene, self._con)
         mujoco.mjr_readPixels(self._rgb, None, self._rect, self._con)
         return np.ascontiguousarray(self._rgb[::-1]), depth, geom_id
+
+    def _hide_transparent(self) -> list[tuple[Any, int, np.ndarray]]:
+        """Collapse the scene's transparent geoms (alpha < 1: the glass, which the colour pass
+        draws see-through) to a box of size zero, which covers no pixel, so that the depth pass
+        gives the surface behind them (module docstring); returns what :meth:`render` restores.
+        Segmentation mode draws every geom opaque with its id colour, alpha aside, so hiding
+        them is the only way to leave them out of this pass."""
+        hidden = []
+        for g in self.scene.geoms[: self.scene.ngeom]:
+            if g.rgba[3] < 1.0 and g.objtype == self._geom_type:
+                hidden.append((g, int(g.type), g.size.copy()))
+                g.type, g.size[:] = self._box, 0.0
+        return hidden
 
     def _metric_depth(self, buffer: np.ndarray) -> np.ndarray:
         """Depth in metres from the reversed-Z buffer, with mujoco.Renderer's arithmetic

@@ -17,7 +17,7 @@ gaze is the terrain-blind process), the chest camera sits on its turning rig (``
 ``view="unconventional"`` adds the slow large excursions. The realism options of
 docs/vio-realism.md all reach this rig: ``imu_extrinsics``, ``imu_time_offset_s``,
 ``heel_strike_scale`` (the IMU config), ``surfaces`` and ``light_level`` (the office's look,
-textures drawn from ``office_seed``) and ``exposure_s`` (the camera config).
+textures drawn from ``office_seed``), ``exposure_s`` and ``depth_through_glass`` (the camera config).
 
 Truth (as every office walk with a camera, :func:`.office._office_episode`): the optical frame's
 pose at every frame's measurement time (``body_tracks[<camera>]``, ``extra["camera_T_world"]``,
@@ -53,6 +53,11 @@ CAMERA_ROWS = ("mount", "view", "head_pitch_mean_rad", "head_pitch_std_rad", "wi
                "latency_s", "depth_noise_scale", "min_depth_m", "max_depth_m", "frame_dropout", "exposure_s",
                "imu_rate_hz", "imu_extrinsics", "imu_time_offset_s")  # fmt: skip
 
+# the office's glass is the only glass a camera meets (the courses have none), so the row is here
+DEPTH_THROUGH_GLASS = ParamSpec(True, None, None, "", "the depth image looks through the glass partitions, doors and "
+                                "windows to the surface behind, as a D455's active IR stereo does through clear glass; "
+                                "False: the pane's depth (docs/vio-realism.md, Depth through glass)", choices=(False, True),
+                                feeds=("rgbd.depth_through_glass",))
 IMU_DROPOUT = ParamSpec(0.0, 0.0, 0.9, "", "probability a sample of the camera's IMU is lost", feeds=("imu.dropout_prob",))
 
 PARAMS: dict[str, ParamSpec] = {
@@ -61,6 +66,7 @@ PARAMS: dict[str, ParamSpec] = {
                               "and walk back to the start, facing as at the start: a closed loop of any length",
                               choices=(False, True)),
     **{k: course.PARAMS[k] for k in CAMERA_ROWS},
+    "depth_through_glass": DEPTH_THROUGH_GLASS,
     "imu_dropout": IMU_DROPOUT,
 }
 
