@@ -119,11 +119,13 @@ def test_a_worker_killed_once_is_retried_and_its_episode_finishes(executor, tmp_
 
 
 def test_a_lost_cluster_keeps_what_finished_and_records_nothing_as_failed(executor, tmp_path, monkeypatch):
-    monkeypatch.setattr(ray_executor, "_cluster_alive", lambda: False)  # every node gone once a worker dies
+    marker = tmp_path / "marker"
+    # every node gone once a worker dies (not before: under load, "a" may outlast a health check)
+    monkeypatch.setattr(ray_executor, "_cluster_alive", lambda: not marker.exists())
     got: dict[str, str] = {}
     with pytest.raises(ClusterLostError, match="the Ray cluster was lost"):
         # one worker: "a" finishes before the job that kills its worker starts
-        run_actors(["a", f"kill:{tmp_path / 'marker'}", "b"], 1, _kill_once, got.__setitem__, lambda j, why: (j, "lost"))
+        run_actors(["a", f"kill:{marker}", "b"], 1, _kill_once, got.__setitem__, lambda j, why: (j, "lost"))
     assert got == {"a": "done"}
 
 
