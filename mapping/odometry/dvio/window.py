@@ -103,8 +103,11 @@ class WindowConfig:
         tilt_sigma_rad: prior sigma of the roll and pitch of an initialisation's first pose, rad.
             The alignment's gravity is a least-squares fit to double-differenced SfM positions
             over about a second: off by 2-14 deg on a walk (docs/dvio.md "Drift"), which the
-            window's IMU factors correct unless the prior holds it. VINS-Mono holds none; a weak
-            one [A: 0.1 rad] keeps the first window's system definite.
+            window's IMU factors correct unless the prior holds it. VINS-Mono holds none. 0.02 rad
+            [A] (0.1 before): a window of few or wrong landmarks, started after a loss in a hard
+            stretch, otherwise follows them 12-90 deg off the vertical within a frame (the
+            MH03-like walk, docs/dvio.md "Drift after a loss"); a window of many still levels a 13
+            deg alignment to within 1 deg about 1 s later (the prior leaves with the first keyframe).
     """
 
     window: int = 10
@@ -122,7 +125,7 @@ class WindowConfig:
     bias_sigma_acc: float = 0.2
     bias_sigma_gyro: float = 0.02
     depth_gate_px: float = 3.0
-    tilt_sigma_rad: float = 0.1
+    tilt_sigma_rad: float = 0.02
 
     def __post_init__(self) -> None:
         check_int("window", self.window, 3, 50)
