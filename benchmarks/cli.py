@@ -24,12 +24,10 @@ from typing import Any
 import click
 
 from .cli_bench import bench
+from .cli_common import EXIT_INTERRUPTED, EXIT_USAGE, exit_on_harness_errors
 from .cli_results import compare, leaderboard, report
 from .cli_sessions import record, replay
 
-EXIT_FAILED = 1
-EXIT_USAGE = 2
-EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE, what a shell reports for a writer whose reader left
 
 
@@ -181,7 +179,7 @@ def run(
             check_out_file("--rerun", rerun_path)
         with connected(ray_ex, plan):  # its actors start while the run folder is prepared
             errors = _run_plan(plan, out, jobs, resume, rerun_path, no_report, _continue_command(out, jobs, rerun_path, no_report, ray_ex), ray_ex)
-        _exit_on_harness_errors(errors)
+        exit_on_harness_errors(errors)
         return
     if case_patterns:  # case names are a suite's own: another track's suite has others
         raise ConfigError("--case", ",".join(case_patterns), "one track (--track NAME), not --track all")
@@ -210,7 +208,7 @@ def run(
     with connected(ray_ex, plans[0] if plans else None):
         root.mkdir(parents=True, exist_ok=True)
         errors = _run_all(plans, root, names, suite, run_seeds, jobs, resume, rerun_path, no_report, hint, ray_ex)
-    _exit_on_harness_errors(errors)
+    exit_on_harness_errors(errors)
 
 
 def _served_tracks(names: list[str]) -> tuple[list[str], list[str]]:
@@ -289,16 +287,6 @@ def _continue_command(out: str, jobs: int, rerun_path: str | None, no_report: bo
     words += ["--rerun", rerun_path] if rerun_path else []
     words += ["--no-report"] if no_report else []
     return shlex.join(words)
-
-
-def _exit_on_harness_errors(errors: list[str], shown: int = 3, width: int = 160) -> None:
-    """Exit 1 naming the first failures of the simulation or the scorer (none: return)."""
-    if not errors:
-        return
-    first = "; ".join(e if len(e) <= width else e[: width - 3] + "..." for e in errors[:shown])
-    more = f" (and {len(errors) - shown} more)" if len(errors) > shown else ""
-    click.echo(f"exobench: {len(errors)} records failed in the simulation or the scorer, not in a pipeline: {first}{more}", err=True)
-    sys.exit(EXIT_FAILED)
 
 
 def _run_plan(

@@ -30,7 +30,7 @@ def bench(what: str, as_json: bool, seed: int, session: str | None, tracks: tupl
     from exobench.core.errors import ConfigError
 
     from .bench import bench_lidar, bench_rtls, bench_sim, case_a_episode
-    from .cli import EXIT_FAILED
+    from .cli_common import EXIT_FAILED
     from .results import json_safe
     from .tracks import get_track
 

@@ -62,7 +62,7 @@ def compare(run_a: str, run_b: str, threshold: float, as_json: bool) -> None:
     --threshold, so a CI can gate on it."""
     import dataclasses
 
-    from .cli import EXIT_FAILED
+    from .cli_common import EXIT_FAILED
     from .compare import compare_folders, format_comparisons
     from .results import json_safe
 

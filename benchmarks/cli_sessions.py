@@ -23,7 +23,7 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
     checking it against its meta.json (track, file hashes, frame and truth counts)."""
     from exobench.envs.session import check_track, content_checked, read_meta, read_session
 
-    from .cli import _exit_on_harness_errors
+    from .cli_common import exit_on_harness_errors
     from .overrides import parse_assignments
     from .report import summary_text
     from .results import json_safe
@@ -61,7 +61,7 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
             click.echo(json.dumps(json_safe({**r, "session": str(session_dir), "scenario": episode.scenario, "seed": episode.seed})))
     else:
         click.echo(summary_text(json_safe(records), plan.track, [p.name for p in plan.pipelines]))
-    _exit_on_harness_errors([f"session {name}: {reason}" for name, reason in scorer_errors.items()])
+    exit_on_harness_errors([f"session {name}: {reason}" for name, reason in scorer_errors.items()])
 
 
 @click.command()
