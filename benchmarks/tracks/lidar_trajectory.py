@@ -95,15 +95,39 @@ def loop_metrics(P: np.ndarray, Q: np.ndarray) -> dict[str, float]:
     return tj.loop_errors(two)
 
 
+def estimate_arrays(est: TrajectoryEstimate) -> tuple[np.ndarray, np.ndarray, str]:
+    """(stamps, poses (N, 4, 4), why the estimate cannot be scored or ""): one pose per stamp, and
+    at least one."""
+    stamps = np.asarray(est.stamps_s, dtype=float).reshape(-1)
+    P = np.asarray(est.T_world_sensor, dtype=float).reshape(-1, 4, 4)
+    if len(P) != len(stamps):
+        return stamps, P, f"{len(stamps)} stamps but {len(P)} poses"
+    return stamps, P, "" if len(P) else "no poses"
+
+
+def path_metrics(e_traj: tj.Trajectory, r_traj: tj.Trajectory, P: np.ndarray, Q: np.ndarray,
+                 truth: np.ndarray) -> dict[str, float]:
+    """``rpe_1m_m``, ``drift_per_m``, ``path_m`` of the estimate ``e_traj`` (poses ``P``) against
+    ``r_traj`` (``Q``) and, when the truth (rows ``[t, x, y, z, ...]``) ends where it started after
+    more than 4 :data:`LOOP_TOL_M` of path, the loop errors (:func:`loop_metrics`)."""
+    out: dict[str, float] = {}
+    try:
+        out["rpe_1m_m"] = tj.rpe(e_traj, r_traj, 1.0, "m")["rmse"]
+    except Exception:  # shorter than 1 m of path
+        out["rpe_1m_m"] = math.nan
+    out["drift_per_m"] = tj.drift_per_metre(e_traj, r_traj)
+    out["path_m"] = r_traj.path_length_m()
+    if np.linalg.norm(truth[-1, 1:4] - truth[0, 1:4]) < LOOP_TOL_M and out["path_m"] > 4 * LOOP_TOL_M:
+        out.update(loop_metrics(P, Q))
+    return out
+
+
 def score_trajectory(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any]:
     """The metrics of the module docstring (never raises on a bad estimate)."""
     try:
-        stamps = np.asarray(est.stamps_s, dtype=float).reshape(-1)
-        P = np.asarray(est.T_world_sensor, dtype=float).reshape(-1, 4, 4)
-        if len(P) != len(stamps):
-            return failure_metrics(episode, f"{len(stamps)} stamps but {len(P)} poses")
-        if not len(P):
-            return failure_metrics(episode, "no poses")
+        stamps, P, reason = estimate_arrays(est)
+        if reason:
+            return failure_metrics(episode, reason)
         track = true_track(episode)
         inside, Q = interpolate_poses(track, stamps)
         finite = np.all(np.isfinite(P.reshape(len(P), -1)), axis=1)
@@ -126,14 +150,7 @@ def score_trajectory(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any
         r_traj = tj.Trajectory.from_poses(t_use, Q_use)
         out["ate_m"] = tj.ate(e_traj, r_traj)["rmse"]
         out["rpe_m"] = tj.rpe(e_traj, r_traj, 1, "frames")["rmse"]
-        try:
-            out["rpe_1m_m"] = tj.rpe(e_traj, r_traj, 1.0, "m")["rmse"]
-        except Exception:  # shorter than 1 m of path
-            out["rpe_1m_m"] = math.nan
-        out["drift_per_m"] = tj.drift_per_metre(e_traj, r_traj)
-        out["path_m"] = r_traj.path_length_m()
-        if np.linalg.norm(track[-1, 1:4] - track[0, 1:4]) < LOOP_TOL_M and out["path_m"] > 4 * LOOP_TOL_M:
-            out.update(loop_metrics(P_use, Q_use))
+        out.update(path_metrics(e_traj, r_traj, P_use, Q_use, track))
         return out
     except Exception as e:  # a scorer never raises on an estimate
         return failure_metrics(episode, f"scoring raised {type(e).__name__}: {e}")

@@ -40,7 +40,7 @@ from exobench.core.episode import Episode
 from exobench.core.estimates import TrajectoryEstimate
 
 from ... import trajectory as tj
-from ..lidar_trajectory import LOOP_TOL_M, aligned_positions, interpolate_poses, loop_metrics
+from ..lidar_trajectory import aligned_positions, estimate_arrays, interpolate_poses, path_metrics
 
 METRIC_KEYS = ("ate_m", "rpe_1m_m", "drift_per_m", "te_m", "oe_rad", "tve_x_m", "tve_y_m", "tve_z_m", "lost_frac",
                "init_s", "time_per_frame_ms", "time_per_frame_ms_p95", "n_frames", "n_poses", "path_m")  # fmt: skip
@@ -126,15 +126,13 @@ def scored_mask(episode: Episode, est: TrajectoryEstimate) -> tuple[np.ndarray, 
 def score_vio(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any]:
     """The metrics of the module docstring (never raises on a bad estimate)."""
     try:
-        stamps = np.asarray(est.stamps_s, dtype=float).reshape(-1)
-        P = np.asarray(est.T_world_sensor, dtype=float).reshape(-1, 4, 4)
-        if len(P) != len(stamps):
-            return failure_metrics(episode, f"{len(stamps)} stamps but {len(P)} poses")
-        if len(tuple(est.status)) != len(stamps):
-            return failure_metrics(episode, f"{len(stamps)} stamps but {len(tuple(est.status))} statuses")
-        if not len(stamps):
-            out = failure_metrics(episode, "no poses")
-            out["lost_frac"] = 1.0
+        stamps, P, reason = estimate_arrays(est)
+        if len(P) == len(stamps) and len(tuple(est.status)) != len(stamps):
+            reason = f"{len(stamps)} stamps but {len(tuple(est.status))} statuses"
+        if reason:
+            out = failure_metrics(episode, reason)
+            if reason == "no poses":
+                out["lost_frac"] = 1.0
             return out
         stamps, P, use = scored_mask(episode, est)
         counts = est.counts.get("rgbd") if isinstance(est.counts, dict) else None
@@ -165,14 +163,7 @@ def _alignment_metrics(episode: Episode, out: dict[str, Any], stamps: np.ndarray
         e_traj = tj.Trajectory.from_poses(t_use, P[use])
         r_traj = tj.Trajectory.from_poses(t_use, Q)
         out["ate_m"] = ate_rmse(P[use][:, :3, 3], Q[:, :3, 3], e_traj, r_traj)
-        try:
-            out["rpe_1m_m"] = tj.rpe(e_traj, r_traj, 1.0, "m")["rmse"]
-        except Exception:  # shorter than 1 m of path
-            out["rpe_1m_m"] = math.nan
-        out["drift_per_m"] = tj.drift_per_metre(e_traj, r_traj)
-        out["path_m"] = r_traj.path_length_m()
-        if np.linalg.norm(truth[-1, 1:4] - truth[0, 1:4]) < LOOP_TOL_M and out["path_m"] > 4 * LOOP_TOL_M:
-            out.update(loop_metrics(P[use], Q))
+        out.update(path_metrics(e_traj, r_traj, P[use], Q, truth))
     except Exception as e:  # a scorer never raises on an estimate
         out.update({k: math.nan for k in ("ate_m", "rpe_1m_m", "drift_per_m")},
                    failed=True, failed_reason=f"scoring raised {type(e).__name__}: {e}")  # fmt: skip
