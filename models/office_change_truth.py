@@ -165,6 +165,22 @@ def _exists(index: SolidIndex, p: np.ndarray, n: np.ndarray) -> np.ndarray:
     return index.inside(p - EPS_M * n) & ~index.inside(p + EPS_M * n)
 
 
+def _exists_by_face(index: SolidIndex, p: np.ndarray, n: np.ndarray, src: np.ndarray, curved: np.ndarray) -> np.ndarray:
+    """:func:`_exists` of points of solids ``src`` (``curved[src]``: a cylinder or a sphere),
+    one face's run at a time (a flat solid's points of one normal, a curved one's all): the
+    index then tests only the few solids that meet the run's bounding box, where the whole set's
+    box meets every solid of the building (13 us a point on a whole building before, nearly all
+    of it in inside tests). The test is pointwise: the same answer to the bit."""
+    out = np.zeros(len(p), dtype=bool)
+    if not len(p):
+        return out
+    new_normal = np.any(n[1:] != n[:-1], axis=1) & ~curved[src[1:]]
+    bounds = np.concatenate([[0], np.flatnonzero((src[1:] != src[:-1]) | new_normal) + 1, [len(p)]])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        out[a:b] = _exists(index, p[a:b], n[a:b])
+    return out
+
+
 def _surface_change(before: list[Solid], after: list[Solid], regions: list[np.ndarray], s: float):  # noqa: ANN202
     ib, ia = SolidIndex(before + _slabs(before)), SolidIndex(after + _slabs(after))
     out = []
@@ -258,8 +274,9 @@ def surface_samples(params: OfficeParams, script: ChangeScript | None, day: int,
     if region is None:
         x0, x1, y0, y1 = layout.extent
         region = np.array([[x0, y0, -1.0], [x1, y1, params.ceiling_m + 1.0]])
-    p, n, _ = _samples(solids, [np.asarray(region, dtype=float)], spacing_m)
-    return p[_exists(SolidIndex(solids + _slabs(solids)), p, n)]
+    p, n, i = _samples(solids, [np.asarray(region, dtype=float)], spacing_m)
+    curved = np.array([s.shape not in ("box", "plane") for s in solids])  # as _samples samples them
+    return p[_exists_by_face(SolidIndex(solids + _slabs(solids)), p, n, i, curved)]
 
 
 __all__ = ["DayChange", "ObjectChange", "VoxelSet", "WorldChanges", "change_truth", "mark_occupied", "surface_samples"]
