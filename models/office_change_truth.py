@@ -199,12 +199,12 @@ def _exposed_samples(solids: list[Solid], region: np.ndarray, s: float) -> np.nd
       drawn twice (their boxes first) rather than held: drawing is cheap, holding is not.
     """
     index = SolidIndex(solids + _slabs(solids))
-    meta = [(i, np.round(p.min(axis=0), 9), np.round(p.max(axis=0), 9), n[0].copy(), curved)
-            for i, p, n, curved in _runs(solids, region, s) if len(p)]
+    meta = [(np.round(p.min(axis=0), 9), np.round(p.max(axis=0), 9), n[0].copy(), curved)
+            for _, p, n, curved in _runs(solids, region, s) if len(p)]
     if not meta:
         return np.zeros((0, 3))
-    lo, hi = np.array([m[1] for m in meta]), np.array([m[2] for m in meta])
-    nrm, curved = np.array([m[3] for m in meta]), np.array([m[4] for m in meta])
+    lo, hi = np.array([m[0] for m in meta]), np.array([m[1] for m in meta])
+    nrm, curved = np.array([m[2] for m in meta]), np.array([m[3] for m in meta])
     meet = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), axis=2)
     same = np.all(nrm[:, None] == nrm[None], axis=2) | curved[:, None] | curved[None]
     np.fill_diagonal(meet, False)
@@ -228,8 +228,8 @@ def _exposed_samples(solids: list[Solid], region: np.ndarray, s: float) -> np.nd
         keep[first] = True  # the first of equal rows, as _samples keeps
         start = 0
         for j, hp, hn in held:
-            k = keep[start:start + len(hp)]
-            out[j] = hp[k][_exists(index, hp[k], hn[k])]
+            mine = keep[start:start + len(hp)]
+            out[j] = hp[mine][_exists(index, hp[mine], hn[mine])]
             start += len(hp)
     return np.concatenate(out)
 
