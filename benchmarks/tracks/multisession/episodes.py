@@ -50,10 +50,6 @@ from exobench.models.world_params import ParamSpec
 
 GAP_S = 1.0  # between one session's last frame and the next one's mark
 SURFACE_SPACING_M = 0.01  # the change truth's grid
-# The last day's true surfaces are sampled around the walks as far as the camera reaches
-# (:func:`camera_reach_m`): a map point is wherever the camera saw a surface, and its error is the
-# distance to the nearest true sample, so a surface left out turns every point seen on it into a
-# false error the size of the distance to the sampled part (docs/tracks/multisession.md).
 CAMERAS = ("thigh", "head", "chest")
 # The paper's sessions come from Exosense: OpenVINS visual-inertial odometry in a LEXIS pose graph
 # (seeds/000 IV). The odometry kind's default heading drift, 0.5 deg/m, turns a 12-14 m session by
@@ -250,7 +246,10 @@ def camera_reach_m(calibration: Any, camera: str) -> float:
     """The farthest a point of ``camera`` (its mount in ``calibration``) can lie from the camera:
     the largest depth it can report (:func:`exobench.core.limits.max_depth_m`) along the ray
     through the outer corner of its image, the longest. 9.1 m for the 424 x 240 thigh camera
-    (6 m depth, 90 x 59 deg)."""
+    (6 m depth, 90 x 59 deg). The true surfaces are sampled this far around the walks: a map
+    point's error is its distance to the nearest true sample, so a surface the camera saw and
+    the truth left out would charge every point on it with the distance to the sampled part
+    (docs/tracks/multisession.md)."""
     from exobench.core.limits import max_depth_m
 
     mount = next(m for m in calibration.mounts_of_kind("rgbd") if m.sensor_id == camera)
