@@ -28,6 +28,7 @@ For each day d >= 1 against day d - 1 (:func:`change_truth`):
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,11 +109,10 @@ def _grid_1d(lo: float, hi: float, s: float) -> np.ndarray:
     return (np.arange(math.ceil(lo / s - 0.5), math.floor(hi / s - 0.5) + 1) + 0.5) * s
 
 
-def _face_samples(solid: Solid, region: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
+def _face_runs(solid: Solid, region: np.ndarray, s: float) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Points on a world-aligned grid of ``s`` on the faces of a box (or a floor or ceiling)
-    inside ``region`` (2, 3), and their outward normals."""
+    inside ``region`` (2, 3) and their outward normals, a face at a time."""
     lo, hi = solid.lo, solid.hi
-    pts, nrm = [], []
     faces = [(2, 1.0 if solid.up else -1.0)] if solid.shape == "plane" else [(a, g) for a in range(3) for g in (-1.0, 1.0)]
     for axis, sign in faces:
         plane = hi[axis] if sign > 0 else lo[axis]
@@ -128,11 +128,31 @@ def _face_samples(solid: Solid, region: np.ndarray, s: float) -> tuple[np.ndarra
         p[:, axis], p[:, b], p[:, c] = plane, B.ravel(), C.ravel()
         n = np.zeros(3)
         n[axis] = sign
-        pts.append(p)
-        nrm.append(np.tile(n, (len(p), 1)))
-    if not pts:
+        yield p, np.tile(n, (len(p), 1))
+
+
+def _face_samples(solid: Solid, region: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_face_runs`, all faces together."""
+    runs = list(_face_runs(solid, region, s))
+    if not runs:
         return np.zeros((0, 3)), np.zeros((0, 3))
-    return np.concatenate(pts), np.concatenate(nrm)
+    return np.concatenate([p for p, _ in runs]), np.concatenate([n for _, n in runs])
+
+
+def _runs(solids: list[Solid], region: np.ndarray, s: float) -> Iterator[tuple[int, np.ndarray, np.ndarray, bool]]:
+    """The points of :func:`_samples` in ``region`` (one) before the duplicates go, in its order,
+    as runs ``(solid index, points, normals, curved)``: a face of a box or a plane, or all of a
+    curved solid's."""
+    for i, sol in enumerate(solids):
+        if np.any(sol.hi < region[0]) or np.any(sol.lo > region[1]):
+            continue
+        if sol.shape in ("box", "plane"):
+            for p, n in _face_runs(sol, region, s):
+                yield i, p, n, False
+        else:
+            p, n = _curved_samples(sol, s)
+            keep = np.all((p >= region[0]) & (p <= region[1]), axis=1)
+            yield i, p[keep], n[keep], True
 
 
 def _samples(solids: list[Solid], regions: list[np.ndarray], s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -163,6 +183,55 @@ def _samples(solids: list[Solid], regions: list[np.ndarray], s: float) -> tuple[
 def _exists(index: SolidIndex, p: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Whether each point is on that world's surface: solid just inside, free just outside."""
     return index.inside(p - EPS_M * n) & ~index.inside(p + EPS_M * n)
+
+
+def _exposed_samples(solids: list[Solid], region: np.ndarray, s: float) -> np.ndarray:
+    """``p[_exists(index, p, n)]`` of ``p, n, _ = _samples(solids, [region], s)``, to the bit,
+    at a fraction of the time and memory: 13 us a point and 24 bytes of index and normals
+    besides before (a whole building's 14 M points, 188 CPU-s).
+
+    - The inside tests go one run (:func:`_runs`) at a time, so the index tests only the few
+      solids that meet the run's bounding box; the whole set's box meets every solid.
+    - Duplicates (equal rows of points and normals rounded to 1e-9, as :func:`_samples` finds
+      them) can only lie in runs whose rounded bounding boxes meet, of one normal where both are
+      flat (a flat run's points are distinct): only those runs go through ``np.unique``, and
+      the others are tested and cut to their surface points as they are drawn. The runs are
+      drawn twice (their boxes first) rather than held: drawing is cheap, holding is not.
+    """
+    index = SolidIndex(solids + _slabs(solids))
+    meta = [(np.round(p.min(axis=0), 9), np.round(p.max(axis=0), 9), n[0].copy(), curved)
+            for _, p, n, curved in _runs(solids, region, s) if len(p)]
+    if not meta:
+        return np.zeros((0, 3))
+    lo, hi = np.array([m[0] for m in meta]), np.array([m[1] for m in meta])
+    nrm, curved = np.array([m[2] for m in meta]), np.array([m[3] for m in meta])
+    meet = np.all((lo[:, None] <= hi[None]) & (lo[None] <= hi[:, None]), axis=2)
+    same = np.all(nrm[:, None] == nrm[None], axis=2) | curved[:, None] | curved[None]
+    np.fill_diagonal(meet, False)
+    shared = np.any(meet & same, axis=1) | curved  # a curved run may repeat a point of its own
+    out: list[np.ndarray | None] = []
+    held: list[tuple[int, np.ndarray, np.ndarray]] = []
+    k = 0
+    for _, p, n, _ in _runs(solids, region, s):
+        if not len(p):
+            continue
+        if shared[k]:
+            held.append((len(out), p, n))
+            out.append(None)
+        else:
+            out.append(p[_exists(index, p, n)])
+        k += 1
+    if held:
+        p, n = np.concatenate([h[1] for h in held]), np.concatenate([h[2] for h in held])
+        _, first = np.unique(np.round(np.concatenate([p, n], axis=1), 9), axis=0, return_index=True)
+        keep = np.zeros(len(p), dtype=bool)
+        keep[first] = True  # the first of equal rows, as _samples keeps
+        start = 0
+        for j, hp, hn in held:
+            mine = keep[start:start + len(hp)]
+            out[j] = hp[mine][_exists(index, hp[mine], hn[mine])]
+            start += len(hp)
+    return np.concatenate(out)
 
 
 def _surface_change(before: list[Solid], after: list[Solid], regions: list[np.ndarray], s: float):  # noqa: ANN202
@@ -258,8 +327,7 @@ def surface_samples(params: OfficeParams, script: ChangeScript | None, day: int,
     if region is None:
         x0, x1, y0, y1 = layout.extent
         region = np.array([[x0, y0, -1.0], [x1, y1, params.ceiling_m + 1.0]])
-    p, n, _ = _samples(solids, [np.asarray(region, dtype=float)], spacing_m)
-    return p[_exists(SolidIndex(solids + _slabs(solids)), p, n)]
+    return _exposed_samples(solids, np.asarray(region, dtype=float), spacing_m)
 
 
 __all__ = ["DayChange", "ObjectChange", "VoxelSet", "WorldChanges", "change_truth", "mark_occupied", "surface_samples"]

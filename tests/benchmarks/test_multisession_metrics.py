@@ -85,3 +85,15 @@ def test_map_error_statistics_by_hand():
     assert m["map_error_p90_m"] == pytest.approx(0.34)
     assert m["map_error_max_m"] == pytest.approx(0.5)
     assert all(math.isnan(v) for v in map_error_metrics(_x(), truth).values())
+
+
+def test_static_truth_given_as_the_days_sets_scores_as_their_union():
+    """The static samples of two days (each a building's worth) need not be joined: the counts by
+    hand above, with the static samples split between two sets in either way, and with a third
+    set of samples far from every point (left out of the trees) beside them."""
+    far = np.array([[50.0, 50.0, 50.0], [-40.0, 3.0, 1.0]])
+    for parts in ((TRUE_STATIC[:3], TRUE_STATIC[3:]), (TRUE_STATIC[::2], TRUE_STATIC[1::2], far)):
+        c = change_confusion(DETECTED_CHANGED, DETECTED_STATIC, TRUE_CHANGED, parts)
+        assert (c.tp, c.fp, c.fn, c.tn) == (2, 1, 1, 1)
+        w = change_confusion(DETECTED_CHANGED, DETECTED_STATIC, TRUE_CHANGED, parts, area_m=None)
+        assert (w.tp, w.fp, w.fn, w.tn) == (2, 2, 1, 2)

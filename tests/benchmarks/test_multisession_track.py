@@ -280,3 +280,49 @@ def test_session_odometry_heading_drifts_at_the_sourced_rate(rate):
     walked = float(np.sum(np.linalg.norm(np.diff(cam[:, 1:3], axis=0), axis=1)))
     assert walked > 1.0
     assert turn_deg == pytest.approx((0.02 if rate is None else rate) * walked, rel=0.05, abs=1e-4)
+
+
+def _quick_office_and_calibration():
+    from exobench.benchmarks.tracks.multisession.episodes import session_rig, session_scenario
+    from exobench.envs.sim.calibration import build_calibration
+
+    track = MultisessionTrack()
+    scenario = track.validate_scenario(track.cases("quick")[0].scenario)
+    plans = parse_sessions(scenario["sessions"])
+    calibration = build_calibration(session_scenario(scenario, plans[0]).exo_spec(), session_rig(scenario))
+    return scenario, calibration
+
+
+def test_camera_reach_is_the_largest_depth_along_the_image_corner_ray():
+    """The thigh camera, 424 x 240 pixels, fx = fy = 212 px, centred, depth up to 6 m: the corner
+    ray (the pixel edges, 212 and 120 px off the centre) is 1 : 1 : 120/212 to the optical axis."""
+    from exobench.benchmarks.tracks.multisession.episodes import camera_reach_m
+
+    _, calibration = _quick_office_and_calibration()
+    camera = calibration.extra["camera"]
+    assert camera_reach_m(calibration, camera) == pytest.approx(6.0 * np.sqrt(1.0 + 1.0 + (120 / 212) ** 2), abs=1e-9)
+
+
+def test_the_true_surfaces_cover_what_the_camera_can_see():
+    """A camera standing at the north corridor's west end sees its east end wall 7.5 m away (and
+    up to 9.1 m at its image's corners): that wall's samples are in the truth the map is scored
+    against, the same to the bit as the wall's own (the 3 m margin before left it out)."""
+    from exobench.benchmarks.tracks.multisession.episodes import camera_reach_m, session_scenario, world_truth
+    from exobench.envs.sim.scenarios.office import _change_script
+    from exobench.models.office_change_truth import surface_samples
+
+    scenario, calibration = _quick_office_and_calibration()
+    plans = parse_sessions(scenario["sessions"])
+    office = session_scenario(scenario, plans[-1])
+    params = office.office_params()
+    cam = np.zeros((2, 8))
+    cam[:, 0], cam[:, 1:4], cam[:, 4] = [0.0, 0.1], [0.5, 6.9, 0.5], 1.0
+    sessions = ({"session": 0, "day": 0, "camera_w": cam}, {"session": 1, "day": 1, "camera_w": cam})
+    truth = world_truth(scenario, sessions, camera_reach_m(calibration, calibration.extra["camera"]))
+    wall = np.array([[7.9, 6.5, 0.2], [8.1, 7.5, 1.2]])  # the end wall's face at x = 8, 7.5 m from the camera
+    script = _change_script(params, office.changes, office.change_seed, 1)
+    want = surface_samples(params, script, 1, 0.01, wall)
+    got = truth["surface_last_day"]
+    got = got[np.all((got >= wall[0]) & (got <= wall[1]), axis=1)]
+    assert len(want) > 5000 and np.allclose(want[:, 0], 8.0)
+    assert np.array_equal(got.view(np.uint64), want.view(np.uint64))

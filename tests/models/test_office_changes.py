@@ -267,3 +267,70 @@ def test_a_route_visits_the_regions_and_goes_round_a_corridor_obstacle():
     assert after[0].tolist() == day1.truth.params["start_w"][:2]
     with pytest.raises(KeyError):
         region_route(day1.truth, ["kitchen"])
+
+
+def _day1_solids():
+    """The small full office on day 1 of a drawn script: chairs (cylinders), bins, walls meeting walls."""
+    from exobench.models.office_change_truth import _day_solids
+
+    params = OfficeParams(seed=7, n_offices=3, corridor_length_m=14.0, furniture_density=1.0)
+    layout = build_layout(params)
+    script = draw_changes(layout, 5, 1)
+    return params, script, _day_solids(layout, apply_changes(layout, script, 1)[1])
+
+
+def test_surface_samples_are_the_sampled_points_that_exist_to_the_bit():
+    """surface_samples (one face run at a time, duplicates looked for only where runs meet) gives
+    exactly what sampling everything, dropping repeated rows and testing every point against
+    every solid gives: the same points, in the same order, to the bit; in a region holding
+    curved solids, and on two boxes with coincident faces (repeated rows)."""
+    from exobench.models.office_change_truth import (
+        _exists,
+        _exposed_samples,
+        _runs,
+        _samples,
+        _slabs,
+        surface_samples,
+    )
+    from exobench.models.office_furniture import Solid
+    from exobench.models.office_truth import SolidIndex
+
+    def reference(solids, region):
+        p, n, _ = _samples(solids, [region], 0.01)
+        return p[_exists(SolidIndex(solids + _slabs(solids)), p, n)]
+
+    def same(a, b):
+        return a.shape == b.shape and np.array_equal(a.view(np.uint64), b.view(np.uint64))
+
+    params, script, solids = _day1_solids()
+    c = np.asarray(next(s for s in solids if s.shape == "cylinder").centre)
+    region = np.array([c - [1.0, 1.0, 1.0], c + [1.0, 1.0, 3.0]])
+    want = reference(solids, region)
+    assert len(want) > 50_000
+    assert same(surface_samples(params, script, 1, 0.01, region), want)
+    # no office has coincident faces of one orientation (no row repeats): two overlapping boxes
+    # with one top and one bottom do, with a cylinder and a sphere standing on them
+    boxes = [Solid("floor", "plane", (1.0, 1.0, 0.0), (2.0, 2.0, 0.0), "", "", "floor"),
+             Solid("a", "box", (1.0, 1.0, 0.5), (0.5, 0.5, 0.5), "", "", "furniture"),
+             Solid("b", "box", (1.3, 1.1, 0.5), (0.5, 0.3, 0.5), "", "", "furniture"),
+             Solid("c", "cylinder", (0.8, 0.8, 1.2), (0.1, 0.1, 0.2), "", "", "furniture"),
+             Solid("d", "sphere", (1.5, 1.2, 1.1), (0.1, 0.1, 0.1), "", "", "furniture")]  # fmt: skip
+    region = np.array([[-0.5, -0.5, -0.5], [2.5, 2.5, 2.0]])
+    raw = sum(len(q) for _, q, _, _ in _runs(boxes, region, 0.01))
+    assert raw > len(_samples(boxes, [region], 0.01)[0]) + 1000  # rows repeat
+    assert same(_exposed_samples(boxes, region, 0.01), reference(boxes, region))
+
+
+def test_surface_samples_of_a_region_are_those_of_a_larger_one_inside_it_to_the_bit():
+    """Growing the region (the camera's reach, not 3 m) keeps every sample of the smaller one as
+    it was: the grid is the world's, not the region's."""
+    from exobench.models.office_change_truth import surface_samples
+
+    params, script, solids = _day1_solids()
+    small = np.array([[2.0, 4.0, -1.0], [3.5, 6.5, 4.0]])
+    big = np.array([[0.5, 2.5, -1.0], [5.0, 8.0, 4.0]])
+    a = surface_samples(params, script, 1, 0.01, small)
+    b = surface_samples(params, script, 1, 0.01, big)
+    inside = np.all((b >= small[0]) & (b <= small[1]), axis=1)
+    assert len(b) > 2 * len(a) > 50_000
+    assert np.array_equal(b[inside].view(np.uint64), a.view(np.uint64))

@@ -28,8 +28,9 @@ pose at each camera frame, stamps as streamed, and ``T_world_odom``); ``changes`
 1..last the change truth's appeared and disappeared samples (1 cm), changed objects, and per
 sample whether it lies on a changed object (``appeared_on_object``, ``disappeared_on_object``;
 the others are static surfaces the object covered or uncovered: the floor under a box);
-``surface_last_day``: the true surfaces of the last day at :data:`SURFACE_SPACING_M` around the
-walks (Table III). ``T_world_estimator`` is session 0's odometry frame: the merged map's frame.
+``surface_last_day``: the true surfaces of the last day at :data:`SURFACE_SPACING_M` as far
+around the walks as the camera reaches (Table III; ``surfaces_by_day``: those of every day
+walked). ``T_world_estimator`` is session 0's odometry frame: the merged map's frame.
 """
 
 from __future__ import annotations
@@ -49,7 +50,6 @@ from exobench.models.world_params import ParamSpec
 
 GAP_S = 1.0  # between one session's last frame and the next one's mark
 SURFACE_SPACING_M = 0.01  # the change truth's grid
-SURFACE_MARGIN_M = 3.0  # true surfaces sampled this far around the walks (the camera sees ~3-5 m)
 CAMERAS = ("thigh", "head", "chest")
 # The paper's sessions come from Exosense: OpenVINS visual-inertial odometry in a LEXIS pose graph
 # (seeds/000 IV). The odometry kind's default heading drift, 0.5 deg/m, turns a 12-14 m session by
@@ -217,7 +217,8 @@ def stream_sessions(scenario: Mapping[str, Any], seed: int, *, whole: bool = Fal
     def finish() -> Episode:
         sessions = tuple(kept)
         T_world_est = sessions[0]["T_world_odom"] if sessions else np.eye(4)
-        extra = {"sessions": sessions, "camera": cam, "odometry": odom, **world_truth(scenario, sessions)}
+        extra = {"sessions": sessions, "camera": cam, "odometry": odom,
+                 **world_truth(scenario, sessions, camera_reach_m(calibration, cam))}
         ep_truth = EpisodeTruth(scene=last["scene"], T_world_estimator=T_world_est, extra=extra)
         return Episode(dict(scenario), int(seed), calibration, (), ep_truth)
 
@@ -241,9 +242,29 @@ def on_objects(geoms: Sequence[str], objects: Sequence[Any]) -> np.ndarray:
     return np.array([bool(prefixes) and g.startswith(prefixes) for g in geoms], dtype=bool)
 
 
-def world_truth(scenario: Mapping[str, Any], sessions: tuple[dict[str, Any], ...]) -> dict[str, Any]:
-    """Change truth of every day after the first session's and the last day's true surfaces
-    around the walks."""
+def camera_reach_m(calibration: Any, camera: str) -> float:
+    """The farthest a point of ``camera`` (its mount in ``calibration``) can lie from the camera:
+    the largest depth it can report (:func:`exobench.core.limits.max_depth_m`) along the ray
+    through the outer corner of its image, the longest. 9.1 m for the 424 x 240 thigh camera
+    (6 m depth, 90 x 59 deg). The true surfaces are sampled this far around the walks: a map
+    point's error is its distance to the nearest true sample, so a surface the camera saw and
+    the truth left out would charge every point on it with the distance to the sampled part
+    (docs/tracks/multisession.md)."""
+    from exobench.core.limits import max_depth_m
+
+    mount = next(m for m in calibration.mounts_of_kind("rgbd") if m.sensor_id == camera)
+    p = mount.params
+    w, h = float(p["width_px"]), float(p["height_px"])
+    fx, fy, cx, cy = (float(p[k]) for k in ("fx_px", "fy_px", "cx_px", "cy_px"))
+    du = max(cx + 0.5, w - 0.5 - cx) / fx  # pixel edges, not centres
+    dv = max(cy + 0.5, h - 0.5 - cy) / fy
+    return max_depth_m(mount) * float(np.sqrt(1.0 + du * du + dv * dv))
+
+
+def world_truth(scenario: Mapping[str, Any], sessions: tuple[dict[str, Any], ...], reach_m: float) -> dict[str, Any]:
+    """Change truth of every day after the first session's and the true surfaces of the days
+    walked within ``reach_m`` (:func:`camera_reach_m`) of every camera position of the walks
+    (the bounding box of the positions grown by it)."""
     from exobench.envs.sim.scenarios.office import _change_script
     from exobench.models.office_change_truth import change_truth, surface_samples
 
@@ -260,7 +281,7 @@ def world_truth(scenario: Mapping[str, Any], sessions: tuple[dict[str, Any], ...
                               "disappeared_on_object": on_objects(d.disappeared_geoms, d.objects),
                               "objects": [(o.object_id, o.cls, o.kind) for o in d.objects]}  # fmt: skip
     pos = np.concatenate([s["camera_w"][:, 1:4] for s in sessions]) if sessions else np.zeros((1, 3))
-    region = np.array([pos.min(axis=0) - SURFACE_MARGIN_M, pos.max(axis=0) + SURFACE_MARGIN_M])
+    region = np.array([pos.min(axis=0) - reach_m, pos.max(axis=0) + reach_m])
     surface = surface_samples(params, script, last_day, SURFACE_SPACING_M, region)
     surfaces_by_day = {last_day: surface}
     for d in {p.day for p in plans} - {last_day}:

@@ -49,6 +49,7 @@ __all__ = [
     "change_precision_whole_map",
     "change_recall",
     "change_recall_whole_map",
+    "error_metrics",
     "map_error_metrics",
     "map_errors",
 ]
@@ -96,32 +97,46 @@ def _nearest(points: np.ndarray, reference: np.ndarray) -> np.ndarray:
 
 
 def change_confusion(detected_changed: np.ndarray, detected_static: np.ndarray, true_changed: np.ndarray,
-                     true_static: np.ndarray, association_m: float = ASSOCIATION_M,
+                     true_static: np.ndarray | tuple[np.ndarray, ...], association_m: float = ASSOCIATION_M,
                      area_m: float | None = CHANGE_AREA_M) -> ChangeConfusion:
     """TP, FP, FN, TN of the detected changed and static points against the true changed and
-    static surface samples (module docstring); ``area_m`` None scores the whole map."""
-    dc, ds, tc, ts = (_pts(a) for a in (detected_changed, detected_static, true_changed, true_static))
+    static surface samples (module docstring); ``area_m`` None scores the whole map.
+    ``true_static`` may be a tuple of sample sets (the days' surfaces, each a building's worth):
+    the nearest of them all, without joining them."""
+    dc, ds, tc = (_pts(a) for a in (detected_changed, detected_static, true_changed))
+    ts = tuple(_pts(a) for a in true_static) if isinstance(true_static, tuple) else (_pts(true_static),)
     if area_m is not None:
         dc = dc[_within(dc, tc, area_m)]
         ds = ds[_within(ds, tc, area_m)]
-    dc_changed, dc_static = _associate(dc, tc, ts, association_m)
-    ds_changed, ds_static = _associate(ds, tc, ts, association_m)
-    return ChangeConfusion(int(dc_changed.sum()), int(dc_static.sum()), int(ds_changed.sum()), int(ds_static.sum()))
+    points = np.concatenate([dc, ds])
+    changed, static = _associate(points, tc, ts, association_m)
+    k = len(dc)
+    return ChangeConfusion(int(changed[:k].sum()), int(static[:k].sum()), int(changed[k:].sum()), int(static[k:].sum()))
 
 
 def _distance(points: np.ndarray, reference: np.ndarray, radius_m: float) -> np.ndarray:
-    """Distance of each point to its nearest reference point, inf beyond ``radius_m``."""
+    """Distance of each point to its nearest reference point, inf beyond ``radius_m``. Where
+    the points' bounding box grown by the radius holds few of the reference points (a changed
+    area's against a building's samples) only those go into the tree: the others are farther
+    than the radius from every point."""
+    if len(points) and len(reference):
+        lo, hi = points.min(axis=0) - radius_m, points.max(axis=0) + radius_m
+        box = np.all((reference >= lo) & (reference <= hi), axis=1)
+        if 2 * np.count_nonzero(box) < len(box):  # else the copy would cost more than it saves
+            reference = reference[box]
     if not len(points) or not len(reference):
         return np.full(len(points), np.inf)
     return cKDTree(reference).query(points, k=1, distance_upper_bound=radius_m)[0]
 
 
-def _associate(points: np.ndarray, true_changed: np.ndarray, true_static: np.ndarray,
+def _associate(points: np.ndarray, true_changed: np.ndarray, true_static: tuple[np.ndarray, ...],
                radius_m: float) -> tuple[np.ndarray, np.ndarray]:
     """Whether each point's nearest sample within ``radius_m`` is a changed one (ties: changed)
-    or a static one; neither when no sample is that near."""
+    or a static one (the nearest of the sets of ``true_static``); neither when no sample is that near."""
     d_changed = _distance(points, true_changed, radius_m)
-    d_static = _distance(points, true_static, radius_m)
+    d_static = np.full(len(points), np.inf)
+    for part in true_static:  # one tree at a time
+        d_static = np.minimum(d_static, _distance(points, part, radius_m))
     changed = np.isfinite(d_changed) & (d_changed <= d_static)
     return changed, ~changed & np.isfinite(d_static)
 
@@ -179,7 +194,11 @@ def map_errors(map_points: np.ndarray, true_surface: np.ndarray) -> np.ndarray:
 def map_error_metrics(map_points: np.ndarray, true_surface: np.ndarray) -> dict[str, float]:
     """``map_error_mean_m``, ``_median_m``, ``_p90_m``, ``_max_m`` of :func:`map_errors` (Table III);
     NaN for an empty map."""
-    e = map_errors(map_points, true_surface)
+    return error_metrics(map_errors(map_points, true_surface))
+
+
+def error_metrics(e: np.ndarray) -> dict[str, float]:
+    """The four figures of :func:`map_error_metrics` of errors ``e`` (NaN for none)."""
     if not len(e):
         nan = float("nan")
         return {"map_error_mean_m": nan, "map_error_median_m": nan, "map_error_p90_m": nan, "map_error_max_m": nan}

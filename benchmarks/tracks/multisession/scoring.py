@@ -34,7 +34,7 @@ from .metrics import (
     ChangeConfusion,
     change_chamfer_m,
     change_confusion,
-    map_error_metrics,
+    error_metrics,
     map_errors,
 )
 
@@ -135,13 +135,16 @@ def score_multisession(episode: Episode, est: MultiSessionEstimate) -> dict[str,
         "_single_session": est.map_points_single_session,
     }  # fmt: skip
     surface = np.asarray(truth["surface_last_day"], dtype=float)
-    for suffix, pts in maps.items():
-        pw = _to_world(T_we, pts)
+    pw = {suffix: _to_world(T_we, pts) for suffix, pts in maps.items()}
+    # one tree of the surfaces (a building's, millions of samples) for the three maps
+    every = map_errors(np.concatenate(list(pw.values())), surface)
+    start = 0
+    for suffix, p in pw.items():
+        e, start = every[start:start + len(p)], start + len(p)
         if suffix:
-            e = map_errors(pw, surface)
             out[f"map_error_mean_m{suffix}"] = float(np.mean(e)) if len(e) else float("nan")
         else:
-            out.update(map_error_metrics(pw, surface))
+            out.update(error_metrics(e))
     out.update({
         "merge_time_s": float(est.merge_time_s), "peak_memory_mb": float(est.peak_memory_mb), "n_sessions": n,
         "n_separate_sessions": len(est.separate_sessions), "n_inter_edges": len(est.inter_edges),
@@ -187,7 +190,7 @@ def change_metrics(episode: Episode, est: MultiSessionEstimate, T_we: np.ndarray
             continue
         tc = true_changes(truth, da, db)
         surf = truth["surfaces_by_day"]
-        ts = np.concatenate([surf[d] for d in (da, db) if d in surf])
+        ts = tuple(np.asarray(surf[d], dtype=float) for d in (da, db) if d in surf)  # not joined: a building each
         dc = _to_world(T_we, np.concatenate([np.asarray(rem).reshape(-1, 3), np.asarray(add).reshape(-1, 3)]))
         ds = _to_world(T_we, stat)
         c1, c2 = change_confusion(dc, ds, tc, ts), change_confusion(dc, ds, tc, ts, area_m=None)
