@@ -25,8 +25,9 @@ At the end (``finalize``, offline as the paper merges):
    before it (:class:`~.matching.PlaceMatcher`: ORB bag of words, SIFT + PnP with the depth).
    With ``use_place_labels`` a candidate of another place type than the query is not verified
    (the paper attaches place labels to vertices to restrict the search).
-3. **Merge**: :func:`~.merge.merge_sessions`, session 0 anchors; a session no edge joins to it
-   stays its own map (``separate_sessions``).
+3. **Merge**: :func:`~.merge.merge_sessions`, session 0 anchors; a session (or group of
+   sessions) that no two agreeing edges join to it stays its own map (``separate_sessions``;
+   the decisions in ``stats["merge_joins"]``).
 4. **Changes**: the sessions of the main map in order, each against the map updated by those
    before it (:func:`~.change.change_classifier`, ``change.kind`` octree or dufomap; eq. 2-3).
    The map stays on disk as the paper keeps it: the current session's clouds are read from the
@@ -320,6 +321,9 @@ class LtExosense:
         edges = self._inter_edges(sessions, stats)
         merged = merge_sessions(graphs, edges, MergeConfig())
         map_of = {sid: i for i, m in enumerate(merged.maps) for sid in m.sessions}
+        stats["merge_joins"] = [{"sessions_a": list(j.sessions_a), "sessions_b": list(j.sessions_b), "n_edges": j.n_edges,
+                                 "n_consistent": j.n_consistent, "joined": j.joined} for j in merged.joins]  # fmt: skip
+        stats["n_inter_edges_between_maps"] = sum(map_of[e.a[0]] != map_of[e.b[0]] for e in edges)
         T_map = tuple(np.stack([merged.maps[map_of[s.session]].T_m_b[(s.session, k)] for k in range(len(s.poses))])
                       for s in sessions)  # fmt: skip
         main = [i for i, s in enumerate(sessions) if map_of[s.session] == 0]
