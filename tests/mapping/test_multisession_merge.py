@@ -2,17 +2,23 @@
 frames is recovered; a session overlapping no other stays its own map; the Cauchy loss keeps a
 wrong inter-session edge from bending the merge; the keyframe store lives in a folder of its own."""
 
+import gc
 import math
+import subprocess
+import sys
+import tempfile
 
 import cv2
 import numpy as np
 import pytest
 from textured_room import K, TexturedRoom
 
+from exobench.core.calibration import Calibration, SensorMount
 from exobench.core.errors import ConfigError, FolderError
 from exobench.mapping.multisession.keyframes import KeyframeStore
 from exobench.mapping.multisession.matching import MatchConfig, PlaceMatcher, same_session_apart
 from exobench.mapping.multisession.merge import MergeConfig, PoseEdge, SessionGraph, merge_sessions
+from exobench.mapping.multisession.pipeline import LtExosense
 
 # camera 0.1 m ahead of the base and 0.3 m up, looking along the base's x (OpenCV axes)
 T_BASE_CAM = np.array([[0.0, 0.0, 1.0, 0.1], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.3], [0, 0, 0, 1.0]])
@@ -257,3 +263,26 @@ def test_keyframe_store_writes_in_its_own_folder_and_cleans_up(tmp_path):
     assert not root.exists() and list(tmp_path.iterdir()) == []
     with pytest.raises(FolderError, match="closed"):
         store.get((1, 7), "image")
+
+
+def test_keyframe_store_never_closed_goes_when_collected_or_at_exit(tmp_path, monkeypatch):
+    """A store its owner never closes (a pipeline reset but never finalised, as the runner's
+    planning instance or a failed episode) leaves no folder: removed when the store is collected,
+    and at the exit of a process that still holds it."""
+    store = KeyframeStore(parent=tmp_path)
+    store.put((0, 0), image=np.zeros((2, 2), np.uint8))
+    del store
+    gc.collect()
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # the pipeline's store: the system's temp folder
+    mounts = (SensorMount("rgbd_thigh", "rgbd", "thigh", np.eye(4)), SensorMount("odom_thigh", "odometry", "thigh", np.eye(4)))
+    pipe = LtExosense()
+    pipe.reset(Calibration("", "pelvis", (), mounts, 0.1, 0.26, 0.05))
+    assert len(list(tmp_path.iterdir())) == 1
+    del pipe
+    gc.collect()
+    assert list(tmp_path.iterdir()) == []
+    code = ("import sys; from exobench.mapping.multisession.keyframes import KeyframeStore; "
+            "kept = KeyframeStore(parent=sys.argv[1]); print(kept.root)")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().startswith(str(tmp_path)) and list(tmp_path.iterdir()) == []
