@@ -83,6 +83,12 @@ def test_other_vocabulary_is_read_from_its_file_not_trained_on_the_first_session
     # both find the second session in the first one's room: the words of another room still index it
     assert own.stats["n_inter_edges"] > 0 and foreign.stats["n_inter_edges"] > 0
     assert own.separate_sessions == foreign.separate_sessions == ()
+    # the join is reported: the one pair of sessions, joined on edges that agree (the same room)
+    for est in (own, foreign):
+        (join,) = est.stats["merge_joins"]
+        assert join["sessions_a"] == [0] and join["sessions_b"] == [1] and join["joined"]
+        assert join["n_edges"] == est.stats["n_inter_edges"] and 2 <= join["n_consistent"] <= join["n_edges"]
+        assert est.stats["n_inter_edges_between_maps"] == 0
 
 
 def test_missing_or_unknown_vocabulary_refused_naming_the_field(tmp_path):
