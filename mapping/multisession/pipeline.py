@@ -93,7 +93,7 @@ class LtExosenseConfig:
         intra_session_loops: also propose loop closures within each session (keyframes at least
             ``MatchConfig.min_index_gap`` apart, the same place recognition and PnP), as loop
             edges of its own graph (the paper's LEXIS graphs); off by default
-            (docs/tracks/multisession.md, "Intra-session loops").
+            (docs/tracks/multisession.md, "The sessions' odometry drift").
         vocabulary: ``session`` (trained on the first session's keyframes) or ``other`` (trained
             on another office, :mod:`.other_office`).
         vocabulary_file: with ``other``, the vocabulary's ``.npz`` (empty: the harness's cached one).
