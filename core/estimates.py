@@ -217,7 +217,8 @@ class MultiSessionEstimate:
         T_map_cam: per session, its keyframes' camera poses in the frame of the map it belongs
             to, (K_s, 4, 4); the main map's frame is session ``sessions[0]``'s odometry frame.
         map_of_session: per session, the index of its map (0: the main map, anchored at the
-            first session; others: sessions that overlap none of the main map's).
+            first session; others: sessions that overlap none of the main map's, or that no
+            two agreeing inter-session edges join to it).
         separate_sessions: the sessions outside the main map (kept as their own maps, never
             forced into it).
         inter_edges: inter-session edges ``(session_a, keyframe_a, session_b, keyframe_b)``.

@@ -5,7 +5,10 @@ loads only the pose graphs; a resource is read when an operation needs it. :clas
 is that file system part for one pipeline run: a temporary folder of its own (under the system's
 temporary directory or a given parent), one ``.npy`` per keyframe and array (so features computed
 later join a keyframe without rewriting its image), removed by :meth:`close`
-(or on leaving a ``with`` block). Nothing of it is kept after the run.
+(or on leaving a ``with`` block), and otherwise when the store is collected or the process
+exits (:func:`weakref.finalize`): a pipeline that made its store in ``reset`` and never reached
+``finalize`` (the runner's planning instance, a failed episode) left empty folders behind.
+Nothing of it is kept after the run.
 
 Outputs too large to hold (every session's points, the merged map) are written to the folder a
 piece at a time (:meth:`KeyframeStore.append_rows`) and handed out as read-only maps of their
@@ -16,8 +19,10 @@ mapped; the space is freed with the last map).
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +42,13 @@ def _check_id(key: KeyframeId) -> tuple[int, int]:
     return int(key[0]), int(key[1])
 
 
+def _remove(root: Path, pid: int) -> None:
+    # only in the process that made the folder: a forked worker that collects its copy of the
+    # store must not remove the parent's folder
+    if os.getpid() == pid:
+        shutil.rmtree(root, ignore_errors=True)
+
+
 class KeyframeStore:
     """Arrays of keyframes (image, depth, cloud, ...) in a temporary folder of this store's own.
 
@@ -49,6 +61,7 @@ class KeyframeStore:
         self.root: Path = Path(tempfile.mkdtemp(prefix="exobench-keyframes-", dir=parent))
         self._names: dict[tuple[int, int], set[str]] = {}
         self._closed = False
+        self._remove = weakref.finalize(self, _remove, self.root, os.getpid())
 
     def __enter__(self) -> KeyframeStore:
         return self
@@ -130,6 +143,7 @@ class KeyframeStore:
     def close(self) -> None:
         """Remove the store's folder and everything in it (idempotent)."""
         if not self._closed:
+            self._remove.detach()
             shutil.rmtree(self.root, ignore_errors=True)
             self._names.clear()
             self._closed = True

@@ -11,10 +11,17 @@ PnP, :mod:`.matching`) add the cost of eq. 1::
 which is gtsam's ``BetweenFactorPose3`` between ``b_p`` and ``b_q`` with the PnP covariance.
 
 The first session anchors the merged map (a prior on its first vertex at its own pose, so
-``m`` is session 1's frame). Sessions are grouped by the inter-session edges that join them;
-the group holding session 1 is optimised as one map; any session (or group) joined to it by no
-edge stays its own map in its own frame and is reported in
-:attr:`MergeResult.separate_sessions`, never forced into place. Each map is optimised by
+``m`` is session 1's frame). Sessions are grouped by the inter-session edges that join them, and
+a join wants evidence (:func:`_groups`): every edge between two groups is a hypothesis of the
+groups' relative transform, and the groups are joined only when at least
+:attr:`MergeConfig.min_join_edges` edges agree on one (within :attr:`MergeConfig.join_tolerance_m`
+and :attr:`MergeConfig.join_tolerance_deg`), the best supported pair first, until no pair has
+that support. A lone edge, or edges that disagree, join nothing: place recognition with PnP
+verifies views of a look-alike room as readily as of the same one, and a single such edge that
+is all that ties a group to the map is outvoted by nothing (docs/multisession.md). The group
+holding session 1 is optimised as one map; any session (or group) not joined to it stays its own
+map in its own frame and is reported in :attr:`MergeResult.separate_sessions` (the decisions in
+:attr:`MergeResult.joins`), never forced into place. Each map is optimised by
 Levenberg-Marquardt with a Cauchy loss on the loop and inter-session edges (the edges a place
 recogniser proposes, which may be wrong); odometry edges stay Gaussian. The Cauchy kernel is
 annealed (:attr:`MergeConfig.cauchy_annealing`): LM runs with a wide kernel first, then with the
@@ -33,7 +40,7 @@ from exobench.core.errors import ConfigError, check_int, check_range
 
 from .keyframes import KeyframeId
 
-__all__ = ["MergeConfig", "MergeResult", "MergedMap", "PoseEdge", "SessionGraph", "merge_sessions"]
+__all__ = ["GroupJoin", "MergeConfig", "MergeResult", "MergedMap", "PoseEdge", "SessionGraph", "merge_sessions"]
 
 _MAX_KEYFRAMES = 1_000_000  # gtsam key = session * this + index
 
@@ -107,6 +114,13 @@ class MergeConfig:
             true edges pull the graph in before the narrow one rejects the outliers
             (docs/multisession.md).
         max_iterations / relative_error_tol: Levenberg-Marquardt stopping rule.
+        min_join_edges: edges agreeing on one relative transform that two groups of sessions
+            need to be joined (1: any edge joins, as a union of the edges' sessions would).
+        join_tolerance_m / join_tolerance_per_m: two edges agree when the transforms they imply
+            map each one's vertex to within ``join_tolerance_m`` plus ``join_tolerance_per_m``
+            times the distance between the two edges' vertices (the odometry drifts between
+            them) of each other...
+        join_tolerance_deg: ... and their rotations differ by at most this.
     """
 
     odom_sigma_rad: float = 0.01
@@ -118,6 +132,10 @@ class MergeConfig:
     cauchy_annealing: tuple[float, ...] = (100.0, 10.0, 1.0)
     max_iterations: int = 100
     relative_error_tol: float = 1e-8
+    min_join_edges: int = 2
+    join_tolerance_m: float = 0.3
+    join_tolerance_per_m: float = 0.05
+    join_tolerance_deg: float = 10.0
 
     def __post_init__(self) -> None:
         for name in ("odom_sigma_rad", "odom_sigma_m", "loop_sigma_rad", "loop_sigma_m", "prior_sigma"):
@@ -129,6 +147,10 @@ class MergeConfig:
             raise ConfigError("merge.cauchy_annealing", self.cauchy_annealing, "positive factors ending with 1")
         check_int("merge.max_iterations", self.max_iterations, 1, 100_000)
         check_range("merge.relative_error_tol", self.relative_error_tol, 0.0, 1.0, low_open=True)
+        check_int("merge.min_join_edges", self.min_join_edges, 1, 1000)
+        check_range("merge.join_tolerance_m", self.join_tolerance_m, 0.0, 100.0)
+        check_range("merge.join_tolerance_per_m", self.join_tolerance_per_m, 0.0, 10.0)
+        check_range("merge.join_tolerance_deg", self.join_tolerance_deg, 0.0, 180.0)
 
 
 @dataclass(frozen=True)
@@ -151,12 +173,32 @@ class MergedMap:
 
 
 @dataclass(frozen=True)
+class GroupJoin:
+    """A decision on two groups of sessions that inter-session edges connect.
+
+    Attributes:
+        sessions_a / sessions_b: the two groups (``a`` holds the earlier session).
+        n_edges: the edges between them.
+        n_consistent: the most of those edges that agree on one relative transform of the groups.
+        joined: whether that reached :attr:`MergeConfig.min_join_edges` (the groups became one).
+    """
+
+    sessions_a: tuple[int, ...]
+    sessions_b: tuple[int, ...]
+    n_edges: int
+    n_consistent: int
+    joined: bool
+
+
+@dataclass(frozen=True)
 class MergeResult:
     """The merged maps: ``maps[0]`` is anchored at the first session; ``separate_sessions`` are
-    the sessions outside it (each in a map of its own or with the sessions it overlaps)."""
+    the sessions outside it (each in a map of its own or with the sessions joined to it);
+    ``joins``: the groups joined, in order, then the pairs of maps left apart that edges connect."""
 
     maps: tuple[MergedMap, ...]
     separate_sessions: tuple[int, ...]
+    joins: tuple[GroupJoin, ...] = ()
 
 
 def _key(k: KeyframeId) -> int:
@@ -173,23 +215,71 @@ def _noise(cov: np.ndarray | None, sig_rad: float, sig_m: float, cauchy: float |
     return gtsam.noiseModel.Robust.Create(gtsam.noiseModel.mEstimator.Cauchy.Create(cauchy), base)
 
 
-def _groups(session_ids: list[int], edges: Sequence[PoseEdge]) -> list[list[int]]:
-    parent = {s: s for s in session_ids}
-
-    def find(s: int) -> int:
-        while parent[s] != s:
-            parent[s] = parent[parent[s]]
-            s = parent[s]
-        return s
-
+def _hypotheses(edges: list[PoseEdge], in_a: set[int], T_g_s: dict[int, np.ndarray],
+                graphs: dict[int, SessionGraph]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per edge between groups A and B: the transform ``T_A_B`` it implies, and its vertices'
+    positions in A and in B (each group in the frame of its first session)."""
+    H, p_a, p_b = [], [], []
     for e in edges:
-        ra, rb = find(e.a[0]), find(e.b[0])
-        if ra != rb:
-            parent[max(ra, rb, key=session_ids.index)] = min(ra, rb, key=session_ids.index)
-    groups: dict[int, list[int]] = {}
-    for s in session_ids:
-        groups.setdefault(find(s), []).append(s)
-    return list(groups.values())
+        x, y, T_x_y = (e.a, e.b, e.T_a_b) if e.a[0] in in_a else (e.b, e.a, np.linalg.inv(e.T_a_b))
+        T_A_x = T_g_s[x[0]] @ graphs[x[0]].T_s_b[x[1]]
+        T_B_y = T_g_s[y[0]] @ graphs[y[0]].T_s_b[y[1]]
+        H.append(T_A_x @ np.asarray(T_x_y, dtype=float) @ np.linalg.inv(T_B_y))
+        p_a.append(T_A_x[:3, 3])
+        p_b.append(T_B_y[:3, 3])
+    return np.array(H), np.array(p_a), np.array(p_b)
+
+
+def _consensus(H: np.ndarray, p_a: np.ndarray, p_b: np.ndarray, cfg: MergeConfig) -> np.ndarray:
+    """The largest set of edges agreeing with one of them (a boolean mask over the edges; the
+    earliest such edge's set on a tie): edge ``j`` agrees with ``i`` when ``H_i`` and ``H_j`` map
+    both edges' B vertices to within the tolerance of each other and their rotations differ by
+    at most ``join_tolerance_deg``."""
+    mapped = np.einsum("hij,vj->vhi", H[:, :3, :3], p_b) + H[None, :, :3, 3]  # [v, h] = H_h p_v
+    own = mapped[np.arange(len(H)), np.arange(len(H))]  # H_i p_i
+    at_i = np.linalg.norm(own[:, None] - mapped, axis=-1)  # [i, j] = |H_i p_i - H_j p_i|
+    gap = np.maximum(at_i, at_i.T)
+    spread = np.maximum(np.linalg.norm(p_a[:, None] - p_a[None], axis=-1), np.linalg.norm(p_b[:, None] - p_b[None], axis=-1))
+    cos = (np.einsum("iab,jab->ij", H[:, :3, :3], H[:, :3, :3]) - 1.0) / 2.0  # trace(R_i^T R_j)
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    agree = (gap <= cfg.join_tolerance_m + cfg.join_tolerance_per_m * spread) & (angle <= cfg.join_tolerance_deg)
+    return agree[int(np.argmax(agree.sum(axis=1)))]
+
+
+def _groups(order: list[int], graphs: dict[int, SessionGraph], edges: Sequence[PoseEdge],
+            cfg: MergeConfig) -> tuple[list[list[int]], list[GroupJoin], list[PoseEdge]]:
+    """Groups of sessions joined on evidence (module docstring), each in input order and listed
+    by its first session; the decisions; the edges that made the joins (the consensus sets)."""
+    pos = {s: i for i, s in enumerate(order)}
+    root = {s: s for s in order}  # each session's group, named by its first session
+    T_g_s = {s: np.eye(4) for s in order}  # each session's frame in its group's
+    members = {s: [s] for s in order}
+    joins: list[GroupJoin] = []
+    kept: list[PoseEdge] = []
+    while True:
+        between: dict[tuple[int, int], list[PoseEdge]] = {}
+        for e in edges:
+            ra, rb = sorted((root[e.a[0]], root[e.b[0]]), key=pos.__getitem__)
+            if ra != rb:
+                between.setdefault((ra, rb), []).append(e)
+        pairs = []
+        for (ra, rb), es in between.items():
+            H, p_a, p_b = _hypotheses(es, set(members[ra]), T_g_s, graphs)
+            pairs.append((ra, rb, es, _consensus(H, p_a, p_b, cfg), H))
+        best = max(pairs, key=lambda p: int(p[3].sum()), default=None)  # the first of the best supported
+        if best is None or best[3].sum() < cfg.min_join_edges:
+            joins += [GroupJoin(tuple(members[ra]), tuple(members[rb]), len(es), int(mask.sum()), False)
+                      for ra, rb, es, mask, _ in pairs]  # fmt: skip
+            break
+        ra, rb, es, mask, H = best
+        joins.append(GroupJoin(tuple(members[ra]), tuple(members[rb]), len(es), int(mask.sum()), True))
+        kept += [e for e, m in zip(es, mask) if m]
+        T_a_b = H[int(np.flatnonzero(mask)[0])]
+        for s in members.pop(rb):
+            root[s], T_g_s[s] = ra, T_a_b @ T_g_s[s]
+            members[ra].append(s)
+        members[ra].sort(key=pos.__getitem__)
+    return [members[r] for r in sorted(members, key=pos.__getitem__)], joins, kept
 
 
 def _initial_frames(group: list[int], graphs: dict[int, SessionGraph], edges: list[PoseEdge]) -> dict[int, np.ndarray]:
@@ -200,7 +290,7 @@ def _initial_frames(group: list[int], graphs: dict[int, SessionGraph], edges: li
             known_a, known_b = e.a[0] in T_m_s, e.b[0] in T_m_s
             if known_a != known_b:
                 break
-        else:  # _groups joined every session of the group by an edge
+        else:  # _groups joined every session of the group by edges
             raise AssertionError(f"sessions {sorted(set(group) - set(T_m_s))} reached by no edge")
         if known_a:  # T_m_sb = T_m_sa T_sa_a T_a_b T_b_sb
             T_m_a = T_m_s[e.a[0]] @ graphs[e.a[0]].T_s_b[e.a[1]]
@@ -211,8 +301,9 @@ def _initial_frames(group: list[int], graphs: dict[int, SessionGraph], edges: li
     return T_m_s
 
 
-def _optimise(group: list[int], graphs: dict[int, SessionGraph], edges: list[PoseEdge], cfg: MergeConfig) -> MergedMap:
-    T_m_s = _initial_frames(group, graphs, edges)
+def _optimise(group: list[int], graphs: dict[int, SessionGraph], edges: list[PoseEdge], chain: list[PoseEdge],
+              cfg: MergeConfig) -> MergedMap:
+    T_m_s = _initial_frames(group, graphs, chain)
     values = gtsam.Values()
     fixed = gtsam.NonlinearFactorGraph()  # prior and odometry: the same at every stage
     anchor = graphs[group[0]]
@@ -258,9 +349,14 @@ def merge_sessions(sessions: Sequence[SessionGraph], inter_edges: Sequence[PoseE
                 raise ConfigError("inter_edges", end, "a keyframe (session, index) of the given sessions")
         if e.a[0] == e.b[0]:
             raise ConfigError("inter_edges", (e.a, e.b), "two different sessions (loops go in SessionGraph.loops)")
-    order = [g.session for g in sessions]
+    groups, joins, kept = _groups([g.session for g in sessions], graphs, inter_edges, cfg)
     maps = []
-    for group in _groups(order, inter_edges):
+    for group in groups:
         members = set(group)
-        maps.append(_optimise(group, graphs, [e for e in inter_edges if e.a[0] in members], cfg))
-    return MergeResult(tuple(maps), tuple(s for m in maps[1:] for s in m.sessions))
+        inside = [e for e in inter_edges if e.a[0] in members and e.b[0] in members]
+        # the edges that made the joins first: the initial guess chains through them, not
+        # through an edge the consensus did not hold (the optimiser still weighs every edge)
+        made = {id(e) for e in kept}
+        chain = [e for e in inside if id(e) in made] + [e for e in inside if id(e) not in made]
+        maps.append(_optimise(group, graphs, inside, chain, cfg))
+    return MergeResult(tuple(maps), tuple(s for m in maps[1:] for s in m.sessions), tuple(joins))

@@ -25,8 +25,9 @@ At the end (``finalize``, offline as the paper merges):
    before it (:class:`~.matching.PlaceMatcher`: ORB bag of words, SIFT + PnP with the depth).
    With ``use_place_labels`` a candidate of another place type than the query is not verified
    (the paper attaches place labels to vertices to restrict the search).
-3. **Merge**: :func:`~.merge.merge_sessions`, session 0 anchors; a session no edge joins to it
-   stays its own map (``separate_sessions``).
+3. **Merge**: :func:`~.merge.merge_sessions`, session 0 anchors; a session (or group of
+   sessions) that no two agreeing edges join to it stays its own map (``separate_sessions``;
+   the decisions in ``stats["merge_joins"]``).
 4. **Changes**: the sessions of the main map in order, each against the map updated by those
    before it (:func:`~.change.change_classifier`, ``change.kind`` octree or dufomap; eq. 2-3).
    The map stays on disk as the paper keeps it: the current session's clouds are read from the
@@ -89,6 +90,10 @@ class LtExosenseConfig:
         max_depth_m: depth beyond this is left out of the clouds (the D435's useful range).
         max_odometry_age_s: an image whose nearest odometry sample is further in time is skipped.
         use_place_labels: verify only candidates of the query's place type (when both have one).
+        intra_session_loops: also propose loop closures within each session (keyframes at least
+            ``MatchConfig.min_index_gap`` apart, the same place recognition and PnP), as loop
+            edges of its own graph (the paper's LEXIS graphs); off by default
+            (docs/tracks/multisession.md, "The sessions' odometry drift").
         vocabulary: ``session`` (trained on the first session's keyframes) or ``other`` (trained
             on another office, :mod:`.other_office`).
         vocabulary_file: with ``other``, the vocabulary's ``.npz`` (empty: the harness's cached one).
@@ -101,6 +106,7 @@ class LtExosenseConfig:
     max_depth_m: float = 4.0
     max_odometry_age_s: float = 0.06
     use_place_labels: bool = True
+    intra_session_loops: bool = False
     vocabulary: str = "session"
     vocabulary_file: str = ""
     change: ChangeConfig = field(default_factory=ChangeConfig)
@@ -316,10 +322,13 @@ class LtExosense:
         counts = self._counters.snapshot()
         if not sessions:
             return MultiSessionEstimate((), (), (), (), (), stats=stats, counts=counts)
-        graphs = [SessionGraph(s.session, np.stack(s.poses), s.labels) for s in sessions]
-        edges = self._inter_edges(sessions, stats)
+        edges, loops = self._inter_edges(sessions, stats)
+        graphs = [SessionGraph(s.session, np.stack(s.poses), s.labels, loops.get(s.session, ())) for s in sessions]
         merged = merge_sessions(graphs, edges, MergeConfig())
         map_of = {sid: i for i, m in enumerate(merged.maps) for sid in m.sessions}
+        stats["merge_joins"] = [{"sessions_a": list(j.sessions_a), "sessions_b": list(j.sessions_b), "n_edges": j.n_edges,
+                                 "n_consistent": j.n_consistent, "joined": j.joined} for j in merged.joins]  # fmt: skip
+        stats["n_inter_edges_between_maps"] = sum(map_of[e.a[0]] != map_of[e.b[0]] for e in edges)
         T_map = tuple(np.stack([merged.maps[map_of[s.session]].T_m_b[(s.session, k)] for k in range(len(s.poses))])
                       for s in sessions)  # fmt: skip
         main = [i for i, s in enumerate(sessions) if map_of[s.session] == 0]
@@ -390,10 +399,11 @@ class LtExosense:
                 "static_masks": masks, "merged_map_points": merged,
                 "map_points_no_change_detection": every, "map_points_single_session": every[sum(n) - n[-1]:]}
 
-    def _inter_edges(self, sessions: list[_Session], stats: dict[str, Any]) -> list[PoseEdge]:
+    def _inter_edges(self, sessions: list[_Session], stats: dict[str, Any]) -> tuple[list[PoseEdge], dict[int, list[PoseEdge]]]:
+        """Inter-session edges, and with ``intra_session_loops`` each session's loop edges."""
         t0 = time.perf_counter()
-        if len(sessions) < 2 or self._K is None:
-            return []
+        if (len(sessions) < 2 and not self.config.intra_session_loops) or self._K is None:
+            return [], {}
         assert self._store is not None
         if self._vocabulary is not None:
             vocabulary = self._vocabulary
@@ -403,7 +413,7 @@ class LtExosense:
                 vocabulary = PlaceMatcher.train_vocabulary(first, MatchConfig())
             except ConfigError:  # too few keyframes or features in the first session to train on
                 stats["vocabulary_error"] = "too few training descriptors"
-                return []
+                return [], {}
         stats["vocabulary_words"] = int(vocabulary.n_words)
         matcher = PlaceMatcher(self._store, self._K, np.eye(4), vocabulary, MatchConfig())
         labels = {(s.session, k): lab for s in sessions for k, lab in enumerate(s.labels)}
@@ -420,9 +430,21 @@ class LtExosense:
             if i:
                 edges += matcher.edges([(s.session, k) for k in range(len(s.poses))], accept)
             matcher.add([(s.session, k) for k in range(len(s.poses))])
+        loops: dict[int, list[PoseEdge]] = {}
+        if self.config.intra_session_loops:
+            gap = matcher.config.min_index_gap
+
+            def within(cand: tuple[int, int], query: tuple[int, int]) -> bool:
+                # one edge per loop: the later keyframe asks, the earlier answers
+                a, b = labels.get(cand, ""), labels.get(query, "")
+                return cand[0] == query[0] and query[1] - cand[1] >= gap and not (use_labels and a and b and a != b)
+
+            for s in sessions:
+                loops[s.session] = matcher.edges([(s.session, k) for k in range(len(s.poses))], within)
+            stats["n_intra_loops"] = [len(loops[s.session]) for s in sessions]
         stats["_t_pr"] = time.perf_counter() - t0
         stats["n_inter_edges"] = len(edges)
-        return edges
+        return edges, loops
 
     def _scans(self, s: _Session, T_map: np.ndarray) -> Iterator[Scan]:
         """The session's keyframe clouds at their merged poses, read from the store one by one."""

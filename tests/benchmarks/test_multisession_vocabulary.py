@@ -1,6 +1,7 @@
 """lt-exosense's vocabulary of another office (issue 28): the tree written and read back word for
 word, the pipeline using the file it is given and not its first session, a missing file refused
-naming the field, and the harness building the file once and reusing it."""
+naming the field, and the harness building the file once and reusing it; the pipeline's
+intra-session loops on a session that walks round a room and back."""
 
 import math
 
@@ -83,6 +84,45 @@ def test_other_vocabulary_is_read_from_its_file_not_trained_on_the_first_session
     # both find the second session in the first one's room: the words of another room still index it
     assert own.stats["n_inter_edges"] > 0 and foreign.stats["n_inter_edges"] > 0
     assert own.separate_sessions == foreign.separate_sessions == ()
+    # the join is reported: the one pair of sessions, joined on edges that agree (the same room)
+    for est in (own, foreign):
+        (join,) = est.stats["merge_joins"]
+        assert join["sessions_a"] == [0] and join["sessions_b"] == [1] and join["joined"]
+        assert join["n_edges"] == est.stats["n_inter_edges"] and 2 <= join["n_consistent"] <= join["n_edges"]
+        assert est.stats["n_inter_edges_between_maps"] == 0
+
+
+def test_intra_session_loops_close_a_drifting_circle():
+    """One session walks a circle and goes on over its first two places (keyframes 12 and 13
+    see what 0 and 1 saw) with odometry turning 0.02 rad too far at each step: with
+    ``intra_session_loops`` the pipeline verifies the loops back to the start and its merged
+    keyframes come back to the true ones; without, they keep the drift."""
+    room = TexturedRoom(seed=33)
+    views = _views(room, 12) + _views(room, 12)[:2]
+    T0 = views[0][0]
+    turn = np.eye(4)
+    turn[:3, :3] = [[math.cos(0.02), 0, math.sin(0.02)], [0, 1, 0], [-math.sin(0.02), 0, math.cos(0.02)]]  # about the camera's y
+    odom = [np.eye(4)]
+    for i in range(1, len(views)):
+        odom.append(odom[-1] @ np.linalg.inv(views[i - 1][0]) @ views[i][0] @ turn)
+
+    def run(loops):
+        pipe = LtExosense(LtExosenseConfig(intra_session_loops=loops))
+        pipe.reset(CALIBRATION)
+        pipe.process(SessionStart(0.0, "session", 0, 0))
+        for i, (_, img, depth) in enumerate(views):
+            t = 0.1 * (i + 1)
+            pipe.process(OdometrySample(t, "odom_thigh", odom[i], np.zeros(3)))
+            pipe.process(RgbdFrame(t, "rgbd_thigh", np.repeat(img[..., None], 3, axis=2), depth, K))
+        return pipe.finalize()
+
+    def worst(est):
+        return max(np.linalg.norm(est.T_map_cam[0][k][:3, 3] - (np.linalg.inv(T0) @ T)[:3, 3]) for k, (T, _, _) in enumerate(views))
+
+    closed, open_ = run(True), run(False)
+    assert len(closed.T_map_cam[0]) == len(views)
+    assert closed.stats["n_intra_loops"][0] >= 2 and "n_intra_loops" not in open_.stats
+    assert worst(open_) > 0.1 and worst(closed) < 0.3 * worst(open_), (worst(open_), worst(closed))
 
 
 def test_missing_or_unknown_vocabulary_refused_naming_the_field(tmp_path):

@@ -2,17 +2,23 @@
 frames is recovered; a session overlapping no other stays its own map; the Cauchy loss keeps a
 wrong inter-session edge from bending the merge; the keyframe store lives in a folder of its own."""
 
+import gc
 import math
+import subprocess
+import sys
+import tempfile
 
 import cv2
 import numpy as np
 import pytest
 from textured_room import K, TexturedRoom
 
+from exobench.core.calibration import Calibration, SensorMount
 from exobench.core.errors import ConfigError, FolderError
 from exobench.mapping.multisession.keyframes import KeyframeStore
 from exobench.mapping.multisession.matching import MatchConfig, PlaceMatcher, same_session_apart
 from exobench.mapping.multisession.merge import MergeConfig, PoseEdge, SessionGraph, merge_sessions
+from exobench.mapping.multisession.pipeline import LtExosense
 
 # camera 0.1 m ahead of the base and 0.3 m up, looking along the base's x (OpenCV axes)
 T_BASE_CAM = np.array([[0.0, 0.0, 1.0, 0.1], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.3], [0, 0, 0, 1.0]])
@@ -156,6 +162,69 @@ def test_inter_session_edges_hold_despite_odometry_drift():
     assert before > 0.15 and after < 0.6 * before
 
 
+def _edge(T_w_a, T_w_b, a, b, lookalike=None):
+    """An edge between keyframes ``a`` and ``b`` with the PnP-like covariance of :func:`_synthetic`:
+    true, or (``lookalike``: where the query's look-alike view truly stands) what PnP gives for
+    a view of another room that looks the same."""
+    T_b = T_w_b[b[1]] if lookalike is None else lookalike
+    cov = np.diag([np.radians(0.1) ** 2] * 3 + [0.002**2] * 3)
+    return PoseEdge(a, b, np.linalg.inv(T_w_a[a[1]]) @ T_b, cov)
+
+
+def _four_sessions():
+    """Sessions 0 and 1 walk one corridor (1.2 m apart), 2 and 3 another 6 m away; each
+    session's odometry in a frame of its own. Returns the world poses and the session graphs."""
+    walks = {s: [_pose(0.5 * i, 1.2 * (s % 2) + 6.0 * (s // 2), 0.05 * i) for i in range(10)] for s in range(4)}
+    frames = {s: _pose(0.7 * s, -0.4 * s, 0.3 * s, z=0.0) for s in range(4)}
+    graphs = [SessionGraph(s, np.array([np.linalg.inv(frames[s]) @ T for T in walks[s]])) for s in range(4)]
+    return walks, graphs
+
+
+def test_a_lone_false_edge_joins_nothing_two_consistent_true_edges_do():
+    """The *Exo* case's failure, constructed: sessions 2 and 3, tied to each other by true
+    edges, meet the map only through one false edge (session 3's keyframe 6 taken for session
+    0's keyframe 4, a look-alike room 6 m away). That group stays apart, in its own frame;
+    session 1, joined by two true edges that agree, is merged."""
+    w, graphs = _four_sessions()
+    edges = [_edge(w[0], w[1], (0, 2), (1, 2)), _edge(w[0], w[1], (0, 7), (1, 8)),
+             *(_edge(w[2], w[3], (2, i), (3, i)) for i in range(0, 10, 3)),
+             _edge(w[0], w[3], (0, 4), (3, 6), lookalike=w[0][4] @ _pose(0.3, 0.1, 0.2, z=0.0))]
+    result = merge_sessions(graphs, edges)
+    assert result.maps[0].sessions == (0, 1) and result.maps[1].sessions == (2, 3)
+    assert result.separate_sessions == (2, 3)
+    for i, T in enumerate(w[1]):  # merged: within the true edges' few mm
+        assert _errors(result.maps[0].T_m_b[(1, i)], T)[0] < 0.01
+    # the group apart is a map of its own, in session 2's frame, with session 3 placed in it
+    T_w_s2 = w[2][0] @ np.linalg.inv(graphs[2].T_s_b[0])
+    for i, T in enumerate(w[3]):
+        assert _errors(T_w_s2 @ result.maps[1].T_m_b[(3, i)], T)[0] < 0.01
+    assert [(j.sessions_a, j.sessions_b, j.n_edges, j.n_consistent, j.joined) for j in result.joins] == [
+        ((2,), (3,), 4, 4, True), ((0,), (1,), 2, 2, True), ((0, 1), (2, 3), 1, 1, False)]
+    # any edge joining (the rule before): the false edge drags sessions 2 and 3 about 6 m
+    forced = merge_sessions(graphs, edges, MergeConfig(min_join_edges=1))
+    assert forced.separate_sessions == ()
+    assert min(_errors(forced.maps[0].T_m_b[(3, i)], T)[0] for i, T in enumerate(w[3])) > 4.0
+
+
+def test_edges_that_disagree_join_nothing_edges_of_other_session_pairs_that_agree_do():
+    """Two false edges to two different look-alike places (they disagree by metres) do not join
+    session 2; a group is joined by two true edges from different sessions of it (0-2 and 1-3),
+    which agree although no session pair has two."""
+    w, graphs = _four_sessions()
+    pair_01 = [_edge(w[0], w[1], (0, i), (1, i)) for i in (1, 5, 9)]
+    pair_23 = [_edge(w[2], w[3], (2, i), (3, i)) for i in (2, 6)]
+    false = [_edge(w[0], w[2], (0, 3), (2, 3), lookalike=w[0][3]),
+             _edge(w[1], w[2], (1, 8), (2, 5), lookalike=w[1][8] @ _pose(0.2, 0.0, 0.4, z=0.0))]
+    apart = merge_sessions(graphs[:3], pair_01 + false)
+    assert apart.separate_sessions == (2,)
+    assert [(j.n_edges, j.n_consistent, j.joined) for j in apart.joins] == [(3, 3, True), (2, 1, False)]
+    true = [_edge(w[0], w[2], (0, 9), (2, 9)), _edge(w[1], w[3], (1, 0), (3, 1))]
+    joined = merge_sessions(graphs, pair_01 + pair_23 + true)
+    assert joined.separate_sessions == () and joined.maps[0].sessions == (0, 1, 2, 3)
+    for s in (2, 3):
+        assert max(_errors(joined.maps[0].T_m_b[(s, i)], T)[0] for i, T in enumerate(w[s])) < 0.01
+
+
 def test_bad_input_named():
     sessions, edges = _synthetic(np.eye(4))
     with pytest.raises(ConfigError, match="inter_edges"):
@@ -170,6 +239,10 @@ def test_bad_input_named():
         MergeConfig(cauchy_scale=0.0)
     with pytest.raises(ConfigError, match="merge.cauchy_annealing"):
         MergeConfig(cauchy_annealing=(10.0, 2.0))
+    with pytest.raises(ConfigError, match="merge.min_join_edges"):
+        MergeConfig(min_join_edges=0)
+    with pytest.raises(ConfigError, match="merge.join_tolerance_m"):
+        MergeConfig(join_tolerance_m=-0.1)
 
 
 def test_keyframe_store_writes_in_its_own_folder_and_cleans_up(tmp_path):
@@ -190,3 +263,26 @@ def test_keyframe_store_writes_in_its_own_folder_and_cleans_up(tmp_path):
     assert not root.exists() and list(tmp_path.iterdir()) == []
     with pytest.raises(FolderError, match="closed"):
         store.get((1, 7), "image")
+
+
+def test_keyframe_store_never_closed_goes_when_collected_or_at_exit(tmp_path, monkeypatch):
+    """A store its owner never closes (a pipeline reset but never finalised, as the runner's
+    planning instance or a failed episode) leaves no folder: removed when the store is collected,
+    and at the exit of a process that still holds it."""
+    store = KeyframeStore(parent=tmp_path)
+    store.put((0, 0), image=np.zeros((2, 2), np.uint8))
+    del store
+    gc.collect()
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # the pipeline's store: the system's temp folder
+    mounts = (SensorMount("rgbd_thigh", "rgbd", "thigh", np.eye(4)), SensorMount("odom_thigh", "odometry", "thigh", np.eye(4)))
+    pipe = LtExosense()
+    pipe.reset(Calibration("", "pelvis", (), mounts, 0.1, 0.26, 0.05))
+    assert len(list(tmp_path.iterdir())) == 1
+    del pipe
+    gc.collect()
+    assert list(tmp_path.iterdir()) == []
+    code = ("import sys; from exobench.mapping.multisession.keyframes import KeyframeStore; "
+            "kept = KeyframeStore(parent=sys.argv[1]); print(kept.root)")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, check=True)
+    assert out.stdout.strip().startswith(str(tmp_path)) and list(tmp_path.iterdir()) == []

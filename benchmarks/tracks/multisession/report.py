@@ -111,7 +111,8 @@ def report_sections(records: list[dict[str, Any]], pipelines: list[str], out: Pa
     apart = [(r["episode"], r["pipeline"], r["metrics"].get("separate_sessions")) for r in records
              if r["metrics"].get("separate_sessions")]  # fmt: skip
     if apart:
-        lines += ["Sessions that overlapped no other, kept as maps of their own:", ""]
+        lines += ["Sessions kept as maps of their own (overlapping no other, or joined to the main map by no two "
+                  "inter-session edges that agree); the ATE and the map figures are over the main map's sessions:", ""]
         lines += [f"- {e} / {p}: sessions {', '.join(str(s) for s in ss)}" for e, p, ss in apart] + [""]
     figures = sorted((out / "figures").glob("*.npz")) if (out / "figures").exists() else []
     if figures:

@@ -16,7 +16,9 @@ against the episode's truth (:mod:`.episodes`), with the point-set metrics of :m
   point within 5 cm; the paper annotated changes in its recordings).
 - Map error (Table III): the merged map against the last day's true surfaces; the same of the
   map without change detection (every session's points) and of the last session alone.
-- ``n_separate_sessions``: sessions kept out of the main map (overlapping none of it);
+- ``n_separate_sessions``: sessions kept out of the main map (overlapping none of it, or joined
+  to it by no two agreeing inter-session edges): out of the ATE and the map figures, in the RPE
+  (within their own maps);
   ``merge_time_s``, ``peak_memory_mb``: the pipeline's own figures.
 """
 

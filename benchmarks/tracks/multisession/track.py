@@ -23,7 +23,8 @@ Suites (the run seed drives the sensor noise; the building is ``office_seed``):
 
 Bad input: an invalid change script (an object into a wall, an object that is not there) is
 refused when the case is validated, before anything runs, naming the day and the object; a
-session that overlaps no other stays a map of its own (``n_separate_sessions``).
+session that overlaps no other, or that no two agreeing inter-session edges join to the main
+map, stays a map of its own (``n_separate_sessions``), out of the ATE and the map figures.
 """
 
 from __future__ import annotations
