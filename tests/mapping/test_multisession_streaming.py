@@ -81,8 +81,8 @@ def _rows_of(points, subset):
 
 
 def _merge_peak_mb(n_sessions):
-    # the small scene of the other tests (4 yaws, 40x30 rays: 21 CPU-s under tracemalloc, about 85 at
-    # 8 yaws and 80x60): the sessions held in memory (update_map's merge) still break the bound
+    # the small scene of the other tests (4 yaws, 40x30 rays: the test 15 CPU-s, 58 at 8 yaws and
+    # 80x60, at load 4-6): the sessions held in memory (update_map's merge) still break the bound
     # below by far, (p8 - o8) / (p2 - o2) = 8.6 against 1.5, where the store's merge gives -0.03
     boxes = [[BOX_A] if i % 2 == 0 else [BOX_B] for i in range(n_sessions)]
     pipe, sessions, T_maps, _ = _pipeline_with(boxes, "octree", yaws=4, n_u=40, n_v=30)
