@@ -42,6 +42,7 @@ from exobench.core.counters import nan_values
 from exobench.core.limits import imu_absurd
 from exobench.core.pipeline import check_frame
 from exobench.mapping.tsdf import Tsdf
+from exobench.perception.terrain.footprint import HeelStrike
 from exobench.perception.terrain.plane_extraction import extract_planes
 from exobench.perception.terrain.plane_tracking import PlaneSet, voxel_keys
 
@@ -49,6 +50,7 @@ from .base import LocomotionPipeline
 from .config import TerrainReconConfig, TerrainReconDvioConfig
 from .depth import backproject, scale_intrinsics, upsample_depth
 from .own_odometry import DvioOdometry
+from .predict import StepPredictor
 
 __all__ = ["SingleFramePipeline", "TerrainReconDvioPipeline", "TerrainReconstructionPipeline"]
 
@@ -74,7 +76,10 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
             self._T_body_track = self._T_cam_track
             self._odometry = "dvio"
             self._last_own: tuple[float, np.ndarray] | None = None
-            self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera")
+            self._posed = False  # whether the last frame released had a pose
+            self._unplaced: list[tuple[HeelStrike, float]] = []  # strikes since then, with their instants
+            self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera", n_strikes_placed_with_window=0,
+                               n_strikes_forgotten=0, n_map_resets=0)
 
     def process(self, frame: Frame) -> ModePrediction | None:
         if getattr(self, "_own", None) is None:  # the given odometry (or not reset: refused there)
@@ -111,9 +116,64 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
                 self._on_contact(frame, c)
                 continue
             if T is not None:
+                if not self._posed and self._last_own is not None:  # a re-initialisation: a new frame
+                    self._forget_old_frame()
+                if not self._posed:  # D-VIO's first pose after a gap: its window's poses first
+                    for t_kf, T_kf in self._own.window_poses(float(frame.stamp_s)):
+                        self._remember_own(t_kf - self._cam_latency_s, T_kf)
                 self._remember_own(float(frame.stamp_s) - self._cam_latency_s, T)
+                if not self._posed:
+                    self._place_gap_strikes()
+            self._posed = T is not None
             pred = self._on_rgbd(frame, c, t0, own=True, T_own=T) or pred
         return pred
+
+    def _forget_old_frame(self) -> None:
+        """D-VIO has re-initialised. Its new segment is anchored on the IMU's dead reckoning
+        through the loss, so the new frame is off the old one by that dead reckoning's error
+        (0.6 and 1.5 m, most of it vertical, on unconventional/ramp-11.8/h1.82; docs/tracks/
+        locomotion.md): the map would hold the surfaces seen before twice, offset, and the
+        strikes and the heights remembered under them would give steps across the offset. All
+        three are in the old frame and are forgotten, as a system whose map is its odometry's
+        starts a new map with a new odometry frame; nothing relates the two frames but the dead
+        reckoning whose error this is."""
+        st = self._stats
+        self._reset_map()
+        self._plane_set = PlaneSet(self.config.planes)
+        self._description = None
+        self._odom = []
+        self._last_own = None
+        st["n_strikes_forgotten"] += len(self._divider.strikes)
+        self._divider.strikes.clear()
+        self._predictor = StepPredictor(self.config, st, self._camera_ahead_m, self._lookup_m, self._standing_h)
+        st["n_map_resets"] += 1
+
+    def _strike_without_pose(self, strike: HeelStrike, t_s: float) -> None:
+        super()._strike_without_pose(strike, t_s)
+        if getattr(self, "_own", None) is not None:
+            self._unplaced.append((strike, t_s))
+
+    def _place_gap_strikes(self) -> None:
+        """At D-VIO's first pose after a gap (its initialisation, or a re-initialisation), the
+        strikes of the gap placed with the poses D-VIO now gives that frame and the keyframes of
+        its window before it (:meth:`DvioOdometry.window_poses`), as a strike with a pose is: the
+        predictor gets the strikes of the initialisation window at once, instead of waiting for
+        three more."""
+        st, placed = self._stats, False
+        for strike, t_s in self._unplaced:
+            odo = self._odometry_at(t_s)
+            if odo is None:  # too far from any keyframe of the window: stays without a pose
+                continue
+            # as a strike with a pose is placed: the nearest pose moved on at its velocity
+            p = self._track(odo[0]) + odo[1] * odo[2]
+            self._divider.strikes.append(HeelStrike(strike.stamp_s, strike.side, p, odo[1].copy()))
+            st["n_strikes_without_odometry"] -= 1
+            st["n_heel_strikes"] += 1
+            st["n_strikes_placed_with_window"] += 1
+            placed = True
+        if placed:  # after any strike placed before the gap with the poses of before
+            self._divider.strikes.sort(key=lambda s: s.stamp_s)
+        self._unplaced.clear()
 
     def _remember_own(self, t_s: float, T: np.ndarray) -> None:
         """Keep a D-VIO pose for the strikes, with the velocity from the previous pose."""
