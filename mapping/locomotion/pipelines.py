@@ -14,8 +14,10 @@ the current frame only, a fresh plane set each frame, no TSDF; same footprint an
 D-VIO run inside it (``"dvio"``, :mod:`.own_odometry`; the registered ``terrain-recon-dvio``):
 then each frame waits for its D-VIO pose, a frame without one (D-VIO initialising or lost) makes a
 prediction without a mode or footprint (status ``no_odometry``), the strikes take D-VIO's frame
-poses (velocity from the last two), and the estimate says its poses are its own
-(``LocomotionEstimate.odometry``), each prediction carrying the pose it used.
+poses (velocity from the last two; a strike while D-VIO has none waits for its next pose and
+the poses of its window), a re-initialisation starts a new map (its frame is not the old one),
+and the estimate says its poses are its own (``LocomotionEstimate.odometry``), each prediction
+carrying the pose it used.
 
 A depth image wider than ``max_work_width_px`` (the D455's 424 px mode) is first decimated to
 every m-th pixel with K adjusted (:func:`~.depth.decimate`); the 5 cm plane cells and voxels gain
