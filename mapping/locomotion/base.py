@@ -344,9 +344,8 @@ class LocomotionPipeline(ABC):
             if status == "ok" and why != "ok":
                 status = why
         n_strikes = len(self._divider.strikes)
-        if own:  # a strike while the own odometry had no pose (initialising, lost), or one
-            # forgotten with the old frame at a re-initialisation, was seen all the same
-            n_strikes += st["n_strikes_without_odometry"] + st["n_strikes_forgotten"]
+        if own:  # a strike while the own odometry had no pose (initialising, lost) was seen all the same
+            n_strikes += st["n_strikes_without_odometry"]
         t1 = time.perf_counter()
         pred = ModePrediction(stamp, mode, footprint, n_strikes, t1 - t0, status, T_cam)
         self._predictions.append(pred)

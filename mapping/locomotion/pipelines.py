@@ -52,7 +52,6 @@ from .base import LocomotionPipeline
 from .config import TerrainReconConfig, TerrainReconDvioConfig
 from .depth import backproject, scale_intrinsics, upsample_depth
 from .own_odometry import DvioOdometry
-from .predict import StepPredictor
 
 __all__ = ["SingleFramePipeline", "TerrainReconDvioPipeline", "TerrainReconstructionPipeline"]
 
@@ -81,7 +80,7 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
             self._posed = False  # whether the last frame released had a pose
             self._unplaced: list[tuple[HeelStrike, float]] = []  # strikes since then, with their instants
             self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera", n_strikes_placed_with_window=0,
-                               n_strikes_forgotten=0, n_map_resets=0)
+                               n_map_resets=0)
 
     def process(self, frame: Frame) -> ModePrediction | None:
         if getattr(self, "_own", None) is None:  # the given odometry (or not reset: refused there)
@@ -133,22 +132,19 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
     def _forget_old_frame(self) -> None:
         """D-VIO has re-initialised. Its new segment is anchored on the IMU's dead reckoning
         through the loss, so the new frame is off the old one by that dead reckoning's error
-        (0.6 and 1.5 m, most of it vertical, on unconventional/ramp-11.8/h1.82; docs/tracks/
-        locomotion.md): the map would hold the surfaces seen before twice, offset, and the
-        strikes and the heights remembered under them would give steps across the offset. All
-        three are in the old frame and are forgotten, as a system whose map is its odometry's
-        starts a new map with a new odometry frame; nothing relates the two frames but the dead
-        reckoning whose error this is."""
-        st = self._stats
+        (0.4-5.4 m, most of it vertical, on the unconventional walks; docs/tracks/locomotion.md):
+        the map, in the old frame, would hold the surfaces seen before a second time, that far
+        off. It is forgotten, as a system whose map is its odometry's starts a new map with a new
+        odometry frame (nothing relates the two frames but the dead reckoning whose error this
+        is), and so are the poses kept for the strikes. The strikes themselves are kept: forgetting
+        them too left every step undecided until three strikes in the new frame, and decided
+        fewer steps right on both walks measured (docs)."""
         self._reset_map()
         self._plane_set = PlaneSet(self.config.planes)
         self._description = None
         self._odom = []
         self._last_own = None
-        st["n_strikes_forgotten"] += len(self._divider.strikes)
-        self._divider.strikes.clear()
-        self._predictor = StepPredictor(self.config, st, self._camera_ahead_m, self._lookup_m, self._standing_h)
-        st["n_map_resets"] += 1
+        self._stats["n_map_resets"] += 1
 
     def _strike_without_pose(self, strike: HeelStrike, t_s: float) -> None:
         super()._strike_without_pose(strike, t_s)
