@@ -117,20 +117,26 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
                 self._on_contact(frame, c)
                 continue
             if T is not None:
-                if not self._posed and self._last_own is not None:  # a re-initialisation: a new frame
+                # D-VIO's first pose after a gap: at its initialisation, or at a re-initialisation
+                # whose new frame gets a new map (reinit_map), the strikes of the gap are placed
+                # with its window's poses; a kept map stays in the old frame, and so do the strikes
+                first = not self._posed and (self._last_own is None or self.config.reinit_map == "reset")
+                if first and self._last_own is not None:
                     self._forget_old_frame()
-                if not self._posed:  # D-VIO's first pose after a gap: its window's poses first
+                if first:
                     for t_kf, T_kf in self._own.window_poses(float(frame.stamp_s)):
                         self._remember_own(t_kf - self._cam_latency_s, T_kf)
                 self._remember_own(float(frame.stamp_s) - self._cam_latency_s, T)
-                if not self._posed:
+                if first:
                     self._place_gap_strikes()
+                elif not self._posed:  # the map kept: the strikes of the loss stay without a pose
+                    self._unplaced.clear()
             self._posed = T is not None
             pred = self._on_rgbd(frame, c, t0, own=True, T_own=T) or pred
         return pred
 
     def _forget_old_frame(self) -> None:
-        """D-VIO has re-initialised. Its new segment is anchored on the IMU's dead reckoning
+        """D-VIO has re-initialised (``reinit_map="reset"``). Its new segment is anchored on the IMU's dead reckoning
         through the loss, so the new frame is off the old one by that dead reckoning's error
         (0.4-5.4 m, most of it vertical, on the unconventional walks; docs/tracks/locomotion.md):
         the map, in the old frame, would hold the surfaces seen before a second time, that far

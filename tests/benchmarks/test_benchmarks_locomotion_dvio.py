@@ -295,8 +295,31 @@ def _yaw_shift(yaw_deg, t):
     return M
 
 
+def _scripted_run(walk, pose_of, **values):
+    pipe = PIPELINE_REGISTRY.make("terrain-recon-dvio", PIPELINE_REGISTRY.make_config("terrain-recon-dvio", values))
+    pipe.reset(walk.calibration)
+    pipe._own = ScriptedOdometry(pose_of, pipe._own.imu_id)
+    for f in walk.frames:
+        pipe.process(f)
+    return pipe, pipe.finalize()
+
+
+def _level_heights_from(est, M):
+    """The heights of the map's level planes brought into the world from the frame ``M`` of it."""
+    M_inv = np.linalg.inv(M)
+    return [float((M_inv[:3, :3] @ np.asarray(p["centroid"]) + M_inv[:3, 3])[2])
+            for p in est.planes if abs(float(np.asarray(p["normal"])[2])) > 0.99]
+
+
+def test_reinit_map_refuses_a_bad_value_naming_field_value_and_choices():
+    with pytest.raises(ConfigError) as err:
+        TerrainReconDvioConfig(reinit_map="clear")
+    assert (err.value.field, err.value.value) == ("reinit_map", "clear")
+    assert "keep" in str(err.value.allowed) and "reset" in str(err.value.allowed)
+
+
 def test_a_reinitialisation_starts_a_new_map_in_its_new_frame(walk):
-    """D-VIO re-anchors a re-initialised segment on the IMU's dead reckoning through the loss,
+    """With ``reinit_map="reset"``: D-VIO re-anchors a re-initialised segment on the IMU's dead reckoning through the loss,
     whose error moves the new frame against the old (0.4-5 m measured on the unconventional
     walks). The odometry here is the true camera pose until a loss, none through it, then the
     true pose in a frame shifted by 0.4 m up and turned by 90 deg. The map built before the loss
@@ -311,17 +334,14 @@ def test_a_reinitialisation_starts_a_new_map_in_its_new_frame(walk):
         T = _truth_pose(walk, t)
         return T if t < t_lost else None if t < t_back else M @ T
 
-    pipe = PIPELINE_REGISTRY.make("terrain-recon-dvio", PIPELINE_REGISTRY.make_config("terrain-recon-dvio", {}))
-    pipe.reset(walk.calibration)
-    pipe._own = ScriptedOdometry(pose_of, pipe._own.imu_id)
-    for f in walk.frames:
-        pipe.process(f)
-    est = pipe.finalize()
-    level = [p for p in est.planes if abs(float(np.asarray(p["normal"])[2])) > 0.99]
-    assert level, "no level plane in the map"
-    M_inv = np.linalg.inv(M)
-    for p in level:
-        z = float((M_inv[:3, :3] @ np.asarray(p["centroid"]) + M_inv[:3, 3])[2])
-        assert abs(z / 0.15 - round(z / 0.15)) * 0.15 < 0.03, (p, z)
+    pipe, est = _scripted_run(walk, pose_of, reinit_map="reset")
+    heights = _level_heights_from(est, M)
+    assert heights, "no level plane in the map"
+    for z in heights:
+        assert abs(z / 0.15 - round(z / 0.15)) * 0.15 < 0.03, z
     assert est.stats["n_map_resets"] == 1
     assert any(p.T_odom_camera is not None and p.stamp_s > t_back and p.mode for p in est.predictions)
+    # the default keeps the old map: a tread of the old frame is then 0.4 m off in the new one
+    _, kept = _scripted_run(walk, pose_of)
+    assert kept.stats["n_map_resets"] == 0
+    assert any(abs(z / 0.15 - round(z / 0.15)) * 0.15 > 0.03 for z in _level_heights_from(kept, M))
