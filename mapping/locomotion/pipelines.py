@@ -14,8 +14,9 @@ the current frame only, a fresh plane set each frame, no TSDF; same footprint an
 D-VIO run inside it (``"dvio"``, :mod:`.own_odometry`; the registered ``terrain-recon-dvio``):
 then each frame waits for its D-VIO pose, a frame without one (D-VIO initialising or lost) makes a
 prediction without a mode or footprint (status ``no_odometry``), the strikes take D-VIO's frame
-poses (velocity from the last two; a strike while D-VIO has none waits for its next pose and
-the poses of its window), a re-initialisation starts a new map (its frame is not the old one),
+poses (velocity from the last two; a strike before D-VIO's first pose waits for it and the
+poses of its initialisation window), with ``reinit_map="reset"`` a re-initialisation starts a
+new map (and places the strikes of the loss so),
 and the estimate says its poses are its own (``LocomotionEstimate.odometry``), each prediction
 carrying the pose it used.
 
