@@ -67,7 +67,7 @@ from exobench.core.limits import (
 )
 from exobench.core.pipeline import check_frame
 from exobench.core.transforms import invert_T
-from exobench.perception.terrain.footprint import GaitDivider
+from exobench.perception.terrain.footprint import GaitDivider, HeelStrike
 from exobench.perception.terrain.plane_tracking import PlaneSet
 from exobench.perception.terrain.terrain_description import TerrainDescription, describe_terrain
 
@@ -222,6 +222,12 @@ class LocomotionPipeline(ABC):
     def _update_planes(self, depth_m: np.ndarray, K: np.ndarray, T_odom_cam: np.ndarray) -> int:
         """Update the plane set from one valid depth frame; returns the number of planes detected."""
 
+    def _strike_without_pose(self, strike: HeelStrike, t_s: float) -> None:
+        """A strike (measured at ``t_s``) that found no odometry pose: counted; the given odometry
+        never has a pose for it later, so it is not kept (a pipeline on its own odometry may
+        place it once it has one)."""
+        self._stats["n_strikes_without_odometry"] += 1
+
     # --- frames ---
     def _on_odometry(self, frame: OdometrySample, c: FrameCounts) -> None:
         T = _finite_array(frame.T_odom_body, (4, 4))
@@ -270,7 +276,7 @@ class LocomotionPipeline(ABC):
             self._stats["n_initial_contacts"] += 1
         elif odo is None:
             self._divider.strikes.pop()
-            self._stats["n_strikes_without_odometry"] += 1
+            self._strike_without_pose(strike, float(frame.stamp_s) - self._contact_latency_s.get(frame.sensor_id, 0.0))
         else:
             self._stats["n_heel_strikes"] += 1
 

@@ -36,6 +36,7 @@ STRIKE_PADS = ("any", "heel")
 LOOKUPS = ("midfoot", "ankle")
 TRACK_POINTS = ("joint", "camera")
 ODOMETRIES = ("given", "dvio")
+REINIT_MAPS = ("keep", "reset")
 
 
 def check_locomotion_config(cfg: Any) -> None:
@@ -127,12 +128,16 @@ class TerrainReconConfig(LocomotionConfig):
     the quick suite]. ``odometry``: where the camera poses come from: ``"given"``, the odometry
     stream (``odometry_sensor_id``), or ``"dvio"``, D-VIO run inside the pipeline on the camera's
     RGB-D frames and IMU samples with the config ``dvio`` (:mod:`.own_odometry`; D-VIO's defaults but
-    ``init_keyframes`` :data:`LOCOMOTION_INIT_KEYFRAMES`)."""
+    ``init_keyframes`` :data:`LOCOMOTION_INIT_KEYFRAMES`). ``reinit_map``: at a re-initialisation
+    of D-VIO, ``"keep"`` the map built in the old frame or ``"reset"`` it and build a new one in
+    the new frame, placing the strikes of the loss with the new window's poses [A: keep; reset
+    decided fewer steps right on the paper cases measured, docs/tracks/locomotion.md]."""
 
     tsdf: TsdfConfig = field(default_factory=TsdfConfig)
     raycast_downsample: int = 2
     upsample_jump_m: float = 0.05
     odometry: str = "given"
+    reinit_map: str = "keep"
     dvio: DvioConfig = field(default_factory=lambda: DvioConfig(init_keyframes=LOCOMOTION_INIT_KEYFRAMES))
 
     def __post_init__(self) -> None:
@@ -141,6 +146,8 @@ class TerrainReconConfig(LocomotionConfig):
         check_range("upsample_jump_m", self.upsample_jump_m, 0.0)
         if self.odometry not in ODOMETRIES:
             raise ConfigError("odometry", self.odometry, list(ODOMETRIES))
+        if self.reinit_map not in REINIT_MAPS:
+            raise ConfigError("reinit_map", self.reinit_map, list(REINIT_MAPS))
 
 
 @dataclass(frozen=True)

@@ -14,8 +14,11 @@ the current frame only, a fresh plane set each frame, no TSDF; same footprint an
 D-VIO run inside it (``"dvio"``, :mod:`.own_odometry`; the registered ``terrain-recon-dvio``):
 then each frame waits for its D-VIO pose, a frame without one (D-VIO initialising or lost) makes a
 prediction without a mode or footprint (status ``no_odometry``), the strikes take D-VIO's frame
-poses (velocity from the last two), and the estimate says its poses are its own
-(``LocomotionEstimate.odometry``), each prediction carrying the pose it used.
+poses (velocity from the last two; a strike before D-VIO's first pose waits for it and the
+poses of its initialisation window), with ``reinit_map="reset"`` a re-initialisation starts a
+new map (and places the strikes of the loss so),
+and the estimate says its poses are its own (``LocomotionEstimate.odometry``), each prediction
+carrying the pose it used.
 
 A depth image wider than ``max_work_width_px`` (the D455's 424 px mode) is first decimated to
 every m-th pixel with K adjusted (:func:`~.depth.decimate`); the 5 cm plane cells and voxels gain
@@ -42,6 +45,7 @@ from exobench.core.counters import nan_values
 from exobench.core.limits import imu_absurd
 from exobench.core.pipeline import check_frame
 from exobench.mapping.tsdf import Tsdf
+from exobench.perception.terrain.footprint import HeelStrike
 from exobench.perception.terrain.plane_extraction import extract_planes
 from exobench.perception.terrain.plane_tracking import PlaneSet, voxel_keys
 
@@ -74,7 +78,10 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
             self._T_body_track = self._T_cam_track
             self._odometry = "dvio"
             self._last_own: tuple[float, np.ndarray] | None = None
-            self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera")
+            self._posed = False  # whether the last frame released had a pose
+            self._unplaced: list[tuple[HeelStrike, float]] = []  # strikes since then, with their instants
+            self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera", n_strikes_placed_with_window=0,
+                               n_map_resets=0)
 
     def process(self, frame: Frame) -> ModePrediction | None:
         if getattr(self, "_own", None) is None:  # the given odometry (or not reset: refused there)
@@ -111,9 +118,67 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
                 self._on_contact(frame, c)
                 continue
             if T is not None:
+                # D-VIO's first pose after a gap: at its initialisation, or at a re-initialisation
+                # whose new frame gets a new map (reinit_map), the strikes of the gap are placed
+                # with its window's poses; a kept map stays in the old frame, and so do the strikes
+                first = not self._posed and (self._last_own is None or self.config.reinit_map == "reset")
+                if first and self._last_own is not None:
+                    self._forget_old_frame()
+                if first:
+                    for t_kf, T_kf in self._own.window_poses(float(frame.stamp_s)):
+                        self._remember_own(t_kf - self._cam_latency_s, T_kf)
                 self._remember_own(float(frame.stamp_s) - self._cam_latency_s, T)
+                if first:
+                    self._place_gap_strikes()
+                elif not self._posed:  # the map kept: the strikes of the loss stay without a pose
+                    self._unplaced.clear()
+            self._posed = T is not None
             pred = self._on_rgbd(frame, c, t0, own=True, T_own=T) or pred
         return pred
+
+    def _forget_old_frame(self) -> None:
+        """D-VIO has re-initialised (``reinit_map="reset"``). Its new segment is anchored on the IMU's dead reckoning
+        through the loss, so the new frame is off the old one by that dead reckoning's error
+        (0.4-5.4 m, most of it vertical, on the unconventional walks; docs/tracks/locomotion.md):
+        the map, in the old frame, would hold the surfaces seen before a second time, that far
+        off. It is forgotten, as a system whose map is its odometry's starts a new map with a new
+        odometry frame (nothing relates the two frames but the dead reckoning whose error this
+        is), and so are the poses kept for the strikes. The strikes themselves are kept: forgetting
+        them too left every step undecided until three strikes in the new frame, and decided
+        fewer steps right on both walks measured (docs)."""
+        self._reset_map()
+        self._plane_set = PlaneSet(self.config.planes)
+        self._description = None
+        self._odom = []
+        self._last_own = None
+        self._stats["n_map_resets"] += 1
+
+    def _strike_without_pose(self, strike: HeelStrike, t_s: float) -> None:
+        super()._strike_without_pose(strike, t_s)
+        if getattr(self, "_own", None) is not None:
+            self._unplaced.append((strike, t_s))
+
+    def _place_gap_strikes(self) -> None:
+        """At D-VIO's first pose after a gap (its initialisation, or a re-initialisation), the
+        strikes of the gap placed with the poses D-VIO now gives that frame and the keyframes of
+        its window before it (:meth:`DvioOdometry.window_poses`), as a strike with a pose is: the
+        predictor gets the strikes of the initialisation window at once, instead of waiting for
+        three more."""
+        st, placed = self._stats, False
+        for strike, t_s in self._unplaced:
+            odo = self._odometry_at(t_s)
+            if odo is None:  # too far from any keyframe of the window: stays without a pose
+                continue
+            # as a strike with a pose is placed: the nearest pose moved on at its velocity
+            p = self._track(odo[0]) + odo[1] * odo[2]
+            self._divider.strikes.append(HeelStrike(strike.stamp_s, strike.side, p, odo[1].copy()))
+            st["n_strikes_without_odometry"] -= 1
+            st["n_heel_strikes"] += 1
+            st["n_strikes_placed_with_window"] += 1
+            placed = True
+        if placed:  # after any strike placed before the gap with the poses of before
+            self._divider.strikes.sort(key=lambda s: s.stamp_s)
+        self._unplaced.clear()
 
     def _remember_own(self, t_s: float, T: np.ndarray) -> None:
         """Keep a D-VIO pose for the strikes, with the velocity from the previous pose."""

@@ -208,3 +208,140 @@ def test_the_recording_of_a_walk_on_dvio_places_its_footprints_as_scored(dvio_wa
     episode, _, est = dvio_walk
     path = track.write_recording(episode, {"terrain-recon-dvio": est}, tmp_path / "walk.rrd")
     assert path.exists() and path.stat().st_size > 1000
+
+
+# ------------------------------------------------------------------ the start: the window's strikes
+
+# the chest walk with keyframes every 30 px of parallax: D-VIO's five initialisation keyframes
+# then span the first strike, so its first pose comes after it
+LATE_DVIO = {**SMALL_DVIO, "dvio.keyframe_parallax_px": "30"}
+
+
+def _tracked_truth(episode, pipe, t_s):
+    """The true position of the pipeline's tracked point at ``t_s`` (the camera's pose, linearly
+    between the two camera frames around it, times the camera-to-tracked-point offset)."""
+    t = np.asarray(episode.truth.extra["camera_stamps_s"], dtype=float)
+    Tw = np.asarray(episode.truth.extra["camera_T_world"], dtype=float)
+    i = int(np.clip(np.searchsorted(t, t_s), 1, len(t) - 1))
+    a = (t_s - t[i - 1]) / (t[i] - t[i - 1])
+    p = [T[:3, :3] @ pipe._T_cam_track[:3, 3] + T[:3, 3] for T in (Tw[i - 1], Tw[i])]
+    return (1 - a) * p[0] + a * p[1]
+
+
+def test_the_strikes_before_dvios_first_pose_are_placed_with_its_initialisation_window(track):
+    """A strike that comes while D-VIO initialises is held until its first pose, then placed with
+    the pose D-VIO gives for that instant (its window's keyframes, optimised at the
+    initialisation): no strike is left without a pose, and the strikes before the first pose lie
+    where the walker's tracked point truly was (D-VIO's frame brought into the world at its first
+    pose)."""
+    case = track.cases("quick")[1]  # stairs, chest camera, 10 Hz, textured
+    episode = track.simulate(track.validate_scenario({**case.scenario, **WALK}), 0)
+    pipe, est = _run("terrain-recon-dvio", episode, **LATE_DVIO)
+    first = next(p for p in est.predictions if p.T_odom_camera is not None)
+    true_strikes = [s.heel_strike_s for s in episode.truth.steps]
+    assert min(true_strikes) < first.stamp_s, "D-VIO started before the first strike: nothing to test"
+    strikes = pipe._divider.strikes
+    assert est.stats["n_strikes_without_odometry"] == 0
+    # every true strike has its strike with a pose (the insoles see it within 0.1 s)
+    last = max(float(f.stamp_s) for f in episode.frames)
+    for t in true_strikes:
+        if t < last - 0.1:
+            assert min(abs(s.stamp_s - t) for s in strikes) < 0.1, t
+    assert any(s.stamp_s < first.stamp_s for s in strikes)
+    T_world_G = _truth_pose(episode, first.stamp_s) @ np.linalg.inv(first.T_odom_camera)
+    for s in strikes:
+        p_world = T_world_G[:3, :3] @ s.p_world + T_world_G[:3, 3]
+        assert np.linalg.norm(p_world - _tracked_truth(episode, pipe, s.stamp_s)) < 0.1, s.stamp_s
+
+
+# ------------------------------------------------------------------ a re-initialisation: a new frame
+
+
+class ScriptedOdometry:
+    """Stands in for D-VIO inside terrain-recon-dvio: each camera frame is released at once with
+    the pose ``pose_of(stamp)`` (None: no pose), as :class:`DvioOdometry` releases D-VIO's."""
+
+    def __init__(self, pose_of, imu_id):
+        self._pose_of, self.imu_id = pose_of, imu_id
+        self._held = []
+        self.n_without_pose = {"initialising": 0, "lost": 0, "unhandled": 0}
+
+    def feed(self, frame):
+        pass
+
+    def hold(self, frame, counts, t0):
+        self._held.append((frame, counts, t0))
+
+    def idle(self):
+        return not self._held
+
+    def released(self):
+        while self._held:
+            frame, counts, t0 = self._held.pop(0)
+            yield frame, counts, t0, self._pose_of(float(frame.stamp_s)) if isinstance(frame, RgbdFrame) else None
+
+    def window_poses(self, before_s):
+        return []
+
+    def finish(self):
+        return {}
+
+
+def _yaw_shift(yaw_deg, t):
+    M = np.eye(4)
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    M[:2, :2] = [[c, -s], [s, c]]
+    M[:3, 3] = t
+    return M
+
+
+def _scripted_run(walk, pose_of, **values):
+    pipe = PIPELINE_REGISTRY.make("terrain-recon-dvio", PIPELINE_REGISTRY.make_config("terrain-recon-dvio", values))
+    pipe.reset(walk.calibration)
+    pipe._own = ScriptedOdometry(pose_of, pipe._own.imu_id)
+    for f in walk.frames:
+        pipe.process(f)
+    return pipe, pipe.finalize()
+
+
+def _level_heights_from(est, M):
+    """The heights of the map's level planes brought into the world from the frame ``M`` of it."""
+    M_inv = np.linalg.inv(M)
+    return [float((M_inv[:3, :3] @ np.asarray(p["centroid"]) + M_inv[:3, 3])[2])
+            for p in est.planes if abs(float(np.asarray(p["normal"])[2])) > 0.99]
+
+
+def test_reinit_map_refuses_a_bad_value_naming_field_value_and_choices():
+    with pytest.raises(ConfigError) as err:
+        TerrainReconDvioConfig(reinit_map="clear")
+    assert (err.value.field, err.value.value) == ("reinit_map", "clear")
+    assert "keep" in str(err.value.allowed) and "reset" in str(err.value.allowed)
+
+
+def test_a_reinitialisation_starts_a_new_map_in_its_new_frame(walk):
+    """With ``reinit_map="reset"``: D-VIO re-anchors a re-initialised segment on the IMU's dead reckoning through the loss,
+    whose error moves the new frame against the old (0.4-5 m measured on the unconventional
+    walks). The odometry here is the true camera pose until a loss, none through it, then the
+    true pose in a frame shifted by 0.4 m up and turned by 90 deg. The map built before the loss
+    is in the old frame: kept, its treads would sit 0.4 m off the new ones. Every level plane of
+    the final map, brought into the world from the new frame, lies at a true tread or floor
+    height (multiples of the 0.15 m riser), and the map has them again after the loss."""
+    stamps = sorted(float(f.stamp_s) for f in walk.frames if isinstance(f, RgbdFrame))
+    t_lost, t_back = stamps[0] + 1.3, stamps[0] + 1.6
+    M = _yaw_shift(90.0, [0.3, -0.2, 0.4])  # the new frame G2 from the world (= the old frame)
+
+    def pose_of(t):
+        T = _truth_pose(walk, t)
+        return T if t < t_lost else None if t < t_back else M @ T
+
+    pipe, est = _scripted_run(walk, pose_of, reinit_map="reset")
+    heights = _level_heights_from(est, M)
+    assert heights, "no level plane in the map"
+    for z in heights:
+        assert abs(z / 0.15 - round(z / 0.15)) * 0.15 < 0.03, z
+    assert est.stats["n_map_resets"] == 1
+    assert any(p.T_odom_camera is not None and p.stamp_s > t_back and p.mode for p in est.predictions)
+    # the default keeps the old map: a tread of the old frame is then 0.4 m off in the new one
+    _, kept = _scripted_run(walk, pose_of)
+    assert kept.stats["n_map_resets"] == 0
+    assert any(abs(z / 0.15 - round(z / 0.15)) * 0.15 > 0.03 for z in _level_heights_from(kept, M))
