@@ -42,9 +42,10 @@ the config's bounds, too few features tracked, or a new keyframe that observes f
 ``min_landmarks`` of the window's landmarks (checked before the smoother runs: a window held by
 the IMU alone is not solvable in double precision, docs/dvio.md "The indeterminate system").
 The window is then cleared; the caller re-initialises (:mod:`.init`) and the new segment is
-anchored (position and yaw; the gravity direction is the new initialisation's) on the last good
-state propagated by the IMU through the loss to the first keyframe of the new initialisation (on
-the last good pose when the loss lasted longer than ``_MAX_DEAD_RECKON_S``).
+anchored (position and yaw, its velocities turned with it; the gravity direction is the new
+initialisation's) on the last good state propagated by the IMU through the loss to the first
+keyframe of the new initialisation (on the last good pose when the loss lasted longer than
+``_MAX_DEAD_RECKON_S``).
 """
 
 from __future__ import annotations
