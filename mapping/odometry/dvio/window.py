@@ -107,8 +107,10 @@ class WindowConfig:
             window's IMU factors correct unless the prior holds it. VINS-Mono holds none. 0.02 rad
             [A] (0.1 before): a window of few or wrong landmarks, started after a loss in a hard
             stretch, otherwise follows them 12-90 deg off the vertical within a frame (the
-            MH03-like walk, docs/dvio.md "Drift after a loss"); a window of many still levels a 13
-            deg alignment to within 1 deg about 1 s later (the prior leaves with the first keyframe).
+            MH03-like walk, docs/dvio.md "Drift after a loss"; most of that was the new segment's
+            velocity left in the wrong yaw, since fixed: "The re-anchored velocity"); a window of
+            many still levels a 13 deg alignment to within 1 deg about 1 s later (the prior leaves
+            with the first keyframe).
     """
 
     window: int = 10
