@@ -42,9 +42,10 @@ the config's bounds, too few features tracked, or a new keyframe that observes f
 ``min_landmarks`` of the window's landmarks (checked before the smoother runs: a window held by
 the IMU alone is not solvable in double precision, docs/dvio.md "The indeterminate system").
 The window is then cleared; the caller re-initialises (:mod:`.init`) and the new segment is
-anchored (position and yaw; the gravity direction is the new initialisation's) on the last good
-state propagated by the IMU through the loss to the first keyframe of the new initialisation (on
-the last good pose when the loss lasted longer than ``_MAX_DEAD_RECKON_S``).
+anchored (position and yaw, its velocities turned with it; the gravity direction is the new
+initialisation's) on the last good state propagated by the IMU through the loss to the first
+keyframe of the new initialisation (on the last good pose when the loss lasted longer than
+``_MAX_DEAD_RECKON_S``).
 """
 
 from __future__ import annotations
@@ -106,8 +107,10 @@ class WindowConfig:
             window's IMU factors correct unless the prior holds it. VINS-Mono holds none. 0.02 rad
             [A] (0.1 before): a window of few or wrong landmarks, started after a loss in a hard
             stretch, otherwise follows them 12-90 deg off the vertical within a frame (the
-            MH03-like walk, docs/dvio.md "Drift after a loss"); a window of many still levels a 13
-            deg alignment to within 1 deg about 1 s later (the prior leaves with the first keyframe).
+            MH03-like walk, docs/dvio.md "Drift after a loss"; most of that was the new segment's
+            velocity left in the wrong yaw, since fixed: "The re-anchored velocity"); a window of
+            many still levels a 13 deg alignment to within 1 deg about 1 s later (the prior leaves
+            with the first keyframe).
     """
 
     window: int = 10
@@ -353,8 +356,14 @@ class SlidingWindow:
         anchor = self._kfs[0].dead_reckoned
         if anchor is None and self._anchor is not None:
             anchor = self._anchor.matrix()
+        v_G = np.asarray(res.v_G, float)
         if anchor is not None:
-            T_G = _anchored(T_G, anchor)
+            # The velocities turn with the poses: left in the initialisation's own yaw, the
+            # velocity prior below pulled the new segment's first velocity up to twice the walking
+            # speed off, and the first window tilted 5-17 deg to reconcile it with the IMU
+            # (docs/dvio.md "The re-anchored velocity").
+            T_G, R_yaw = _anchored(T_G, anchor)
+            v_G = v_G @ R_yaw.T
         bias = gtsam.imuBias.ConstantBias(np.zeros(3), res.gyro_bias)
         lm_params = gtsam.LevenbergMarquardtParams()
         lm_params.setMaxIterations(c.max_iterations)
@@ -366,7 +375,7 @@ class SlidingWindow:
         for k, kf in enumerate(self._kfs):
             n = kf.serial
             values.insert(X(n), gtsam.Pose3(T_G[k]))
-            values.insert(V(n), np.asarray(res.v_G[k], float))
+            values.insert(V(n), v_G[k])
             values.insert(B(n), bias)
             for key in (X(n), V(n), B(n)):
                 stamps.insert((key, float(n)))
@@ -377,7 +386,7 @@ class SlidingWindow:
         # Gauge: yaw and position of G are unobservable and are held; roll and pitch are not
         # (the window's IMU factors observe gravity) and take only the weak tilt prior.
         graph.add(gtsam.PriorFactorPose3(X(n0), gtsam.Pose3(T_G[0]), gauge_prior_model(T_G[0, :3, :3], c.tilt_sigma_rad)))
-        graph.add(gtsam.PriorFactorVector(V(n0), np.asarray(res.v_G[0], float), gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
+        graph.add(gtsam.PriorFactorVector(V(n0), v_G[0], gtsam.noiseModel.Isotropic.Sigma(3, 0.1)))
         graph.add(gtsam.PriorFactorConstantBias(B(n0), bias, gtsam.noiseModel.Diagonal.Sigmas(
             np.array([c.bias_sigma_acc] * 3 + [c.bias_sigma_gyro] * 3))))
         poses = {kf.serial: gtsam.Pose3(T_G[k]) for k, kf in enumerate(self._kfs)}
@@ -614,9 +623,10 @@ def gauge_prior_model(R_GI: np.ndarray, tilt_sigma_rad: float, held_sigma: float
     return gtsam.noiseModel.Gaussian.Covariance(cov)
 
 
-def _anchored(T_G: np.ndarray, T_anchor: np.ndarray) -> np.ndarray:
+def _anchored(T_G: np.ndarray, T_anchor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``T_G`` (M, 4, 4) moved by the yaw and translation that put its first pose's position and
-    heading on ``T_anchor``'s (gravity stays -z)."""
+    heading on ``T_anchor``'s (gravity stays -z), and that yaw's rotation (3x3), which the
+    velocities in G take too."""
 
     def yaw(R: np.ndarray) -> float:
         return math.atan2(R[1, 0], R[0, 0])
@@ -626,4 +636,4 @@ def _anchored(T_G: np.ndarray, T_anchor: np.ndarray) -> np.ndarray:
     M = np.eye(4)
     M[:3, :3] = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     M[:3, 3] = T_anchor[:3, 3] - M[:3, :3] @ T_G[0, :3, 3]
-    return np.einsum("ij,njk->nik", M, T_G)
+    return np.einsum("ij,njk->nik", M, T_G), M[:3, :3]
