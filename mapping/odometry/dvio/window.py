@@ -361,13 +361,6 @@ class SlidingWindow:
         # A keyframe's step changes the window little: stop once the cost moves by < 0.1 %
         # (gtsam's default 1e-5 spends most iterations on digits no metric sees).
         lm_params.setRelativeErrorTol(1e-3)
-        # QR on the Jacobians, not Cholesky on the normal equations: a window's Hessian has a
-        # condition number of about 1e12 (the bias random walk over a 33-100 ms keyframe interval
-        # against the directions few landmarks hold), where Cholesky's pivots fail in double
-        # precision; the Jacobian's condition is its square root. The smoother, unlike gtsam's
-        # LM optimiser, does not retry with more damping: windows of 20-50 landmarks were lost as
-        # "indeterminate" (docs/dvio.md "Long walks").
-        lm_params.setLinearSolverType("MULTIFRONTAL_QR")
         self._smoother = gtsam.BatchFixedLagSmoother(c.window - 0.5, lm_params)
         graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), gtsam.FixedLagSmootherKeyTimestampMap()
         for k, kf in enumerate(self._kfs):
