@@ -6,6 +6,8 @@ bit for bit, and fewer casts (the counts the batching is for).
 
 from __future__ import annotations
 
+import dataclasses
+
 import mujoco
 import numpy as np
 
@@ -152,3 +154,47 @@ def test_rays_leaving_a_floor_and_panes_equal_mj_ray(monkeypatch):
     np.testing.assert_array_equal(r1, r0)
     np.testing.assert_array_equal(n1, n0)
     assert sum(judged) > 20
+
+
+def test_secondary_rays_use_the_primary_casts_proxies(monkeypatch):
+    """A sweep's secondary rays are tested against the proxies its primary cast built (one Embree
+    scene a sweep, not two) and the sensor's own body, which the primary rays exclude, in a compiled
+    slab loop: rays aimed at that body from around it hit it as ``mj_ray`` says, and a glazed
+    sweep equals the MuJoCo caster's."""
+    model, data, truth, T0 = _scene(**_GLAZED)
+    pose = _walking_at(T0, 0.68)
+    config = LidarConfig(caster="bvh", return_mode="strongest")
+    sensor = LidarSensor("lidar_trunk", config, model, 4)
+    built: list[int] = []
+    casters: list[object] = []
+    proxies_init, secondary = bvh_module.Proxies.__init__, cast_module.RayCaster.secondary
+
+    def counted_init(self, m, d, geoms):
+        built.append(len(geoms))
+        proxies_init(self, m, d, geoms)
+
+    def kept(self, m, d):
+        casters.append(secondary(self, m, d))
+        return casters[-1]
+
+    monkeypatch.setattr(bvh_module.Proxies, "__init__", counted_init)
+    monkeypatch.setattr(cast_module.RayCaster, "secondary", kept)
+    a = sensor.scan(model, data, pose, 0.0, truth)
+    assert len(built) == 1  # the primary cast's; the secondary batches (thousands of rays) reuse it
+    b = LidarSensor("lidar_trunk", dataclasses.replace(config, caster="mujoco"), model, 4).scan(model, data, pose, 0.0, truth)
+    for x, y in zip(_frame(a), _frame(b)):
+        np.testing.assert_array_equal(x, y)
+    # rays from around the sensor's own body towards its geoms (the primary proxies do not hold them)
+    own = sensor.caster._bvh_parts[1].own_others
+    assert len(own) > 0
+    rng = np.random.default_rng(7)
+    target = np.asarray(data.geom_xpos)[rng.choice(own, 600)] + rng.normal(scale=0.03, size=(600, 3))
+    start = target + rng.normal(size=(600, 3)) * 0.5
+    u = target - start
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    r0, g0, n0 = cast_rays(model, data, sensor.group, start, u)
+    r1, g1, n1 = casters[-1](start, u)
+    np.testing.assert_array_equal(g1, g0)
+    np.testing.assert_array_equal(r1, r0)
+    np.testing.assert_array_equal(n1, n0)
+    assert np.count_nonzero(np.isin(g0, own)) > 100  # the own body is hit

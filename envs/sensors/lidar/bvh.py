@@ -31,6 +31,7 @@ import numpy as np
 from .edges import TUBE_M, EdgeTubes
 from .kernels import (
     MJMINVAL,
+    boxes_before,
     exact_hits_into,
     face_hits_into,
     first_hits,
@@ -371,6 +372,7 @@ class Proxies:
         aabb = np.asarray(m.geom_aabb)[self.geom]  # type: ignore[attr-defined]
         pos = np.asarray(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
         mat = np.asarray(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
+        self.pos, self.mat = pos.copy(), mat.copy()  # the poses the boxes were built for (``posed_as``)
         g = len(self.geom)
         R = mat.reshape(-1, 3, 3)
         half = aabb[:, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
@@ -391,6 +393,11 @@ class Proxies:
             touch &= (lo[:, c, None] <= hi[None, :, c]) & (hi[:, c, None] >= lo[None, :, c])
         overlapping = touch.sum(axis=1) > 1
         self._lo, self._hi = lo[overlapping], hi[overlapping]
+
+    def posed_as(self, data: object) -> bool:
+        """Whether the geoms are posed in ``data`` as when the boxes were built."""
+        return bool(np.array_equal(np.asarray(data.geom_xpos)[self.geom], self.pos)  # type: ignore[attr-defined]
+                    and np.array_equal(np.asarray(data.geom_xmat)[self.geom], self.mat))  # type: ignore[attr-defined]
 
     def may_hit_before(
         self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int, rays: object | None = None
@@ -426,6 +433,28 @@ class Proxies:
         return out
 
 
+class FewBoxes:
+    """The proxy boxes of a few geoms (``geoms``, posed as in ``data``) tested in a compiled slab loop
+    (:func:`~exobench.envs.sensors.lidar.kernels.boxes_before`): for a dozen boxes this costs less than
+    building and committing an Embree scene. The same question as :meth:`Proxies.may_hit_before`, in
+    float64; a box is the geom's box 1 mm larger, far beyond the rounding of either."""
+
+    def __init__(self, model: object, data: object, geoms: np.ndarray) -> None:
+        self.geom = np.asarray(geoms, dtype=np.int64)
+        aabb = np.asarray(model.geom_aabb)[self.geom]  # type: ignore[attr-defined]
+        self.pos = np.ascontiguousarray(np.asarray(data.geom_xpos)[self.geom], dtype=float)  # type: ignore[attr-defined]
+        self.mat = np.ascontiguousarray(np.asarray(data.geom_xmat)[self.geom], dtype=float)  # type: ignore[attr-defined]
+        self.ctr = np.ascontiguousarray(aabb[:, :3], dtype=float)
+        self.half = np.ascontiguousarray(aabb[:, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M, dtype=float)
+
+    def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out`` (bool per ray, updated in place and returned) set for the rays that may reach one of
+        the geoms nearer than ``dist`` (-1: no hit) or start in a box."""
+        if len(self.geom) and len(o):
+            boxes_before(_f64(o), _f64(u), _f64(dist), self.pos, self.mat, self.ctr, self.half, out)
+        return out
+
+
 def _col_min_max(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per-column minimum and maximum of an (N, 3) array (a reduction over axis 0 of a narrow array
     is slow in numpy: it runs one short inner loop per row)."""
@@ -457,4 +486,4 @@ def _in_any_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return out
 
 
-__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "embree_rays", "exact_hits"]
+__all__ = ["MJMINVAL", "FewBoxes", "Proxies", "StaticBvh", "embree_rays", "exact_hits"]

@@ -372,6 +372,33 @@ def to_own_origins(gid, dist, nrm, dirs_w, o_cast, o_own):  # noqa: ANN001, ANN2
 
 
 @_jit
+def boxes_before(o, u, dist, pos, mat, ctr, half, out):  # noqa: ANN001, ANN201
+    """``out[i]`` set where ray i (origin ``o``, unit direction ``u``) meets one of the oriented boxes
+    (geom poses ``pos``, row-major ``mat``; box centre ``ctr`` and half sizes ``half`` in the geom's
+    frame) no farther than ``dist[i]`` (-1: no hit; a 1e-4 relative slack), or starts in one: a slab
+    test in float64 (``Proxies.may_hit_before``'s question without an Embree scene, for a few boxes)."""
+    for i in range(len(o)):
+        if out[i]:
+            continue
+        reach = np.inf if dist[i] < 0.0 else dist[i] + 1e-4 * (1.0 + abs(dist[i]))
+        for b in range(len(pos)):
+            d0, d1, d2 = o[i, 0] - pos[b, 0], o[i, 1] - pos[b, 1], o[i, 2] - pos[b, 2]
+            t_in, t_out = -np.inf, np.inf
+            for a in range(3):
+                lp = mat[b, a] * d0 + mat[b, 3 + a] * d1 + mat[b, 6 + a] * d2 - ctr[b, a]
+                lv = mat[b, a] * u[i, 0] + mat[b, 3 + a] * u[i, 1] + mat[b, 6 + a] * u[i, 2]
+                if lv == 0.0:
+                    if abs(lp) > half[b, a]:
+                        t_in, t_out = np.inf, -np.inf
+                    continue
+                t1, t2 = (-half[b, a] - lp) / lv, (half[b, a] - lp) / lv
+                t_in, t_out = max(t_in, min(t1, t2)), min(t_out, max(t1, t2))
+            if t_out >= max(t_in, 0.0) and t_in <= reach:
+                out[i] = True
+                break
+
+
+@_jit
 def returns(geom, path_m, cos_inc, gain, reflectivity, retro, u_drop, z, dirs_s, min_r, max_r, threshold, drop_p,
             rho_ref, r_ref, signal_level, noise_m, res_m, idx, signal, points, intensity):  # noqa: ANN001, ANN201
     """``LidarSensor.scan``'s returns in one pass over the beams: each beam with a surface (``geom``
