@@ -172,3 +172,22 @@ def test_hits_moved_to_the_rays_own_origins_equal_numpys():
     np.testing.assert_array_equal(g1, g0)
     np.testing.assert_array_equal(d1, d0)
     assert np.count_nonzero(grazing) > 500 and np.count_nonzero(r < 0.0) > 500 and len(fix) > 10000
+
+
+def test_take_rows_equals_fancy_indexing():
+    """``optics.take_rows`` (np.take along the rows, or one row repeated for a broadcast origin)
+    gives ``a[idx]``: the same values, shape, dtype and a fresh C-contiguous array."""
+    from exobench.envs.sensors.lidar.optics import take_rows
+
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(500, 3))
+    one = np.broadcast_to(np.array([1.5, -2.0, 0.25]), (500, 3))  # a sensor at rest: one origin
+    for idx in (np.sort(rng.choice(500, 300, replace=False)), rng.integers(0, 500, 50), np.zeros(0, dtype=np.int64)):
+        for src in (a, one, a[::-1]):
+            got = take_rows(src, idx)
+            want = src[idx]
+            assert got.shape == want.shape and got.dtype == want.dtype and got.flags.c_contiguous
+            np.testing.assert_array_equal(got, want)
+    got = take_rows(a, np.arange(10))
+    got[0, 0] = 99.0  # a copy, as fancy indexing gives
+    assert a[0, 0] != 99.0

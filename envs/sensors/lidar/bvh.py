@@ -446,12 +446,17 @@ class FewBoxes:
         self.mat = np.ascontiguousarray(np.asarray(data.geom_xmat)[self.geom], dtype=float)  # type: ignore[attr-defined]
         self.ctr = np.ascontiguousarray(aabb[:, :3], dtype=float)
         self.half = np.ascontiguousarray(aabb[:, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M, dtype=float)
+        # the world box around them all (their corners' bounds, 1 um to spare for the rounding)
+        corners = np.einsum("gij,gvj->gvi", self.mat.reshape(-1, 3, 3), self.ctr[:, None] + _BOX_VERTS[None] * self.half[:, None])
+        corners = corners + self.pos[:, None]
+        self.lo = corners.reshape(-1, 3).min(axis=0) - 1e-6 if len(self.geom) else np.zeros(3)
+        self.hi = corners.reshape(-1, 3).max(axis=0) + 1e-6 if len(self.geom) else np.zeros(3)
 
     def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``out`` (bool per ray, updated in place and returned) set for the rays that may reach one of
         the geoms nearer than ``dist`` (-1: no hit) or start in a box."""
         if len(self.geom) and len(o):
-            boxes_before(_f64(o), _f64(u), _f64(dist), self.pos, self.mat, self.ctr, self.half, out)
+            boxes_before(_f64(o), _f64(u), _f64(dist), self.pos, self.mat, self.ctr, self.half, self.lo, self.hi, out)
         return out
 
 

@@ -372,27 +372,39 @@ def to_own_origins(gid, dist, nrm, dirs_w, o_cast, o_own):  # noqa: ANN001, ANN2
 
 
 @_jit
-def boxes_before(o, u, dist, pos, mat, ctr, half, out):  # noqa: ANN001, ANN201
+def _slab(lp, lv, h, t_in, t_out):  # noqa: ANN001, ANN202
+    """The ray's interval (t_in, t_out) narrowed to the slab |x| <= h it crosses at lp + t lv."""
+    if lv == 0.0:
+        return (np.inf, -np.inf) if abs(lp) > h else (t_in, t_out)
+    t1, t2 = (-h - lp) / lv, (h - lp) / lv
+    return max(t_in, min(t1, t2)), min(t_out, max(t1, t2))
+
+
+@_jit
+def boxes_before(o, u, dist, pos, mat, ctr, half, lo, hi, out):  # noqa: ANN001, ANN201
     """``out[i]`` set where ray i (origin ``o``, unit direction ``u``) meets one of the oriented boxes
     (geom poses ``pos``, row-major ``mat``; box centre ``ctr`` and half sizes ``half`` in the geom's
     frame) no farther than ``dist[i]`` (-1: no hit; a 1e-4 relative slack), or starts in one: a slab
-    test in float64 (``Proxies.may_hit_before``'s question without an Embree scene, for a few boxes)."""
+    test in float64 (``Proxies.may_hit_before``'s question without an Embree scene, for a few boxes).
+    Rays that miss the world box ``[lo, hi]`` around them all, nearly all, are not tested further."""
+    c0, c1, c2 = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])
+    h0, h1, h2 = 0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), 0.5 * (hi[2] - lo[2])
     for i in range(len(o)):
         if out[i]:
             continue
         reach = np.inf if dist[i] < 0.0 else dist[i] + 1e-4 * (1.0 + abs(dist[i]))
+        t_in, t_out = _slab(o[i, 0] - c0, u[i, 0], h0, -np.inf, np.inf)
+        t_in, t_out = _slab(o[i, 1] - c1, u[i, 1], h1, t_in, t_out)
+        t_in, t_out = _slab(o[i, 2] - c2, u[i, 2], h2, t_in, t_out)
+        if not (t_out >= max(t_in, 0.0) and t_in <= reach):
+            continue
         for b in range(len(pos)):
             d0, d1, d2 = o[i, 0] - pos[b, 0], o[i, 1] - pos[b, 1], o[i, 2] - pos[b, 2]
             t_in, t_out = -np.inf, np.inf
             for a in range(3):
                 lp = mat[b, a] * d0 + mat[b, 3 + a] * d1 + mat[b, 6 + a] * d2 - ctr[b, a]
                 lv = mat[b, a] * u[i, 0] + mat[b, 3 + a] * u[i, 1] + mat[b, 6 + a] * u[i, 2]
-                if lv == 0.0:
-                    if abs(lp) > half[b, a]:
-                        t_in, t_out = np.inf, -np.inf
-                    continue
-                t1, t2 = (-half[b, a] - lp) / lv, (half[b, a] - lp) / lv
-                t_in, t_out = max(t_in, min(t1, t2)), min(t_out, max(t1, t2))
+                t_in, t_out = _slab(lp, lv, half[b, a], t_in, t_out)
             if t_out >= max(t_in, 0.0) and t_in <= reach:
                 out[i] = True
                 break
