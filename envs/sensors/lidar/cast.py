@@ -53,6 +53,7 @@ class BvhParts:
     rank: np.ndarray  # per geom, the order in which the primary-ray reference visits the geoms
     own: np.ndarray  # per BVH geom: on the sensor's own body (welded to the world), not hit by its beams
     own_others: np.ndarray  # of ``others``, those on the sensor's own body (the secondary rays' only extra ones)
+    curved: FewBoxes  # the static ones of ``others`` (curved geoms welded to the world), whose poses never change
 
 
 def build_bvh_parts(
@@ -89,7 +90,9 @@ def build_bvh_parts(
         rank = np.full(int(m.ngeom), len(full.geom_of))  # type: ignore[attr-defined]
         rank[full.geom_of] = np.arange(len(full.geom_of))
     own = np.asarray(m.geom_bodyid)[in_bvh] == body_exclude  # type: ignore[attr-defined]
-    return BvhParts(bvh, rest, rest_geoms, others, rank, own, np.setdiff1d(others, rest_geoms)), ""
+    static_others = others[np.asarray(m.body_weldid)[np.asarray(m.geom_bodyid)[others]] == 0]  # type: ignore[attr-defined]
+    curved = FewBoxes(m, data, static_others)
+    return BvhParts(bvh, rest, rest_geoms, others, rank, own, np.setdiff1d(others, rest_geoms), curved), ""
 
 
 class RayCaster:
@@ -297,8 +300,21 @@ class _SecondaryCast:
                 self.proxies = Proxies(model, data, self.parts.others)
             may = self.proxies.may_hit_before(o, d, r, self.k, rays=rays_f)
         near = np.flatnonzero(may)
-        if len(near):
-            r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
+        if len(near) == 0:
+            return r, gid, nrm
+        # those that may meet a static curved geom: mj_ray on every geom; the others, nearly all, on the
+        # moving geoms alone (flg_static 0: the bodies welded to the world, which the BVH holds, left
+        # out), the nearer hit kept, of equal ones the lower geom id (mj_ray's order): the same hits
+        curved = self.parts.curved.may_hit_before(o[near], d[near], r[near], np.zeros(len(near), dtype=bool))
+        full, moving = near[curved], near[~curved]
+        if len(full):
+            r[full], gid[full], nrm[full] = cast_rays(model, data, self.group, o[full], d[full])
+        if len(moving):
+            r2, g2, n2 = cast_rays(model, data, self.group, o[moving], d[moving], flg_static=0)
+            r1, g1 = r[moving], gid[moving]
+            take = (r2 >= 0.0) & (g2 >= 0) & ((r1 < 0.0) | (g1 < 0) | (r2 < r1) | ((r2 == r1) & (g2 < g1)))
+            w = moving[take]
+            r[w], gid[w], nrm[w] = r2[take], g2[take], n2[take]
         return r, gid, nrm
 
     def exit_m(self, o: np.ndarray, d: np.ndarray, geoms: np.ndarray) -> np.ndarray:

@@ -406,9 +406,10 @@ def take_rows(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
 
 
 def cast_rays(
-    model: object, data: object, geomgroup: np.ndarray, origins_w: np.ndarray, dirs_w: np.ndarray
+    model: object, data: object, geomgroup: np.ndarray, origins_w: np.ndarray, dirs_w: np.ndarray, flg_static: int = 1
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``mj_ray`` for rays of their own origins: (distance or -1, geom or -1, normal) per ray."""
+    """``mj_ray`` for rays of their own origins: (distance or -1, geom or -1, normal) per ray;
+    ``flg_static = 0``: the geoms of bodies welded to the world are left out."""
     import mujoco
 
     k = len(origins_w)
@@ -418,7 +419,7 @@ def cast_rays(
     gid = np.full(k, -1, dtype=np.int32)
     nrm = np.zeros((k, 3))
     for i in range(k):
-        r[i] = mujoco.mj_ray(model, data, o[i], d[i], geomgroup, 1, -1, gid[i : i + 1], nrm[i])
+        r[i] = mujoco.mj_ray(model, data, o[i], d[i], geomgroup, flg_static, -1, gid[i : i + 1], nrm[i])
     return r, gid.astype(np.int64), nrm
 
 
