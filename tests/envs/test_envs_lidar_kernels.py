@@ -191,3 +191,35 @@ def test_take_rows_equals_fancy_indexing():
     got = take_rows(a, np.arange(10))
     got[0, 0] = 99.0  # a copy, as fancy indexing gives
     assert a[0, 0] != 99.0
+
+
+def test_tube_rays_equal_the_numpy_construction():
+    """``kernels.tube_rays`` (``EdgeTubes.crossed``'s Embree rays in one pass) gives the rays the
+    numpy code built: each ray scaled to its reach or ``far_m`` (float32), then the probes from the
+    first ray of each run of equal origins; the same spans and runs."""
+    rng = np.random.default_rng(5)
+    n, far = 3000, 500.0
+    o = np.repeat(rng.normal(size=(40, 3)) * 20.0, rng.integers(1, 150, 40), axis=0)[:n]  # runs of equal origins
+    o[::7] += 1e-9  # and single rays
+    n = len(o)
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    reach = np.where(rng.random(n) < 0.2, np.inf, rng.uniform(0.0, 80.0, n))
+    probes = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0]]) / np.sqrt([[3.0], [2.0]]) * 1e-3
+    k = len(probes)
+    # the numpy construction it replaces
+    span0 = np.where(np.isfinite(reach), reach * (1.0 + 1e-6) + 1e-6, far)
+    run = np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
+    heads = o[run]
+    r0 = np.empty((n + k * len(heads), 6), dtype=np.float32)
+    r0[:n, :3], r0[:n, 3:] = o, u * span0[:, None]
+    r0[n:, :3] = np.repeat(heads, k, axis=0)
+    r0[n:, 3:] = np.tile(probes, (len(heads), 1))
+    span, run_of, head = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    r = np.empty((n + k * n, 6), dtype=np.float32)
+    m = kernels.tube_rays(o, u, reach, far, probes, span, run_of, head, r)
+    assert m == len(heads) > 40
+    np.testing.assert_array_equal(r[: n + k * m], r0)
+    np.testing.assert_array_equal(span, span0)
+    np.testing.assert_array_equal(run_of, np.cumsum(run) - 1)
+    np.testing.assert_array_equal(o[head[:m]], heads)

@@ -259,6 +259,31 @@ def seams(same_start, same_geom, opp_start, opp_geom, in_start, in_geom, pos, ma
 
 
 @_jit
+def tube_rays(o, u, reach, far_m, probes, span, run_of, head, r):  # noqa: ANN001, ANN201
+    """``EdgeTubes.crossed``'s Embree rays (float32, ``r``): each ray (``o``, ``u``) scaled to its
+    ``span`` (written: its ``reach`` with 1 um and float32's rounding to spare, ``far_m`` where the
+    reach is infinite), then the probes from the first ray of each run of equal origins (``head``:
+    that ray; ``run_of``: each ray's run), ``len(probes)`` rows each. Returns the number of runs."""
+    n, k = len(o), len(probes)
+    h = -1
+    for i in range(n):
+        s = reach[i] * (1.0 + 1e-6) + 1e-6 if np.isfinite(reach[i]) else far_m
+        span[i] = s
+        o0, o1, o2 = o[i, 0], o[i, 1], o[i, 2]
+        r[i, 0], r[i, 1], r[i, 2] = o0, o1, o2
+        r[i, 3], r[i, 4], r[i, 5] = u[i, 0] * s, u[i, 1] * s, u[i, 2] * s
+        if i == 0 or o0 != o[i - 1, 0] or o1 != o[i - 1, 1] or o2 != o[i - 1, 2]:
+            h += 1
+            head[h] = i
+            for j in range(k):
+                row = n + h * k + j
+                r[row, 0], r[row, 1], r[row, 2] = o0, o1, o2
+                r[row, 3], r[row, 4], r[row, 5] = probes[j, 0], probes[j, 1], probes[j, 2]
+        run_of[i] = h
+    return h + 1
+
+
+@_jit
 def tube_pairs(rows, splits, prim, t, span, owner, h_out, q_out):  # noqa: ANN001, ANN201
     """``EdgeTubes.crossed``'s (ray, geom) pairs from the listed intersections of the rays ``rows``
     (``splits``: CSR; ``prim``: triangle, 12 per tube; ``t``: distance): the owners of each tube
