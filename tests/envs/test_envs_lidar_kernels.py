@@ -223,3 +223,38 @@ def test_tube_rays_equal_the_numpy_construction():
     np.testing.assert_array_equal(span, span0)
     np.testing.assert_array_equal(run_of, np.cumsum(run) - 1)
     np.testing.assert_array_equal(o[head[:m]], heads)
+
+
+def test_beams_start_and_first_equal_the_numpy_code():
+    """``kernels.beams_start`` and ``beams_first`` (``optics.follow_beams``'s first passes) give what
+    the numpy code gave: hits, paths (NaN without a hit), hit points (the origin without one, also
+    from one broadcast origin), ``|n . u|`` as ``np.einsum`` sums it, and the beams meeting glass or
+    a mirror first, for every combination of the two switches."""
+    rng = np.random.default_rng(8)
+    n = 5000
+    geom_in = rng.integers(-1, 30, n).astype(np.int32)
+    dist = np.where(rng.random(n) < 0.1, -1.0, rng.uniform(0.0, 90.0, n))
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    kind = rng.integers(0, 4, 30).astype(np.int64)
+    for o in (rng.normal(size=(n, 3)) * 10.0, np.broadcast_to(np.array([0.3, -1.2, 0.9]), (n, 3))):
+        hit = (geom_in >= 0) & (dist >= 0.0)
+        geom0 = np.where(hit, geom_in, -1).astype(np.int64)
+        path0 = np.where(hit, dist, np.nan)
+        hit_w0 = o + np.where(hit, dist, 0.0)[:, None] * u
+        geom, path, hit_w = np.empty(n, dtype=np.int64), np.empty(n), np.empty((n, 3))
+        kernels.beams_start(geom_in, dist, o, u, geom, path, hit_w)
+        np.testing.assert_array_equal(geom, geom0)
+        np.testing.assert_array_equal(path, path0)
+        np.testing.assert_array_equal(hit_w, hit_w0)
+        first = kind[np.maximum(geom0, 0)]
+        for glass in (False, True):
+            for mirrors in (False, True):
+                cos_inc, sub = np.empty(n), np.empty(n, dtype=np.int64)
+                m = kernels.beams_first(geom, nrm, u, kind, 1, 2, glass, mirrors, cos_inc, sub)
+                want = np.flatnonzero(hit & (((first == 1) & glass) | ((first == 2) & mirrors)))
+                np.testing.assert_array_equal(sub[:m], want)
+                np.testing.assert_array_equal(cos_inc, np.abs(np.einsum("ij,ij->i", nrm, u)))
+                assert (m > 100) == (glass or mirrors)

@@ -436,6 +436,37 @@ def boxes_before(o, u, dist, pos, mat, ctr, half, lo, hi, out):  # noqa: ANN001,
 
 
 @_jit
+def beams_start(geom_in, dist, o, u, geom, path, hit_w):  # noqa: ANN001, ANN201
+    """``optics.follow_beams``'s primary hits: ``geom`` (-1 where none or ``dist`` < 0), ``path`` (NaN
+    where none) and ``hit_w = o + dist u`` (``o`` where none, as ``o + 0 u``), one pass."""
+    for i in range(len(geom_in)):
+        hit = geom_in[i] >= 0 and dist[i] >= 0.0
+        geom[i] = geom_in[i] if hit else -1
+        path[i] = dist[i] if hit else np.nan
+        w = dist[i] if hit else 0.0
+        hit_w[i, 0] = o[i, 0] + w * u[i, 0]
+        hit_w[i, 1] = o[i, 1] + w * u[i, 1]
+        hit_w[i, 2] = o[i, 2] + w * u[i, 2]
+
+
+@_jit
+def beams_first(geom, nrm, u, kind, glass_code, mirror_code, glass, mirrors, cos_inc, sub):  # noqa: ANN001, ANN201
+    """``optics.follow_beams``: ``cos_inc = |n . u|`` (summed as ``np.einsum("ij,ij->i")``: ``_dot3``) and
+    the beams whose hit is glass (``glass``) or a mirror (``mirrors``), ascending in ``sub``; returns
+    their count."""
+    m = 0
+    for i in range(len(geom)):
+        cos_inc[i] = abs(_dot3(nrm[i, 0], nrm[i, 1], nrm[i, 2], u[i, 0], u[i, 1], u[i, 2]))
+        g = geom[i]
+        if g >= 0:
+            k = kind[g]
+            if (k == glass_code and glass) or (k == mirror_code and mirrors):
+                sub[m] = i
+                m += 1
+    return m
+
+
+@_jit
 def returns(geom, path_m, cos_inc, gain, reflectivity, retro, u_drop, z, dirs_s, min_r, max_r, threshold, drop_p,
             rho_ref, r_ref, signal_level, noise_m, res_m, idx, signal, points, intensity):  # noqa: ANN001, ANN201
     """``LidarSensor.scan``'s returns in one pass over the beams: each beam with a surface (``geom``

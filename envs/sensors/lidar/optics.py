@@ -72,6 +72,7 @@ import numpy as np
 from exobench.core import ReturnKind, SceneTruth
 from exobench.models.materials import DEFAULT_MATERIAL, KINDS, LidarMaterial, material
 
+from .kernels import beams_first, beams_start
 from .pane_shape import PaneShapes
 
 KIND_CODE = {k: i for i, k in enumerate(KINDS)}  # diffuse 0, glass 1, mirror 2, retro 3
@@ -183,22 +184,20 @@ def follow_beams(
 
 
     n = len(geom)
-    geom = geom.astype(np.int64)  # a copy
-    hit = (geom >= 0) & (dist >= 0.0)
-    geom[~hit] = -1
-    path = np.where(hit, dist, np.nan)
-    hit_w = origins_w + np.where(hit, dist, 0.0)[:, None] * dirs_w
+    # the hits, and the beams that meet glass or a mirror first (only those can end anywhere but
+    # their primary hit), in two compiled passes over the sweep (kernels.beams_start, beams_first)
+    path, hit_w, g_in, geom = np.empty(n), np.empty((n, 3)), geom, np.empty(n, dtype=np.int64)
+    beams_start(g_in, np.ascontiguousarray(dist, dtype=float), origins_w, dirs_w, geom, path, hit_w)
     normals_w = _local_normals(optics, data, geom, hit_w, normals_w, u[:, 0] if u.shape[1] else None)
-    cos_inc = np.abs(np.einsum("ij,ij->i", normals_w, dirs_w))
+    cos_inc, sub = np.empty(n), np.empty(n, dtype=np.int64)
+    sub = sub[: beams_first(geom, normals_w, dirs_w, optics.kind, _GLASS, _MIRROR, bool(glass), bool(mirrors), cos_inc, sub)]
     via = np.full(n, -1, dtype=np.int64)
     gain = np.ones(n)
     kind = np.full(n, int(ReturnKind.GENUINE), dtype=np.int8)
-    first = optics.kind[np.maximum(geom, 0)]
-    # only beams that meet glass or a mirror first can end anywhere but their primary hit
-    sub = np.flatnonzero(hit & (((first == _GLASS) & glass) | ((first == _MIRROR) & mirrors)))
     if echo is not None and echo.mode != "sampled" and len(sub):
-        sp = sub[first[sub] == _GLASS]
-        sub = sub[first[sub] != _GLASS]
+        first = optics.kind[geom[sub]]
+        sp = sub[first == _GLASS]
+        sub = sub[first != _GLASS]
         if len(sp):
             res = _split_first(model, data, geomgroup, geom[sp], path[sp], take_rows(hit_w, sp), take_rows(dirs_w, sp),
                                take_rows(normals_w, sp), cos_inc[sp], optics, u[sp, 1:], echo, mirrors=mirrors,
