@@ -258,3 +258,28 @@ def test_beams_start_and_first_equal_the_numpy_code():
                 np.testing.assert_array_equal(sub[:m], want)
                 np.testing.assert_array_equal(cos_inc, np.abs(np.einsum("ij,ij->i", nrm, u)))
                 assert (m > 100) == (glass or mirrors)
+
+
+def test_proxy_hits_equal_the_numpy_code():
+    """``kernels.proxy_hits`` (``Proxies.may_hit_before``'s first test) flags what the numpy code
+    flagged: Embree's hit (float32) no farther than the static hit with its slack, or any hit
+    without one, or a first hit leaving its box (``n . u >= 0`` as ``np.einsum`` sums it)."""
+    rng = np.random.default_rng(9)
+    n, g = 20000, 30
+    t = np.where(rng.random(n) < 0.3, np.inf, rng.uniform(0.0, 20.0, n)).astype(np.float32)
+    dist = np.where(rng.random(n) < 0.2, -1.0, rng.uniform(0.0, 20.0, n))
+    dist[:500] = t[:500].astype(float) * (1.0 - 1e-4)  # at the slack's edge
+    prim = rng.integers(0, 12 * g, n).astype(np.uint32)
+    out_w = rng.normal(size=(g, 12, 3))
+    u = rng.normal(size=(n, 3))
+    u[:300] = 0.0  # n . u = 0 exactly
+    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-300)[:, None]
+    tt = t.astype(float)
+    want = np.isfinite(tt) & ((dist < 0) | (tt <= dist + 1e-4 * (1.0 + np.abs(dist))))
+    rows = np.flatnonzero(np.isfinite(tt) & ~want)
+    k, tri = prim[rows].astype(np.int64) // 12, prim[rows].astype(np.int64) % 12
+    want[rows] = np.einsum("ij,ij->i", out_w[k, tri], u[rows]) >= 0.0
+    got = np.empty(n, dtype=bool)
+    kernels.proxy_hits(t, prim, out_w, u, dist, got)
+    np.testing.assert_array_equal(got, want)
+    assert 1000 < len(rows) and 0 < np.count_nonzero(want[rows]) < len(rows)

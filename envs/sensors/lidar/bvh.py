@@ -37,6 +37,7 @@ from .kernels import (
     first_hits,
     nearest_listed,
     odd_crossings,
+    proxy_hits,
     seams,
 )
 
@@ -407,15 +408,10 @@ class Proxies:
         if self.scene is None or len(o) == 0:
             return np.zeros(len(o), dtype=bool)
         ans = self.scene.cast_rays(embree_rays(o, u) if rays is None else rays, nthreads=nthreads)
-        t = ans["t_hit"].numpy().astype(float)
-        slack = 1e-4 * (1.0 + np.abs(dist))
-        out = np.isfinite(t) & ((dist < 0) | (t <= dist + slack))
-        # a first hit leaving its box: the ray starts inside a proxy and may meet its geom at once
-        rows = np.flatnonzero(np.isfinite(t) & ~out)
-        if len(rows):
-            prim = ans["primitive_ids"].numpy().astype(np.int64)[rows]
-            k, tri = prim // 12, prim % 12
-            out[rows] = np.einsum("ij,ij->i", self._out_w[k, tri], u[rows]) >= 0.0
+        # a hit before ``dist``, or a first hit leaving its box: the ray starts inside a proxy and
+        # may meet its geom at once (one compiled pass)
+        out = np.empty(len(o), dtype=bool)
+        proxy_hits(ans["t_hit"].numpy(), ans["primitive_ids"].numpy(), self._out_w, _f64(u), _f64(dist), out)
         # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
         if len(self._lo) == 0:
             return out

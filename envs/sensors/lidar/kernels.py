@@ -397,6 +397,24 @@ def to_own_origins(gid, dist, nrm, dirs_w, o_cast, o_own):  # noqa: ANN001, ANN2
 
 
 @_jit
+def proxy_hits(t, prim, out_w, u, dist, out):  # noqa: ANN001, ANN201
+    """``Proxies.may_hit_before``'s first test from Embree's first hits on the proxy boxes (``t``:
+    float32 distance, inf none; ``prim``: triangle, 12 per box; ``out_w``: each box triangle's
+    outward normal): ``out[i]`` where ray i meets a box no farther than ``dist[i]`` (-1: no hit; a
+    1e-4 relative slack), or first meets one leaving it (it starts inside: ``n . u >= 0``, summed as
+    ``np.einsum`` sums it)."""
+    for i in range(len(t)):
+        ti = np.float64(t[i])
+        if not np.isfinite(ti):
+            out[i] = False
+        elif dist[i] < 0 or ti <= dist[i] + 1e-4 * (1.0 + abs(dist[i])):
+            out[i] = True
+        else:
+            k, tri = prim[i] // 12, prim[i] % 12
+            out[i] = _dot3(out_w[k, tri, 0], out_w[k, tri, 1], out_w[k, tri, 2], u[i, 0], u[i, 1], u[i, 2]) >= 0.0
+
+
+@_jit
 def _slab(lp, lv, h, t_in, t_out):  # noqa: ANN001, ANN202
     """The ray's interval (t_in, t_out) narrowed to the slab |x| <= h it crosses at lp + t lv."""
     if lv == 0.0:
