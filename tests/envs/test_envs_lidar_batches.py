@@ -6,6 +6,8 @@ bit for bit, and fewer casts (the counts the batching is for).
 
 from __future__ import annotations
 
+import dataclasses
+
 import mujoco
 import numpy as np
 
@@ -152,3 +154,103 @@ def test_rays_leaving_a_floor_and_panes_equal_mj_ray(monkeypatch):
     np.testing.assert_array_equal(r1, r0)
     np.testing.assert_array_equal(n1, n0)
     assert sum(judged) > 20
+
+
+def test_secondary_rays_use_the_primary_casts_proxies(monkeypatch):
+    """A sweep's secondary rays are tested against the proxies its primary cast built (one Embree
+    scene a sweep, not two) and the sensor's own body, which the primary rays exclude, in a compiled
+    slab loop: rays aimed at that body from around it hit it as ``mj_ray`` says, and a glazed
+    sweep equals the MuJoCo caster's."""
+    model, data, truth, T0 = _scene(**_GLAZED)
+    pose = _walking_at(T0, 0.68)
+    config = LidarConfig(caster="bvh", return_mode="strongest")
+    sensor = LidarSensor("lidar_trunk", config, model, 4)
+    built: list[int] = []
+    casters: list[object] = []
+    proxies_init, secondary = bvh_module.Proxies.__init__, cast_module.RayCaster.secondary
+
+    def counted_init(self, m, d, geoms):
+        built.append(len(geoms))
+        proxies_init(self, m, d, geoms)
+
+    def kept(self, m, d):
+        inner = secondary(self, m, d)
+        if self is sensor.caster:
+            casters.append(inner)
+        return inner
+
+    monkeypatch.setattr(bvh_module.Proxies, "__init__", counted_init)
+    monkeypatch.setattr(cast_module.RayCaster, "secondary", kept)
+    a = sensor.scan(model, data, pose, 0.0, truth)
+    assert len(built) == 1  # the primary cast's; the secondary batches (thousands of rays) reuse it
+    b = LidarSensor("lidar_trunk", dataclasses.replace(config, caster="mujoco"), model, 4).scan(model, data, pose, 0.0, truth)
+    for x, y in zip(_frame(a), _frame(b)):
+        np.testing.assert_array_equal(x, y)
+    # rays from around the sensor's own body towards its geoms (the primary proxies do not hold them)
+    own = sensor.caster._bvh_parts[1].own_others
+    assert len(own) > 0
+    rng = np.random.default_rng(7)
+    target = np.asarray(data.geom_xpos)[rng.choice(own, 600)] + rng.normal(scale=0.03, size=(600, 3))
+    start = target + rng.normal(size=(600, 3)) * 0.5
+    u = target - start
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    r0, g0, n0 = cast_rays(model, data, sensor.group, start, u)
+    r1, g1, n1 = casters[-1](start, u)
+    np.testing.assert_array_equal(g1, g0)
+    np.testing.assert_array_equal(r1, r0)
+    np.testing.assert_array_equal(n1, n0)
+    assert np.count_nonzero(np.isin(g0, own)) > 100  # the own body is hit
+
+
+def test_secondary_rays_near_moving_geoms_cast_on_them_alone(monkeypatch):
+    """Secondary rays that may meet a moving geom (the user's legs) but no static curved one are cast
+    by ``mj_ray`` on the moving geoms alone (``flg_static`` 0), the nearer of that and the BVH's static
+    hit kept; those that may meet a static curved geom by ``mj_ray`` on every geom. Rays aimed at the
+    legs, at static curved geoms and at both from around them hit what ``mj_ray`` says, and a glazed
+    sweep between the thighs equals the MuJoCo caster's."""
+    model, data, truth, T0 = _scene(**_GLAZED)
+    pose = _walking_at(T0, 0.68)
+    config = LidarConfig(caster="bvh", return_mode="strongest")
+    sensor = LidarSensor("lidar_trunk", config, model, 6)
+    moving_only: list[int] = []
+    every: list[int] = []
+    casters: list[object] = []
+    ray_cast, secondary = cast_module.cast_rays, cast_module.RayCaster.secondary
+
+    def counted(m, d, g, o, u, flg_static=1):
+        (every if flg_static else moving_only).append(len(o))
+        return ray_cast(m, d, g, o, u, flg_static=flg_static)
+
+    def kept(self, m, d):
+        inner = secondary(self, m, d)
+        if self is sensor.caster:
+            casters.append(inner)
+        return inner
+
+    monkeypatch.setattr(cast_module, "cast_rays", counted)
+    monkeypatch.setattr(cast_module.RayCaster, "secondary", kept)
+    a = sensor.scan(model, data, pose, 0.0, truth)
+    b = LidarSensor("lidar_trunk", dataclasses.replace(config, caster="mujoco"), model, 6).scan(model, data, pose, 0.0, truth)
+    for x, y in zip(_frame(a), _frame(b)):
+        np.testing.assert_array_equal(x, y)
+    assert sum(moving_only) > 100  # the secondary rays near the legs
+    # rays from around moving and static curved geoms towards them, in one batch (beyond mj_ray's small batches)
+    parts = sensor.caster._bvh_parts[1]
+    curved = parts.curved.geom
+    moving = np.setdiff1d(parts.others, curved)
+    assert len(curved) > 0 and len(moving) > 0
+    rng = np.random.default_rng(11)
+    geoms = np.concatenate([rng.choice(moving, 400), rng.choice(curved, 400)])
+    target = np.asarray(data.geom_xpos)[geoms] + rng.normal(scale=0.02, size=(800, 3))
+    start = target + rng.normal(size=(800, 3)) * 0.6
+    u = target - start
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    r0, g0, n0 = ray_cast(model, data, sensor.group, start, u)
+    moving_only.clear()
+    every.clear()
+    r1, g1, n1 = casters[-1](start, u)
+    np.testing.assert_array_equal(g1, g0)
+    np.testing.assert_array_equal(r1, r0)
+    np.testing.assert_array_equal(n1, n0)
+    assert np.count_nonzero(np.isin(g0, moving)) > 100 and np.count_nonzero(np.isin(g0, curved)) > 100
+    assert sum(moving_only) > 100 and sum(every) > 100

@@ -90,9 +90,9 @@ def test_secondary_rays_are_cast_in_batches_and_equal_mj_ray(monkeypatch):
     r0, g0, n0 = cast_rays(model, data, group, o, d)
     sent = []
 
-    def counting(m, dd, gg, oo, uu):
+    def counting(m, dd, gg, oo, uu, flg_static=1):
         sent.append(len(oo))
-        return cast_rays(m, dd, gg, oo, uu)
+        return cast_rays(m, dd, gg, oo, uu, flg_static=flg_static)
 
     monkeypatch.setattr(cast_module, "cast_rays", counting)
     sensor = LidarSensor("lidar_trunk", LidarConfig(caster="bvh"), model, 0)

@@ -172,3 +172,114 @@ def test_hits_moved_to_the_rays_own_origins_equal_numpys():
     np.testing.assert_array_equal(g1, g0)
     np.testing.assert_array_equal(d1, d0)
     assert np.count_nonzero(grazing) > 500 and np.count_nonzero(r < 0.0) > 500 and len(fix) > 10000
+
+
+def test_take_rows_equals_fancy_indexing():
+    """``optics.take_rows`` (np.take along the rows, or one row repeated for a broadcast origin)
+    gives ``a[idx]``: the same values, shape, dtype and a fresh C-contiguous array."""
+    from exobench.envs.sensors.lidar.optics import take_rows
+
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(500, 3))
+    one = np.broadcast_to(np.array([1.5, -2.0, 0.25]), (500, 3))  # a sensor at rest: one origin
+    for idx in (np.sort(rng.choice(500, 300, replace=False)), rng.integers(0, 500, 50), np.zeros(0, dtype=np.int64)):
+        for src in (a, one, a[::-1]):
+            got = take_rows(src, idx)
+            want = src[idx]
+            assert got.shape == want.shape and got.dtype == want.dtype and got.flags.c_contiguous
+            np.testing.assert_array_equal(got, want)
+    got = take_rows(a, np.arange(10))
+    got[0, 0] = 99.0  # a copy, as fancy indexing gives
+    assert a[0, 0] != 99.0
+
+
+def test_tube_rays_equal_the_numpy_construction():
+    """``kernels.tube_rays`` (``EdgeTubes.crossed``'s Embree rays in one pass) gives the rays the
+    numpy code built: each ray scaled to its reach or ``far_m`` (float32), then the probes from the
+    first ray of each run of equal origins; the same spans and runs."""
+    rng = np.random.default_rng(5)
+    n, far = 3000, 500.0
+    o = np.repeat(rng.normal(size=(40, 3)) * 20.0, rng.integers(1, 150, 40), axis=0)[:n]  # runs of equal origins
+    o[::7] += 1e-9  # and single rays
+    n = len(o)
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    reach = np.where(rng.random(n) < 0.2, np.inf, rng.uniform(0.0, 80.0, n))
+    probes = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0]]) / np.sqrt([[3.0], [2.0]]) * 1e-3
+    k = len(probes)
+    # the numpy construction it replaces
+    span0 = np.where(np.isfinite(reach), reach * (1.0 + 1e-6) + 1e-6, far)
+    run = np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
+    heads = o[run]
+    r0 = np.empty((n + k * len(heads), 6), dtype=np.float32)
+    r0[:n, :3], r0[:n, 3:] = o, u * span0[:, None]
+    r0[n:, :3] = np.repeat(heads, k, axis=0)
+    r0[n:, 3:] = np.tile(probes, (len(heads), 1))
+    span, run_of, head = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+    r = np.empty((n + k * n, 6), dtype=np.float32)
+    m = kernels.tube_rays(o, u, reach, far, probes, span, run_of, head, r)
+    assert m == len(heads) > 40
+    np.testing.assert_array_equal(r[: n + k * m], r0)
+    np.testing.assert_array_equal(span, span0)
+    np.testing.assert_array_equal(run_of, np.cumsum(run) - 1)
+    np.testing.assert_array_equal(o[head[:m]], heads)
+
+
+def test_beams_start_and_first_equal_the_numpy_code():
+    """``kernels.beams_start`` and ``beams_first`` (``optics.follow_beams``'s first passes) give what
+    the numpy code gave: hits, paths (NaN without a hit), hit points (the origin without one, also
+    from one broadcast origin), ``|n . u|`` as ``np.einsum`` sums it, and the beams meeting glass or
+    a mirror first, for every combination of the two switches."""
+    rng = np.random.default_rng(8)
+    n = 5000
+    geom_in = rng.integers(-1, 30, n).astype(np.int32)
+    dist = np.where(rng.random(n) < 0.1, -1.0, rng.uniform(0.0, 90.0, n))
+    u = rng.normal(size=(n, 3))
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    nrm = rng.normal(size=(n, 3))
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    kind = rng.integers(0, 4, 30).astype(np.int64)
+    for o in (rng.normal(size=(n, 3)) * 10.0, np.broadcast_to(np.array([0.3, -1.2, 0.9]), (n, 3))):
+        hit = (geom_in >= 0) & (dist >= 0.0)
+        geom0 = np.where(hit, geom_in, -1).astype(np.int64)
+        path0 = np.where(hit, dist, np.nan)
+        hit_w0 = o + np.where(hit, dist, 0.0)[:, None] * u
+        geom, path, hit_w = np.empty(n, dtype=np.int64), np.empty(n), np.empty((n, 3))
+        kernels.beams_start(geom_in, dist, o, u, geom, path, hit_w)
+        np.testing.assert_array_equal(geom, geom0)
+        np.testing.assert_array_equal(path, path0)
+        np.testing.assert_array_equal(hit_w, hit_w0)
+        first = kind[np.maximum(geom0, 0)]
+        for glass in (False, True):
+            for mirrors in (False, True):
+                cos_inc, sub = np.empty(n), np.empty(n, dtype=np.int64)
+                m = kernels.beams_first(geom, nrm, u, kind, 1, 2, glass, mirrors, cos_inc, sub)
+                want = np.flatnonzero(hit & (((first == 1) & glass) | ((first == 2) & mirrors)))
+                np.testing.assert_array_equal(sub[:m], want)
+                np.testing.assert_array_equal(cos_inc, np.abs(np.einsum("ij,ij->i", nrm, u)))
+                assert (m > 100) == (glass or mirrors)
+
+
+def test_proxy_hits_equal_the_numpy_code():
+    """``kernels.proxy_hits`` (``Proxies.may_hit_before``'s first test) flags what the numpy code
+    flagged: Embree's hit (float32) no farther than the static hit with its slack, or any hit
+    without one, or a first hit leaving its box (``n . u >= 0`` as ``np.einsum`` sums it)."""
+    rng = np.random.default_rng(9)
+    n, g = 20000, 30
+    t = np.where(rng.random(n) < 0.3, np.inf, rng.uniform(0.0, 20.0, n)).astype(np.float32)
+    dist = np.where(rng.random(n) < 0.2, -1.0, rng.uniform(0.0, 20.0, n))
+    dist[:500] = t[:500].astype(float) * (1.0 - 1e-4)  # at the slack's edge
+    prim = rng.integers(0, 12 * g, n).astype(np.uint32)
+    out_w = rng.normal(size=(g, 12, 3))
+    u = rng.normal(size=(n, 3))
+    u[:300] = 0.0  # n . u = 0 exactly
+    u /= np.maximum(np.linalg.norm(u, axis=1), 1e-300)[:, None]
+    tt = t.astype(float)
+    want = np.isfinite(tt) & ((dist < 0) | (tt <= dist + 1e-4 * (1.0 + np.abs(dist))))
+    rows = np.flatnonzero(np.isfinite(tt) & ~want)
+    k, tri = prim[rows].astype(np.int64) // 12, prim[rows].astype(np.int64) % 12
+    want[rows] = np.einsum("ij,ij->i", out_w[k, tri], u[rows]) >= 0.0
+    got = np.empty(n, dtype=bool)
+    kernels.proxy_hits(t, prim, out_w, u, dist, got)
+    np.testing.assert_array_equal(got, want)
+    assert 1000 < len(rows) and 0 < np.count_nonzero(want[rows]) < len(rows)

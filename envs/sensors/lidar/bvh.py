@@ -31,11 +31,13 @@ import numpy as np
 from .edges import TUBE_M, EdgeTubes
 from .kernels import (
     MJMINVAL,
+    boxes_before,
     exact_hits_into,
     face_hits_into,
     first_hits,
     nearest_listed,
     odd_crossings,
+    proxy_hits,
     seams,
 )
 
@@ -371,6 +373,7 @@ class Proxies:
         aabb = np.asarray(m.geom_aabb)[self.geom]  # type: ignore[attr-defined]
         pos = np.asarray(data.geom_xpos)[self.geom]  # type: ignore[attr-defined]
         mat = np.asarray(data.geom_xmat)[self.geom]  # type: ignore[attr-defined]
+        self.pos, self.mat = pos.copy(), mat.copy()  # the poses the boxes were built for (``posed_as``)
         g = len(self.geom)
         R = mat.reshape(-1, 3, 3)
         half = aabb[:, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M
@@ -392,6 +395,11 @@ class Proxies:
         overlapping = touch.sum(axis=1) > 1
         self._lo, self._hi = lo[overlapping], hi[overlapping]
 
+    def posed_as(self, data: object) -> bool:
+        """Whether the geoms are posed in ``data`` as when the boxes were built."""
+        return bool(np.array_equal(np.asarray(data.geom_xpos)[self.geom], self.pos)  # type: ignore[attr-defined]
+                    and np.array_equal(np.asarray(data.geom_xmat)[self.geom], self.mat))  # type: ignore[attr-defined]
+
     def may_hit_before(
         self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, nthreads: int, rays: object | None = None
     ) -> np.ndarray:
@@ -400,15 +408,10 @@ class Proxies:
         if self.scene is None or len(o) == 0:
             return np.zeros(len(o), dtype=bool)
         ans = self.scene.cast_rays(embree_rays(o, u) if rays is None else rays, nthreads=nthreads)
-        t = ans["t_hit"].numpy().astype(float)
-        slack = 1e-4 * (1.0 + np.abs(dist))
-        out = np.isfinite(t) & ((dist < 0) | (t <= dist + slack))
-        # a first hit leaving its box: the ray starts inside a proxy and may meet its geom at once
-        rows = np.flatnonzero(np.isfinite(t) & ~out)
-        if len(rows):
-            prim = ans["primitive_ids"].numpy().astype(np.int64)[rows]
-            k, tri = prim // 12, prim % 12
-            out[rows] = np.einsum("ij,ij->i", self._out_w[k, tri], u[rows]) >= 0.0
+        # a hit before ``dist``, or a first hit leaving its box: the ray starts inside a proxy and
+        # may meet its geom at once (one compiled pass)
+        out = np.empty(len(o), dtype=bool)
+        proxy_hits(ans["t_hit"].numpy(), ans["primitive_ids"].numpy(), self._out_w, _f64(u), _f64(dist), out)
         # proxies overlap (the exoskeleton's): a ray starting inside one may first enter another
         if len(self._lo) == 0:
             return out
@@ -423,6 +426,33 @@ class Proxies:
             run = np.append(True, _rows_differ(on))
             inside = _in_any_box(on[run], self._lo, self._hi)
             out[near] = inside[np.cumsum(run) - 1]
+        return out
+
+
+class FewBoxes:
+    """The proxy boxes of a few geoms (``geoms``, posed as in ``data``) tested in a compiled slab loop
+    (:func:`~exobench.envs.sensors.lidar.kernels.boxes_before`): for a dozen boxes this costs less than
+    building and committing an Embree scene. The same question as :meth:`Proxies.may_hit_before`, in
+    float64; a box is the geom's box 1 mm larger, far beyond the rounding of either."""
+
+    def __init__(self, model: object, data: object, geoms: np.ndarray) -> None:
+        self.geom = np.asarray(geoms, dtype=np.int64)
+        aabb = np.asarray(model.geom_aabb)[self.geom]  # type: ignore[attr-defined]
+        self.pos = np.ascontiguousarray(np.asarray(data.geom_xpos)[self.geom], dtype=float)  # type: ignore[attr-defined]
+        self.mat = np.ascontiguousarray(np.asarray(data.geom_xmat)[self.geom], dtype=float)  # type: ignore[attr-defined]
+        self.ctr = np.ascontiguousarray(aabb[:, :3], dtype=float)
+        self.half = np.ascontiguousarray(aabb[:, 3:] * (1.0 + 1e-6) + _PROXY_MARGIN_M, dtype=float)
+        # the world box around them all (their corners' bounds, 1 um to spare for the rounding)
+        corners = np.einsum("gij,gvj->gvi", self.mat.reshape(-1, 3, 3), self.ctr[:, None] + _BOX_VERTS[None] * self.half[:, None])
+        corners = corners + self.pos[:, None]
+        self.lo = corners.reshape(-1, 3).min(axis=0) - 1e-6 if len(self.geom) else np.zeros(3)
+        self.hi = corners.reshape(-1, 3).max(axis=0) + 1e-6 if len(self.geom) else np.zeros(3)
+
+    def may_hit_before(self, o: np.ndarray, u: np.ndarray, dist: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out`` (bool per ray, updated in place and returned) set for the rays that may reach one of
+        the geoms nearer than ``dist`` (-1: no hit) or start in a box."""
+        if len(self.geom) and len(o):
+            boxes_before(_f64(o), _f64(u), _f64(dist), self.pos, self.mat, self.ctr, self.half, self.lo, self.hi, out)
         return out
 
 
@@ -457,4 +487,4 @@ def _in_any_box(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return out
 
 
-__all__ = ["MJMINVAL", "Proxies", "StaticBvh", "embree_rays", "exact_hits"]
+__all__ = ["MJMINVAL", "FewBoxes", "Proxies", "StaticBvh", "embree_rays", "exact_hits"]

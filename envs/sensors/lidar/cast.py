@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bvh import Proxies, StaticBvh, embree_rays
+from .bvh import FewBoxes, Proxies, StaticBvh, embree_rays
 from .config import LidarConfig
 from .kernels import to_own_origins
 from .optics import RayCastFn, cast_rays
@@ -52,6 +52,8 @@ class BvhParts:
     others: np.ndarray
     rank: np.ndarray  # per geom, the order in which the primary-ray reference visits the geoms
     own: np.ndarray  # per BVH geom: on the sensor's own body (welded to the world), not hit by its beams
+    own_others: np.ndarray  # of ``others``, those on the sensor's own body (the secondary rays' only extra ones)
+    curved: FewBoxes  # the static ones of ``others`` (curved geoms welded to the world), whose poses never change
 
 
 def build_bvh_parts(
@@ -88,7 +90,9 @@ def build_bvh_parts(
         rank = np.full(int(m.ngeom), len(full.geom_of))  # type: ignore[attr-defined]
         rank[full.geom_of] = np.arange(len(full.geom_of))
     own = np.asarray(m.geom_bodyid)[in_bvh] == body_exclude  # type: ignore[attr-defined]
-    return BvhParts(bvh, rest, rest_geoms, others, rank, own), ""
+    static_others = others[np.asarray(m.body_weldid)[np.asarray(m.geom_bodyid)[others]] == 0]  # type: ignore[attr-defined]
+    curved = FewBoxes(m, data, static_others)
+    return BvhParts(bvh, rest, rest_geoms, others, rank, own, np.setdiff1d(others, rest_geoms), curved), ""
 
 
 class RayCaster:
@@ -99,6 +103,8 @@ class RayCaster:
         self._scratch: tuple[object, list[object]] | None = None
         self._ray_scene: tuple[object, RayScene | None] | None = None
         self._bvh_parts: tuple[object, BvhParts | None] | None = None
+        # the proxies of the last primary cast, for that sweep's secondary rays (``secondary``)
+        self._proxies: tuple[object, object, Proxies] | None = None
         self.fallback: str | None = None  # why the BVH caster fell back to MuJoCo's, once it did
 
     def cast(
@@ -131,6 +137,7 @@ class RayCaster:
             if parts.rest is not None:
                 # only the rays that may meet a moving or curved geom before the static hit
                 proxies = Proxies(model, data, parts.rest_geoms)
+                self._proxies = (model, data, proxies)
                 need = np.flatnonzero(proxies.may_hit_before(o_ray, dirs_w, dist, k, rays=rays_f))
                 first = np.searchsorted(need, starts)
                 last = np.append(first[1:], len(need))
@@ -211,7 +218,11 @@ class RayCaster:
         parts = self._bvh(model, data)
         if parts is None:
             return lambda o, d: cast_rays(model, data, self.group, o, d)
-        return _SecondaryCast(model, data, self.group, parts, self._n_threads(model))
+        # the primary cast's proxies, where the geoms have not moved since: building and committing an
+        # Embree scene costs more than its casts of a sweep's secondary rays
+        shared, self._proxies = self._proxies, None
+        ok = shared is not None and shared[0] is model and shared[1] is data and shared[2].posed_as(data)
+        return _SecondaryCast(model, data, self.group, parts, self._n_threads(model), shared[2] if ok else None)
 
     def _bvh(self, model: object, data: object) -> BvhParts | None:
         """The BVH caster's parts for ``model`` (built on first use); None when casting with MuJoCo."""
@@ -259,26 +270,51 @@ class RayCaster:
 class _SecondaryCast:
     """A sweep's secondary rays by the BVH caster (:meth:`RayCaster.secondary`), a batch per call."""
 
-    def __init__(self, model: object, data: object, group: np.ndarray, parts: BvhParts, nthreads: int) -> None:
+    def __init__(self, model: object, data: object, group: np.ndarray, parts: BvhParts, nthreads: int,
+                 primary: Proxies | None = None) -> None:  # fmt: skip
         self.model, self.data, self.group, self.parts, self.k = model, data, group, parts, nthreads
         self.small = _MJ_RAY_GEOM_RAYS // max(1, int(model.ngeom))  # type: ignore[attr-defined]
-        self.proxies: Proxies | None = None  # built at the sweep's first batch (most sweeps have none)
+        # ``primary``: the primary cast's proxies (every geom of ``others`` but the sensor's own body's,
+        # whose few boxes are tested in a compiled loop); else all proxies, built at the sweep's first
+        # batch (most sweeps have none)
+        self.primary = primary
+        self.proxies: Proxies | None = None
+        self.own: FewBoxes | None = None
 
     def __call__(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         model, data = self.model, self.data
         if len(o) <= self.small:  # a few rays: mj_ray (the reference) costs less than a batch's set-up
             return cast_rays(model, data, self.group, o, d)
-        if self.proxies is None:
-            self.proxies = Proxies(model, data, self.parts.others)
         o = np.ascontiguousarray(o, dtype=float)
         d = np.ascontiguousarray(d, dtype=float)
         rays_f = embree_rays(o, d)
         gid, r, nrm = self.parts.static.cast(o, d, self.k, inside=True, rays=rays_f)
         gid = gid.astype(np.int64)
         # the few rays that may meet a moving or curved geom first: exactly as the reference
-        near = np.flatnonzero(self.proxies.may_hit_before(o, d, r, self.k, rays=rays_f))
-        if len(near):
-            r[near], gid[near], nrm[near] = cast_rays(model, data, self.group, o[near], d[near])
+        if self.primary is not None:
+            if self.own is None:
+                self.own = FewBoxes(model, data, self.parts.own_others)
+            may = self.own.may_hit_before(o, d, r, self.primary.may_hit_before(o, d, r, self.k, rays=rays_f))
+        else:
+            if self.proxies is None:
+                self.proxies = Proxies(model, data, self.parts.others)
+            may = self.proxies.may_hit_before(o, d, r, self.k, rays=rays_f)
+        near = np.flatnonzero(may)
+        if len(near) == 0:
+            return r, gid, nrm
+        # those that may meet a static curved geom: mj_ray on every geom; the others, nearly all, on the
+        # moving geoms alone (flg_static 0: the bodies welded to the world, which the BVH holds, left
+        # out), the nearer hit kept, of equal ones the lower geom id (mj_ray's order): the same hits
+        curved = self.parts.curved.may_hit_before(o[near], d[near], r[near], np.zeros(len(near), dtype=bool))
+        full, moving = near[curved], near[~curved]
+        if len(full):
+            r[full], gid[full], nrm[full] = cast_rays(model, data, self.group, o[full], d[full])
+        if len(moving):
+            r2, g2, n2 = cast_rays(model, data, self.group, o[moving], d[moving], flg_static=0)
+            r1, g1 = r[moving], gid[moving]
+            take = (r2 >= 0.0) & (g2 >= 0) & ((r1 < 0.0) | (g1 < 0) | (r2 < r1) | ((r2 == r1) & (g2 < g1)))
+            w = moving[take]
+            r[w], gid[w], nrm[w] = r2[take], g2[take], n2[take]
         return r, gid, nrm
 
     def exit_m(self, o: np.ndarray, d: np.ndarray, geoms: np.ndarray) -> np.ndarray:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .kernels import tube_pairs
+from .kernels import tube_pairs, tube_rays
 
 TUBE_M = 1e-4  # half-width of an edge's tube: about 25 times float32's rounding at 100 m from the origin
 _UNIT = np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], dtype=float)
@@ -130,17 +130,15 @@ class EdgeTubes:
         if self.scene is None or len(o) == 0:
             return none, none
         # the ray scaled to its reach (1 um and float32's rounding to spare): Embree's t = 1 there;
-        # the probes of _in_tube in the same call (one call costs less than two)
-        span = np.where(np.isfinite(reach), reach * (1.0 + 1e-6) + 1e-6, self.far_m)
-        run = _runs(o)
-        heads = o[run]
-        k = len(self._probes)
-        r = np.empty((len(o) + k * len(heads), 6), dtype=np.float32)
-        r[: len(o), :3], r[: len(o), 3:] = o, u * span[:, None]
-        r[len(o) :, :3] = np.repeat(heads, k, axis=0)
-        r[len(o) :, 3:] = np.tile(self._probes * (10.0 * TUBE_M), (len(heads), 1))
-        hit = self.scene.test_occlusions(o3d.core.Tensor(r), tfar=1.0, nthreads=nthreads).numpy()
-        flag = hit[: len(o)] | self._in_tube(heads, hit[len(o) :].reshape(-1, k))[np.cumsum(run) - 1]
+        # the probes of _in_tube in the same call (one call costs less than two); one compiled pass
+        n, k = len(o), len(self._probes)
+        o, u, reach = _f64(o), _f64(u), _f64(reach)
+        span, run_of, head = np.empty(n), np.empty(n, dtype=np.int64), np.empty(n, dtype=np.int64)
+        r = np.empty((n + k * n, 6), dtype=np.float32)
+        n_heads = tube_rays(o, u, reach, self.far_m, self._probes * (10.0 * TUBE_M), span, run_of, head, r)
+        heads = o[head[:n_heads]]
+        hit = self.scene.test_occlusions(o3d.core.Tensor(r[: n + k * n_heads]), tfar=1.0, nthreads=nthreads).numpy()
+        flag = hit[:n] | self._in_tube(heads, hit[n:].reshape(-1, k))[run_of]
         rows = np.flatnonzero(flag)
         if len(rows) == 0:
             return none, none
@@ -168,10 +166,8 @@ class EdgeTubes:
         return inside
 
 
-def _runs(o: np.ndarray) -> np.ndarray:
-    """The first of each run of equal rows of ``o`` (N, 3), column by column (numpy reduces a 3-long
-    last axis slowly)."""
-    return np.append(True, (o[1:, 0] != o[:-1, 0]) | (o[1:, 1] != o[:-1, 1]) | (o[1:, 2] != o[:-1, 2]))
+def _f64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 __all__ = ["TUBE_M", "EdgeTubes"]

@@ -259,6 +259,31 @@ def seams(same_start, same_geom, opp_start, opp_geom, in_start, in_geom, pos, ma
 
 
 @_jit
+def tube_rays(o, u, reach, far_m, probes, span, run_of, head, r):  # noqa: ANN001, ANN201
+    """``EdgeTubes.crossed``'s Embree rays (float32, ``r``): each ray (``o``, ``u``) scaled to its
+    ``span`` (written: its ``reach`` with 1 um and float32's rounding to spare, ``far_m`` where the
+    reach is infinite), then the probes from the first ray of each run of equal origins (``head``:
+    that ray; ``run_of``: each ray's run), ``len(probes)`` rows each. Returns the number of runs."""
+    n, k = len(o), len(probes)
+    h = -1
+    for i in range(n):
+        s = reach[i] * (1.0 + 1e-6) + 1e-6 if np.isfinite(reach[i]) else far_m
+        span[i] = s
+        o0, o1, o2 = o[i, 0], o[i, 1], o[i, 2]
+        r[i, 0], r[i, 1], r[i, 2] = o0, o1, o2
+        r[i, 3], r[i, 4], r[i, 5] = u[i, 0] * s, u[i, 1] * s, u[i, 2] * s
+        if i == 0 or o0 != o[i - 1, 0] or o1 != o[i - 1, 1] or o2 != o[i - 1, 2]:
+            h += 1
+            head[h] = i
+            for j in range(k):
+                row = n + h * k + j
+                r[row, 0], r[row, 1], r[row, 2] = o0, o1, o2
+                r[row, 3], r[row, 4], r[row, 5] = probes[j, 0], probes[j, 1], probes[j, 2]
+        run_of[i] = h
+    return h + 1
+
+
+@_jit
 def tube_pairs(rows, splits, prim, t, span, owner, h_out, q_out):  # noqa: ANN001, ANN201
     """``EdgeTubes.crossed``'s (ray, geom) pairs from the listed intersections of the rays ``rows``
     (``splits``: CSR; ``prim``: triangle, 12 per tube; ``t``: distance): the owners of each tube
@@ -369,6 +394,94 @@ def to_own_origins(gid, dist, nrm, dirs_w, o_cast, o_own):  # noqa: ANN001, ANN2
             dist[i] = r
         else:
             gid[i], dist[i] = -1, -1.0
+
+
+@_jit
+def proxy_hits(t, prim, out_w, u, dist, out):  # noqa: ANN001, ANN201
+    """``Proxies.may_hit_before``'s first test from Embree's first hits on the proxy boxes (``t``:
+    float32 distance, inf none; ``prim``: triangle, 12 per box; ``out_w``: each box triangle's
+    outward normal): ``out[i]`` where ray i meets a box no farther than ``dist[i]`` (-1: no hit; a
+    1e-4 relative slack), or first meets one leaving it (it starts inside: ``n . u >= 0``, summed as
+    ``np.einsum`` sums it)."""
+    for i in range(len(t)):
+        ti = np.float64(t[i])
+        if not np.isfinite(ti):
+            out[i] = False
+        elif dist[i] < 0 or ti <= dist[i] + 1e-4 * (1.0 + abs(dist[i])):
+            out[i] = True
+        else:
+            k, tri = prim[i] // 12, prim[i] % 12
+            out[i] = _dot3(out_w[k, tri, 0], out_w[k, tri, 1], out_w[k, tri, 2], u[i, 0], u[i, 1], u[i, 2]) >= 0.0
+
+
+@_jit
+def _slab(lp, lv, h, t_in, t_out):  # noqa: ANN001, ANN202
+    """The ray's interval (t_in, t_out) narrowed to the slab |x| <= h it crosses at lp + t lv."""
+    if lv == 0.0:
+        return (np.inf, -np.inf) if abs(lp) > h else (t_in, t_out)
+    t1, t2 = (-h - lp) / lv, (h - lp) / lv
+    return max(t_in, min(t1, t2)), min(t_out, max(t1, t2))
+
+
+@_jit
+def boxes_before(o, u, dist, pos, mat, ctr, half, lo, hi, out):  # noqa: ANN001, ANN201
+    """``out[i]`` set where ray i (origin ``o``, unit direction ``u``) meets one of the oriented boxes
+    (geom poses ``pos``, row-major ``mat``; box centre ``ctr`` and half sizes ``half`` in the geom's
+    frame) no farther than ``dist[i]`` (-1: no hit; a 1e-4 relative slack), or starts in one: a slab
+    test in float64 (``Proxies.may_hit_before``'s question without an Embree scene, for a few boxes).
+    Rays that miss the world box ``[lo, hi]`` around them all, nearly all, are not tested further."""
+    c0, c1, c2 = 0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])
+    h0, h1, h2 = 0.5 * (hi[0] - lo[0]), 0.5 * (hi[1] - lo[1]), 0.5 * (hi[2] - lo[2])
+    for i in range(len(o)):
+        if out[i]:
+            continue
+        reach = np.inf if dist[i] < 0.0 else dist[i] + 1e-4 * (1.0 + abs(dist[i]))
+        t_in, t_out = _slab(o[i, 0] - c0, u[i, 0], h0, -np.inf, np.inf)
+        t_in, t_out = _slab(o[i, 1] - c1, u[i, 1], h1, t_in, t_out)
+        t_in, t_out = _slab(o[i, 2] - c2, u[i, 2], h2, t_in, t_out)
+        if not (t_out >= max(t_in, 0.0) and t_in <= reach):
+            continue
+        for b in range(len(pos)):
+            d0, d1, d2 = o[i, 0] - pos[b, 0], o[i, 1] - pos[b, 1], o[i, 2] - pos[b, 2]
+            t_in, t_out = -np.inf, np.inf
+            for a in range(3):
+                lp = mat[b, a] * d0 + mat[b, 3 + a] * d1 + mat[b, 6 + a] * d2 - ctr[b, a]
+                lv = mat[b, a] * u[i, 0] + mat[b, 3 + a] * u[i, 1] + mat[b, 6 + a] * u[i, 2]
+                t_in, t_out = _slab(lp, lv, half[b, a], t_in, t_out)
+            if t_out >= max(t_in, 0.0) and t_in <= reach:
+                out[i] = True
+                break
+
+
+@_jit
+def beams_start(geom_in, dist, o, u, geom, path, hit_w):  # noqa: ANN001, ANN201
+    """``optics.follow_beams``'s primary hits: ``geom`` (-1 where none or ``dist`` < 0), ``path`` (NaN
+    where none) and ``hit_w = o + dist u`` (``o`` where none, as ``o + 0 u``), one pass."""
+    for i in range(len(geom_in)):
+        hit = geom_in[i] >= 0 and dist[i] >= 0.0
+        geom[i] = geom_in[i] if hit else -1
+        path[i] = dist[i] if hit else np.nan
+        w = dist[i] if hit else 0.0
+        hit_w[i, 0] = o[i, 0] + w * u[i, 0]
+        hit_w[i, 1] = o[i, 1] + w * u[i, 1]
+        hit_w[i, 2] = o[i, 2] + w * u[i, 2]
+
+
+@_jit
+def beams_first(geom, nrm, u, kind, glass_code, mirror_code, glass, mirrors, cos_inc, sub):  # noqa: ANN001, ANN201
+    """``optics.follow_beams``: ``cos_inc = |n . u|`` (summed as ``np.einsum("ij,ij->i")``: ``_dot3``) and
+    the beams whose hit is glass (``glass``) or a mirror (``mirrors``), ascending in ``sub``; returns
+    their count."""
+    m = 0
+    for i in range(len(geom)):
+        cos_inc[i] = abs(_dot3(nrm[i, 0], nrm[i, 1], nrm[i, 2], u[i, 0], u[i, 1], u[i, 2]))
+        g = geom[i]
+        if g >= 0:
+            k = kind[g]
+            if (k == glass_code and glass) or (k == mirror_code and mirrors):
+                sub[m] = i
+                m += 1
+    return m
 
 
 @_jit

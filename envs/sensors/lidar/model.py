@@ -48,6 +48,7 @@ from .optics import (
     GeomOptics,
     follow_beams,
     geom_optics,
+    take_rows,
 )
 from .pane_shape import PaneShapes
 from .pattern import RayTable
@@ -161,20 +162,21 @@ class LidarSensor:
             time_offset_s=rays.time_offset_s[idx].copy(),
             sweep_start_s=float(sweep_start_s),
         )
-        surface = label_surfaces(self._surface_table(truth), gk, beams.hit_w[idx])
+        hit_w = take_rows(beams.hit_w, idx)
+        surface = label_surfaces(self._surface_table(truth), gk, hit_w)
         lt = LidarTruth(
             stamp_s=stamp,
             sensor_id=self.sensor_id,
             true_range_m=beams.path_m[idx],
-            hit_w=beams.hit_w[idx],
+            hit_w=hit_w,
             geom_id=gk,
             surface_id=surface,
             material=optics.name[gk],
             kind=kind,
             via_geom_id=beams.via_geom[idx],
             signal=sig,
-            origin_w=origins_w[idx],
-            dir_w=dirs_w[idx],
+            origin_w=take_rows(origins_w, idx),
+            dir_w=take_rows(dirs_w, idx),
         )
         return scan, lt
 

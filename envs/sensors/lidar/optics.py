@@ -72,6 +72,7 @@ import numpy as np
 from exobench.core import ReturnKind, SceneTruth
 from exobench.models.materials import DEFAULT_MATERIAL, KINDS, LidarMaterial, material
 
+from .kernels import beams_first, beams_start
 from .pane_shape import PaneShapes
 
 KIND_CODE = {k: i for i, k in enumerate(KINDS)}  # diffuse 0, glass 1, mirror 2, retro 3
@@ -183,30 +184,29 @@ def follow_beams(
 
 
     n = len(geom)
-    geom = geom.astype(np.int64)  # a copy
-    hit = (geom >= 0) & (dist >= 0.0)
-    geom[~hit] = -1
-    path = np.where(hit, dist, np.nan)
-    hit_w = origins_w + np.where(hit, dist, 0.0)[:, None] * dirs_w
+    # the hits, and the beams that meet glass or a mirror first (only those can end anywhere but
+    # their primary hit), in two compiled passes over the sweep (kernels.beams_start, beams_first)
+    path, hit_w, g_in, geom = np.empty(n), np.empty((n, 3)), geom, np.empty(n, dtype=np.int64)
+    beams_start(g_in, np.ascontiguousarray(dist, dtype=float), origins_w, dirs_w, geom, path, hit_w)
     normals_w = _local_normals(optics, data, geom, hit_w, normals_w, u[:, 0] if u.shape[1] else None)
-    cos_inc = np.abs(np.einsum("ij,ij->i", normals_w, dirs_w))
+    cos_inc, sub = np.empty(n), np.empty(n, dtype=np.int64)
+    sub = sub[: beams_first(geom, normals_w, dirs_w, optics.kind, _GLASS, _MIRROR, bool(glass), bool(mirrors), cos_inc, sub)]
     via = np.full(n, -1, dtype=np.int64)
     gain = np.ones(n)
     kind = np.full(n, int(ReturnKind.GENUINE), dtype=np.int8)
-    first = optics.kind[np.maximum(geom, 0)]
-    # only beams that meet glass or a mirror first can end anywhere but their primary hit
-    sub = np.flatnonzero(hit & (((first == _GLASS) & glass) | ((first == _MIRROR) & mirrors)))
     if echo is not None and echo.mode != "sampled" and len(sub):
-        sp = sub[first[sub] == _GLASS]
-        sub = sub[first[sub] != _GLASS]
+        first = optics.kind[geom[sub]]
+        sp = sub[first == _GLASS]
+        sub = sub[first != _GLASS]
         if len(sp):
-            res = _split_first(model, data, geomgroup, geom[sp], path[sp], hit_w[sp], dirs_w[sp], normals_w[sp],
-                               cos_inc[sp], optics, u[sp, 1:], echo, mirrors=mirrors, cast=cast)  # fmt: skip
+            res = _split_first(model, data, geomgroup, geom[sp], path[sp], take_rows(hit_w, sp), take_rows(dirs_w, sp),
+                               take_rows(normals_w, sp), cos_inc[sp], optics, u[sp, 1:], echo, mirrors=mirrors,
+                               cast=cast)  # fmt: skip
             geom[sp], path[sp], hit_w[sp], kind[sp], via[sp], gain[sp], cos_inc[sp] = res
     if len(sub):
         g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s = _follow(
-            model, data, geomgroup, geom[sub], path[sub], hit_w[sub], dirs_w[sub], normals_w[sub], optics, u[sub],
-            glass=glass, mirrors=mirrors, cast=cast,
+            model, data, geomgroup, geom[sub], path[sub], take_rows(hit_w, sub), take_rows(dirs_w, sub),
+            take_rows(normals_w, sub), optics, u[sub], glass=glass, mirrors=mirrors, cast=cast,
         )  # fmt: skip
         geom[sub], path[sub], hit_w[sub], kind[sub], via[sub], gain[sub], cos_inc[sub] = (
             g_s, path_s, hit_s, kind_s, via_s, gain_s, cos_s,
@@ -321,9 +321,9 @@ def _follow(
         act = np.flatnonzero(through | mirror)
         if len(act) == 0:
             break
-        p = hit_w[act]
-        d = d_cur[act]
-        nv = n_cur[act]
+        p = take_rows(hit_w, act)
+        d = take_rows(d_cur, act)
+        nv = take_rows(n_cur, act)
         m = mirror[act]
         d[m] -= 2.0 * np.einsum("ij,ij->i", d[m], nv[m])[:, None] * nv[m]
         d[m] /= np.linalg.norm(d[m], axis=1)[:, None]
@@ -395,10 +395,20 @@ def _leave(cast: RayCastFn, p: np.ndarray, d: np.ndarray, own: np.ndarray, mirro
     return o, r, gi, nn
 
 
+def take_rows(a: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """``a[idx]`` of an (N, 3) array, the same values: ``np.take`` along the rows costs a quarter of
+    fancy indexing (0.04 against 0.16 ms for a sweep's 24,000 points); one row repeated where ``a``
+    is one row broadcast (a sensor at rest), which ``np.take`` would gather slowly."""
+    if a.strides[0] == 0:
+        return np.repeat(a[:1], len(idx), axis=0)
+    return np.take(a, idx, axis=0)
+
+
 def cast_rays(
-    model: object, data: object, geomgroup: np.ndarray, origins_w: np.ndarray, dirs_w: np.ndarray
+    model: object, data: object, geomgroup: np.ndarray, origins_w: np.ndarray, dirs_w: np.ndarray, flg_static: int = 1
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``mj_ray`` for rays of their own origins: (distance or -1, geom or -1, normal) per ray."""
+    """``mj_ray`` for rays of their own origins: (distance or -1, geom or -1, normal) per ray;
+    ``flg_static = 0``: the geoms of bodies welded to the world are left out."""
     import mujoco
 
     k = len(origins_w)
@@ -408,7 +418,7 @@ def cast_rays(
     gid = np.full(k, -1, dtype=np.int32)
     nrm = np.zeros((k, 3))
     for i in range(k):
-        r[i] = mujoco.mj_ray(model, data, o[i], d[i], geomgroup, 1, -1, gid[i : i + 1], nrm[i])
+        r[i] = mujoco.mj_ray(model, data, o[i], d[i], geomgroup, flg_static, -1, gid[i : i + 1], nrm[i])
     return r, gid.astype(np.int64), nrm
 
 
