@@ -55,6 +55,11 @@ CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
     ("multisession", "changes"): {"sessions": "1:corridor_s;1:corridor_s"},
     ("multisession", "furnish"): {"changes": ""},  # the lab has no plant0 to remove
     ("multisession", "repeated_rooms"): {"n_offices": 2, "changes": ""},  # two offices to repeat one in
+    # the wrong-label fault acts after the recorder, so both episodes are simulated whole: one
+    # session of the shortest walk at 2 Hz (7 place labels, each swapped at the high value, 1.0)
+    # costs 5 s of CPU where the smoke's two sessions cost 15 s
+    ("multisession", "place_label_error_fraction"): {"sessions": "0:corridor_s", "changes": "", "max_distance_m": 0.5,
+                                                     "frame_rate_hz": 2.0},
 }
 
 # free-string keys: values to try
@@ -66,7 +71,9 @@ FREE_STRINGS: dict[str, tuple[str, ...]] = {"changes": ("1 remove chair0",), "ro
 BASE: dict[str, dict[str, Any]] = {"locomotion": {"n_steps": 2, "approach_m": 1.0, "landing_m": 1.2}}
 
 
-SMALL_CAMERA: dict[str, Any] = {"width_px": 64, "height_px": 48, "rate_hz": 10.0}
+# 2 Hz: seven frames over the smoke walk's 3.4 s, each of which a fault at its high value (1.0)
+# hits; rendering costs ~55 ms a frame whatever the size, so the rate sets these walks' cost
+SMALL_CAMERA: dict[str, Any] = {"width_px": 64, "height_px": 48, "rate_hz": 2.0}
 
 
 def _vio_context() -> dict[tuple[str, str], dict[str, Any]]:
@@ -81,8 +88,8 @@ def _vio_context() -> dict[tuple[str, str], dict[str, Any]]:
            for k in course_rows - office}  # fmt: skip
     out[("vio", "world")] = away
     # the delivery faults act after the recorder, so both walks are simulated whole: on a small
-    # image at 10 Hz, which the faults reach as they reach the D455's (at 424x240 and 30 Hz these
-    # walks took 37 s of the vio check's 70 s of CPU, 10 s so)
+    # image at 2 Hz, which the faults reach as they reach the D455's (at 424x240 and 30 Hz these
+    # walks took 37 s of the vio check's 70 s of CPU, 9 s at 64x48 and 10 Hz, 3 s at 2 Hz)
     out.update({("vio", k): SMALL_CAMERA for k in FAULT_ROWS})
     return out
 
