@@ -21,7 +21,7 @@ from exobench.core.faults import swap_place_labels
 from exobench.core.frames import ImuSample, PlaceLabel, SessionStart
 from exobench.envs.session import iter_frames, write_session
 
-pytestmark = pytest.mark.long(seconds=35)  # the workers take it first (tests/conftest.py)
+pytestmark = pytest.mark.long(seconds=40)  # the workers take it first (tests/conftest.py); 40: the file's CPU at -n 0, load 10 (48 s when the smoke run also wrote the --rerun recording)
 
 
 def _episode(frames, extra=None, T_we=None) -> Episode:
