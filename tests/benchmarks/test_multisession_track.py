@@ -233,8 +233,8 @@ def test_quick_suite_through_exobench_run_on_the_smoke_scenario(tmp_path):
 def test_rerun_recording_of_the_first_episode(tmp_path):
     """What ``exobench run --rerun`` writes for the track (``rerun_first_episode``: the episode
     simulated again, a pipeline's online and final estimates): the smoke scenario's two sessions,
-    its change, on the shortest walk at 2 Hz and one pipeline, about a fifth of the CPU of the
-    smoke run's rerun of both pipelines."""
+    its change, on the shortest walk at 2 Hz and one pipeline: about half the CPU of the smoke
+    run's rerun of both pipelines (the true surfaces of the two days, ~5 s, are most of it)."""
     from exobench.benchmarks.runner import plan_run, rerun_first_episode
 
     small = {**MultisessionTrack.smoke_scenario, "max_distance_m": 0.5, "frame_rate_hz": 2.0}
