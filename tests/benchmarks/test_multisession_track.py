@@ -21,7 +21,7 @@ from exobench.core.faults import swap_place_labels
 from exobench.core.frames import ImuSample, PlaceLabel, SessionStart
 from exobench.envs.session import iter_frames, write_session
 
-pytestmark = pytest.mark.long(seconds=35)  # the workers take it first (tests/conftest.py)
+pytestmark = pytest.mark.long(seconds=40)  # the workers take it first (tests/conftest.py); 40: the file's CPU at -n 0, load 10 (48 s when the smoke run also wrote the --rerun recording)
 
 
 def _episode(frames, extra=None, T_we=None) -> Episode:
@@ -210,13 +210,12 @@ def test_scorer_fails_well_formed_on_a_malformed_estimate():
 
 def test_quick_suite_through_exobench_run_on_the_smoke_scenario(tmp_path):
     """`exobench run --track multisession` on the smoke scenario: every pipeline scored, the
-    trajectory and map metrics finite, the sessions kept apart reported."""
+    trajectory and map metrics finite, the sessions kept apart reported. (Its recording, whose
+    ``--rerun`` simulated the episode and ran both pipelines a second time, is the next test's.)"""
     track = MultisessionTrack()
     sets = [a for k, v in track.smoke_scenario.items() for a in ("--set", f"{k}={v}")]
     out = tmp_path / "run"
-    rrd = tmp_path / "ms.rrd"
-    result = CliRunner().invoke(cli, ["run", "--track", "multisession", *sets, "--out", str(out), "--rerun", str(rrd)],
-                                catch_exceptions=False)  # fmt: skip
+    result = CliRunner().invoke(cli, ["run", "--track", "multisession", *sets, "--out", str(out)], catch_exceptions=False)
     assert result.exit_code == 0, result.output
     records = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert sorted(r["pipeline"] for r in records) == ["lt-exosense", "lt-exosense-dufomap"]
@@ -229,6 +228,19 @@ def test_quick_suite_through_exobench_run_on_the_smoke_scenario(tmp_path):
         assert m["n_sessions"] == 2 and m["n_separate_sessions"] == len(m["separate_sessions"])
         assert m["ate_m"] < 0.5
     assert "Table II" in (out / "report.md").read_text()
+
+
+def test_rerun_recording_of_the_first_episode(tmp_path):
+    """What ``exobench run --rerun`` writes for the track (``rerun_first_episode``: the episode
+    simulated again, a pipeline's online and final estimates): the smoke scenario's two sessions,
+    its change, on the shortest walk at 2 Hz and one pipeline: about half the CPU of the smoke
+    run's rerun of both pipelines (the true surfaces of the two days, ~5 s, are most of it)."""
+    from exobench.benchmarks.runner import plan_run, rerun_first_episode
+
+    small = {**MultisessionTrack.smoke_scenario, "max_distance_m": 0.5, "frame_rate_hz": 2.0}
+    plan = plan_run("multisession", pipelines=["lt-exosense"], overrides=small)
+    rrd = rerun_first_episode(plan, tmp_path / "ms.rrd")
+    assert rrd == tmp_path / "ms.rrd"
     assert rrd.stat().st_size > 10_000  # sessions, pose graph edges, map and changes
 
 
