@@ -18,7 +18,6 @@ from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
-import gtsam
 import numpy as np
 
 from exobench.core import Calibration, ConfigError, Frame, RgbdFrame
@@ -94,20 +93,9 @@ class DvioOdometry:
         """(stamp, camera pose in G) of the keyframes in D-VIO's window stamped before
         ``before_s``, from its estimate now (none while it has no estimate). Read at D-VIO's first
         pose after a gap, these are the keyframes of the initialisation window: instants before
-        that pose which D-VIO's first optimisation has placed. D-VIO gives no pose of its own for
-        those frames (they were handled while it was initialising) and has no public reader of
-        its window, so its state is read here (tests/benchmarks/test_benchmarks_locomotion_dvio.py
-        checks these poses against the truth: a change of D-VIO's state breaks that test)."""
-        w = self._dvio._window
-        est = w._estimate
-        if est is None or not w.tracking:
-            return []
-        out = []
-        for kf in w._kfs:
-            key = gtsam.symbol_shorthand.X(kf.serial)
-            if float(kf.stamp_s) < before_s and est.exists(key):
-                out.append((float(kf.stamp_s), (est.atPose3(key) * w._T_IC).matrix()))
-        return out
+        that pose which D-VIO's first optimisation has placed (D-VIO's results leave those frames
+        without a pose: they were handled while it was initialising)."""
+        return [(t, T) for t, T in self._dvio.window_poses() if t < before_s]
 
     def finish(self) -> dict[str, Any]:
         """Let D-VIO handle every frame still waiting for the IMU (then :meth:`released` gives

@@ -281,6 +281,11 @@ class DvioPipeline:
         waits for the IMU to reach its time, so a result comes after its frame)."""
         return list(zip(self._stamps[start:], self._poses[start:], self._status[start:]))
 
+    def window_poses(self) -> list[tuple[float, np.ndarray]]:
+        """(stamp, camera pose in G) of the keyframes in the window now: right after a first pose,
+        those of the initialisation window, instants its frames' results leave without a pose."""
+        return self._window.keyframe_poses() if self._reset_done else []
+
     def imu_pose(self) -> ImuRatePose | None:
         """The newest IMU-rate pose (None when not tracking)."""
         pose = self._window.imu_pose() if self._reset_done else None

@@ -223,6 +223,14 @@ class SlidingWindow:
     def tracking(self) -> bool:
         return self._nav is not None
 
+    def keyframe_poses(self) -> list[tuple[float, np.ndarray]]:
+        """(stamp, camera pose in G) of the window's keyframes from its estimate now; none while
+        it is not tracking."""
+        if self._estimate is None or not self.tracking:
+            return []
+        keys = [(float(kf.stamp_s), gtsam.symbol_shorthand.X(kf.serial)) for kf in self._kfs]
+        return [(t, (self._estimate.atPose3(k) * self._T_IC).matrix()) for t, k in keys if self._estimate.exists(k)]
+
     def add_imu(self, stamp_s: float, accel: np.ndarray, gyro: np.ndarray) -> bool:
         """One IMU sample (camera clock); False when skipped (non-finite, not after the last)."""
         a, w = np.asarray(accel, float).reshape(3), np.asarray(gyro, float).reshape(3)
