@@ -119,8 +119,10 @@ def test_orbslam3_tracks_a_simulated_walk_against_the_true_camera_pose(vocab):
     # ORB-SLAM3 is multi-threaded and not deterministic: on this walk it tracked 108 of 113 frames
     # in 7 runs of 8 and once lost track on the plain walls near the end and dropped its map
     # (ORB-SLAM3 resets a map lost before its inertial refinement); once in this file's runs here two
-    # runs in a row did (under load): the first of three runs that tracks counts
-    for _ in range(3):
+    # runs in a row did (under load), and on 2026-11-28 three in a row in a quiet clean clone's `make test`
+    # (each lost its map; the same test alone and three at once passed right after): the first of five
+    # runs that tracks counts
+    for _ in range(5):
         est = _track_walk(vocab)
         ok = np.array([s == "ok" for s in est.status])
         if ok.mean() >= 0.7:
