@@ -13,6 +13,12 @@ from exobench.envs.sensors.lidar import kernels
 from exobench.envs.sensors.lidar.labels import SurfaceTable, label_surfaces
 
 
+def _unit_rows(rng: np.random.Generator, n: int) -> np.ndarray:
+    """``n`` random unit vectors (rows)."""
+    v = rng.normal(size=(n, 3))
+    return v / np.linalg.norm(v, axis=1)[:, None]
+
+
 def test_surface_labels_are_surface_of_hit_on_points_near_edges_and_planes():
     """Points on and within a few tolerances of every surface's plane and polygon edges, the
     decisions where a label could flip: the compiled labels equal SceneTruth.surface_of_hit's."""
@@ -119,8 +125,7 @@ def test_returns_equal_the_numpy_functions_bit_for_bit():
     refl = rng.uniform(0.02, 3.0, n_geoms)
     retro = rng.random(n_geoms) < 0.3
     u_drop = rng.random(n)
-    dirs = rng.normal(size=(n, 3))
-    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    dirs = _unit_rows(rng, n)
     for signal_level in (True, False):
         # the numpy reference, as the scan computed it before
         ok = geom >= 0
@@ -149,10 +154,8 @@ def test_hits_moved_to_the_rays_own_origins_equal_numpys():
     n = 20000
     gid = rng.integers(-1, 50, n).astype(np.int32)
     dist = np.where(rng.random(n) < 0.1, -1.0, rng.uniform(0.0, 30.0, n))
-    nrm = rng.normal(size=(n, 3))
-    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
-    u = rng.normal(size=(n, 3))
-    u /= np.linalg.norm(u, axis=1)[:, None]
+    nrm = _unit_rows(rng, n)
+    u = _unit_rows(rng, n)
     graze = rng.random(n) < 0.2  # u . n within 1e-6 of 0
     u[graze] -= (np.einsum("ij,ij->i", u[graze], nrm[graze]) - rng.uniform(-2e-6, 2e-6, graze.sum()))[:, None] * nrm[graze]
     o_own = rng.uniform(-40.0, 40.0, (n, 3))
@@ -202,8 +205,7 @@ def test_tube_rays_equal_the_numpy_construction():
     o = np.repeat(rng.normal(size=(40, 3)) * 20.0, rng.integers(1, 150, 40), axis=0)[:n]  # runs of equal origins
     o[::7] += 1e-9  # and single rays
     n = len(o)
-    u = rng.normal(size=(n, 3))
-    u /= np.linalg.norm(u, axis=1)[:, None]
+    u = _unit_rows(rng, n)
     reach = np.where(rng.random(n) < 0.2, np.inf, rng.uniform(0.0, 80.0, n))
     probes = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, 0.0]]) / np.sqrt([[3.0], [2.0]]) * 1e-3
     k = len(probes)
@@ -234,10 +236,8 @@ def test_beams_start_and_first_equal_the_numpy_code():
     n = 5000
     geom_in = rng.integers(-1, 30, n).astype(np.int32)
     dist = np.where(rng.random(n) < 0.1, -1.0, rng.uniform(0.0, 90.0, n))
-    u = rng.normal(size=(n, 3))
-    u /= np.linalg.norm(u, axis=1)[:, None]
-    nrm = rng.normal(size=(n, 3))
-    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    u = _unit_rows(rng, n)
+    nrm = _unit_rows(rng, n)
     kind = rng.integers(0, 4, 30).astype(np.int64)
     for o in (rng.normal(size=(n, 3)) * 10.0, np.broadcast_to(np.array([0.3, -1.2, 0.9]), (n, 3))):
         hit = (geom_in >= 0) & (dist >= 0.0)
