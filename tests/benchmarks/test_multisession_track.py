@@ -138,6 +138,56 @@ def test_scorer_against_an_independent_computation():
     assert m["ate_m"] == pytest.approx(0.0, abs=1e-12) and m["n_change_runs"] == 0 and np.isnan(m["change_precision"])
 
 
+def _rot_z(a: float) -> np.ndarray:
+    return np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize("walk", ["turning", "straight"])
+def test_aligned_ate_is_the_error_left_after_the_best_rigid_motion(walk):
+    """``ate_aligned_m`` (Table I's aligned trajectories): a merged map that is the truth turned
+    and shifted rigidly scores 0 however far it lies (``ate_m`` counts the offset), on a straight
+    walk too (where the rotation about the line is free); a map bent inside scores the minimum of
+    the RMS over rigid motions, found here by a numerical search."""
+    from scipy.optimize import minimize
+
+    t = np.arange(0.0, 6.01, 0.1)
+    if walk == "turning":  # 3 m east, then 3 m north, climbing 10 cm
+        path = np.where(t[:, None] < 3.0, np.stack([t, 0 * t, 0.01 * t], 1), np.stack([0 * t + 3.0, t - 3.0, 0.01 * t], 1))
+    else:
+        path = np.stack([t, np.zeros_like(t), np.ones_like(t)], axis=1)
+    rows = np.column_stack([t, path, np.tile([1.0, 0, 0, 0], (len(t), 1))])
+    ep = _episode((), {"sessions": ({"session": 0, "day": 0, "camera_w": rows},), "surface_last_day": _plane(0.0),
+                       "surfaces_by_day": {0: _plane(0.0)}, "changes": {}})  # fmt: skip
+    k = np.arange(0, len(t), 3)
+
+    def score(p):
+        poses = np.tile(np.eye(4), (len(k), 1, 1))
+        poses[:, :3, 3] = p
+        est = MultiSessionEstimate(sessions=(0,), days=(0,), keyframe_stamps_s=(t[k],), T_map_cam=(poses,), map_of_session=(0,),
+                                   merged_map_points=_plane(0.0), map_points_no_change_detection=_plane(0.0),
+                                   map_points_single_session=_plane(0.0))  # fmt: skip
+        m = MultisessionTrack().score(ep, est)
+        assert not m["failed"], m.get("failed_reason")
+        return m
+
+    rigid = path[k] @ _rot_z(0.3).T + [0.5, -0.2, 0.1]
+    m = score(rigid)
+    assert m["ate_m"] > 0.4 and m["ate_aligned_m"] == pytest.approx(0.0, abs=1e-6)
+    bent = path[k] + np.outer(np.arange(len(k)) / len(k), [0.0, 0.2, 0.0])  # drifts 0.2 m sideways
+    bent[len(k) // 2:, 2] += 0.05
+
+    def rms(x):  # x: rotation vector, translation
+        from scipy.spatial.transform import Rotation
+
+        return np.sqrt(np.mean(np.sum((bent @ Rotation.from_rotvec(x[:3]).as_matrix().T + x[3:] - path[k]) ** 2, 1)))
+
+    best = min((minimize(rms, x0, method="Nelder-Mead", options={"xatol": 1e-10, "fatol": 1e-12, "maxiter": 40000})
+                for x0 in (np.zeros(6), np.r_[0.0, 0.0, 0.1, 0, 0, 0])), key=lambda r: r.fun)  # fmt: skip
+    m = score(bent)
+    assert m["ate_aligned_m"] == pytest.approx(best.fun, abs=1e-5)
+    assert m["ate_aligned_m"] < m["ate_m"]
+
+
 def test_change_truth_flags_the_samples_on_the_changed_object_and_not_the_floor_it_covers():
     """The quick case's stack of boxes (day 1): its faces are on the object; the floor under its
     footprint disappeared (covered) and is flagged off the object."""

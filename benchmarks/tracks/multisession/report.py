@@ -25,7 +25,7 @@ from ...plots import pyplot
 
 TOP_VIEW_EVERY = 10
 TABLES = (
-    ("Table I: trajectory", (("ate_m", "ATE (m)"), ("rpe_1m_m", "RPE 1 m (m)"))),
+    ("Table I: trajectory", (("ate_m", "ATE (m)"), ("ate_aligned_m", "ATE aligned (m)"), ("rpe_1m_m", "RPE 1 m (m)"))),
     ("Table II: change detection", (("change_precision", "P"), ("change_recall", "R"), ("change_f1", "F1"),
                                     ("change_chamfer_m", "Chamfer (m)"), ("change_precision_whole_map", "P whole map"),
                                     ("change_recall_whole_map", "R whole map"))),

@@ -4,6 +4,11 @@ against the episode's truth (:mod:`.episodes`), with the point-set metrics of :m
 - ``ate_m``: RMS of the keyframe camera positions of the sessions merged into the main map, in
   session 0's frame as the truth places it (``T_world_estimator``: no alignment, so session
   0's own drift counts too), against the true positions at the keyframes' stamps.
+- ``ate_aligned_m``: the same positions after the rigid motion that fits them best onto the
+  truth (SE(3), Umeyama; :func:`aligned_rmse`): Table I's "ATE ... of the aligned
+  trajectories", as the vio track's ``ate_m``. What it leaves is the merged map's shape error;
+  what ``ate_m`` adds is where the anchoring session's drift put the whole map, which no
+  inter-session edge observes (docs/tracks/multisession.md, *Exo*).
 - ``rpe_1m_m``: RMS over keyframe pairs of one session 1 m of true path apart (the first
   keyframe at least 1 m further) of the error of the second's position seen from the first.
 - Changes (Table II): each change run (a session against the map updated by those before it)
@@ -41,7 +46,7 @@ from .metrics import (
 )
 
 METRICS = (
-    "ate_m", "rpe_1m_m", "change_precision", "change_recall", "change_f1", "change_chamfer_m",
+    "ate_m", "ate_aligned_m", "rpe_1m_m", "change_precision", "change_recall", "change_f1", "change_chamfer_m",
     "change_precision_whole_map", "change_recall_whole_map", "map_error_mean_m", "map_error_median_m",
     "map_error_p90_m", "map_error_max_m", "map_error_mean_m_no_change_detection", "map_error_mean_m_single_session",
     "merge_time_s", "peak_memory_mb", "n_sessions", "n_separate_sessions", "n_inter_edges", "n_keyframes",
@@ -74,6 +79,25 @@ def true_keyframe_poses(camera_w: np.ndarray, stamps: np.ndarray) -> np.ndarray:
     idx = np.clip(np.searchsorted(t, stamps), 1, len(t) - 1)
     idx = np.where(np.abs(t[idx - 1] - stamps) <= np.abs(t[idx] - stamps), idx - 1, idx)
     return camera_w[idx, 1:4]
+
+
+def aligned_rmse(p_est: np.ndarray, p_true: np.ndarray) -> float:
+    """RMS of ``|R p_est + t - p_true|`` at the rigid motion ``(R, t)`` that minimises it.
+
+    Umeyama's (1991) closed form of the minimum, ``var_true + var_est - 2 tr(D S)``: the value is
+    the same for every minimising rotation, so it is defined where the rotation is not (a straight
+    walk leaves the roll about its line free, and :func:`~exobench.benchmarks.trajectory.umeyama_alignment`
+    refuses collinear points, as evo does)."""
+    x, y = np.asarray(p_est, dtype=float).reshape(-1, 3), np.asarray(p_true, dtype=float).reshape(-1, 3)
+    if not len(x):
+        return float("nan")
+    xc, yc = x - x.mean(axis=0), y - y.mean(axis=0)
+    u, d, vt = np.linalg.svd(yc.T @ xc / len(x))
+    sign = np.ones(3)
+    if np.linalg.det(u) * np.linalg.det(vt) < 0.0:
+        sign[2] = -1.0  # a rotation, not a reflection
+    var = float(np.mean(np.sum(xc * xc, axis=1)) + np.mean(np.sum(yc * yc, axis=1)))
+    return float(np.sqrt(max(var - 2.0 * float(np.sum(d * sign)), 0.0)))
 
 
 def rpe_errors(est_T: np.ndarray, true_p: np.ndarray, true_T_rot: np.ndarray, distance_m: float = RPE_DISTANCE_M) -> np.ndarray:
@@ -110,7 +134,7 @@ def score_multisession(episode: Episode, est: MultiSessionEstimate) -> dict[str,
             return failure_metrics(episode, f"estimate.{name} has {len(getattr(est, name))} entries for {n} sessions")
     if any(s not in sessions for s in est.sessions):
         return failure_metrics(episode, f"estimate sessions {list(est.sessions)} not of the episode {sorted(sessions)}")
-    ate_sq, rpe = [], []
+    ate_sq, rpe, est_p, true_p = [], [], [], []
     for s, stamps, T_map, m in zip(est.sessions, est.keyframe_stamps_s, est.T_map_cam, est.map_of_session):
         cam = np.asarray(sessions[s]["camera_w"], dtype=float)
         stamps = np.asarray(stamps, dtype=float).reshape(-1)
@@ -121,6 +145,8 @@ def score_multisession(episode: Episode, est: MultiSessionEstimate) -> dict[str,
         if m == 0:
             T_w = T_we @ T_map
             ate_sq.append(np.sum((T_w[:, :3, 3] - p_true) ** 2, axis=1))
+            est_p.append(T_w[:, :3, 3])
+            true_p.append(p_true)
         t = cam[:, 0]
         idx = np.clip(np.searchsorted(t, stamps), 0, len(t) - 1)
         rpe.append(rpe_errors(T_map, p_true, _quat_to_R(cam[idx, 4:8])))
@@ -129,6 +155,7 @@ def score_multisession(episode: Episode, est: MultiSessionEstimate) -> dict[str,
     out: dict[str, Any] = {
         "failed": False,
         "ate_m": float(np.sqrt(np.mean(ate))) if len(ate) else float("nan"),
+        "ate_aligned_m": aligned_rmse(np.concatenate(est_p), np.concatenate(true_p)) if est_p else float("nan"),
         "rpe_1m_m": float(np.sqrt(np.mean(rp ** 2))) if len(rp) else float("nan"),
         **change_metrics(episode, est, T_we),
     }

@@ -63,8 +63,12 @@ EXO = {"max_distance_m": 14.0, "surfaces": "textured_floors", "furnish": "mixed"
 PAPER = {
     "human/area1": {**HUMAN, "sessions": "0:office1,corridor_w;0:corridor_w,office1;1:office1,corridor_w;1:corridor_w,office1"},
     "human/area2": {**HUMAN, "sessions": "0:office2;0:corridor_n,office2;1:office2;1:corridor_n,office2"},
+    # session 3 goes down corridor_w with session 2, turns back and follows corridor_n east with 0
+    # and 4 to the meeting room's north door: a walk over corridor_s and the meeting room (as
+    # before) met sessions 0, 1 and 4 nowhere the same way round, so nothing could join them
+    # (the meeting room's two doors face each other; docs/tracks/multisession.md, *Exo*)
     "exo/mixed": {**EXO, "sessions": "0:corridor_n,office1;0:office1,office2;0:corridor_w,corridor_s;"
-                                     "0:corridor_s,meeting;0:corridor_n,meeting"},
+                                     "0:corridor_w,corridor_n,meeting;0:corridor_n,meeting"},
     "alignment/area1": {"max_distance_m": 12.0, "surfaces": "textured_floors",
                         "sessions": "0:office1,corridor_w;0:corridor_w,office1;0:office1,corridor_w"},
 }  # fmt: skip
@@ -87,6 +91,7 @@ TABLE_II = ((88.9, 41.9, 57.0, 0.042), (88.4, 48.4, 62.5, 0.034), (90.9, 53.4, 6
 
 SUMMARY_ROWS = [
     SummaryRow("ate_m", "ATE (m)", digits=3, better="lower"),
+    SummaryRow("ate_aligned_m", "ATE after SE(3) alignment (m)", digits=3),
     SummaryRow("rpe_1m_m", "RPE over 1 m (m)", digits=3),
     SummaryRow("change_precision", "change precision (%)", scale=100, digits=1, better="higher"),
     SummaryRow("change_recall", "change recall (%)", scale=100, digits=1, better="higher"),
@@ -117,6 +122,7 @@ def published_references() -> list[Reference]:
     fmt = lambda vals: "/".join(f"{v:g}" for v in vals)  # noqa: E731
     return [
         Reference("ate_m", ate, "Tab. I (EuRoC)", (), ours),
+        Reference("ate_aligned_m", ate, "Tab. I (EuRoC, aligned trajectories)", (), ours),
         Reference("rpe_1m_m", rpe, "Tab. I (EuRoC)", (), ours),
         Reference("change_precision", fmt(p) + " %", "Tab. II", (), ours),
         Reference("change_recall", fmt(r) + " %", "Tab. II", (), ours),
