@@ -102,13 +102,33 @@ def test_ate_of_a_known_perturbation_is_the_kabsch_rmse_computed_here():
 def test_loop_drift_of_a_known_end_offset():
     T = _rectangle_walk()
     est = T.copy()
-    delta = np.array([-0.216, 0.023, 0.136])  # Table V's D-VIO drift, in the first pose's axes
+    delta = np.array([-0.216, 0.023, 0.136])  # Table V's D-VIO drift; the first pose is upright, so its axes are G's
     k = len(T) - 30  # the last second drifts linearly to it
     est[k:, :3, 3] += np.linspace(0.0, 1.0, len(T) - k)[:, None] * delta
     m = TRACK.score(_episode(T), _estimate(np.arange(len(T)) / RATE_HZ, _in_frame(G_EST, est)))
     assert [m["tve_x_m"], m["tve_y_m"], m["tve_z_m"]] == pytest.approx(delta, abs=1e-9)
     assert m["te_m"] == pytest.approx(np.linalg.norm(delta), abs=1e-9)  # 0.256, Table V
     assert m["oe_rad"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_loop_drift_of_an_optical_frame_camera_is_given_in_gravity_axes_as_table_v():
+    """A real camera's pose is its optical frame (x right, y down, z forward), looking 10 deg down:
+    Table V's drift z is vertical (D-VIO's frame G is gravity-aligned), so a drift of 0.136 m up
+    must come out as ``tve_z_m``, not along the first camera's down or forward axis."""
+    pitch = np.radians(10.0)
+    c, s = np.cos(pitch), np.sin(pitch)
+    body_to_optical = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0]]) @ np.array(
+        [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])  # optical axes in the walker's (x ahead, z up), pitched down
+    T = _rectangle_walk()
+    T[:, :3, :3] = T[:, :3, :3] @ body_to_optical
+    right, ahead, up = np.array([0.0, -1.0, 0.0]), np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])  # at the start
+    drift_g = np.array([-0.216, 0.023, 0.136])  # Table V's x / y / z
+    est = T.copy()
+    k = len(T) - 30
+    est[k:, :3, 3] += np.linspace(0.0, 1.0, len(T) - k)[:, None] * (drift_g @ np.stack([right, ahead, up]))
+    m = TRACK.score(_episode(T), _estimate(np.arange(len(T)) / RATE_HZ, _in_frame(G_EST, est)))
+    assert [m["tve_x_m"], m["tve_y_m"], m["tve_z_m"]] == pytest.approx(drift_g, abs=1e-9)
+    assert m["te_m"] == pytest.approx(0.256, abs=1e-3)
 
 
 def test_lost_frames_are_counted_and_never_scored():

@@ -15,8 +15,10 @@ span; every other frame is lost. Metrics (names and definitions of :mod:`..lidar
 - ``rpe_1m_m``: RPE translation RMSE over pose pairs 1 m of true path apart;
 - ``drift_per_m``: end-point error per metre of true path after aligning the first poses;
 - loop errors when the true camera ends where it started (within :data:`LOOP_TOL_M`, after
-  more than 4 of it of path): ``te_m``, ``oe_rad``, ``tve_{x,y,z}_m`` of the relative pose error
-  between the first and the last scored pose (:func:`..lidar_trajectory.loop_metrics`);
+  more than 4 of it of path): ``te_m`` and ``oe_rad`` of the relative pose error between the first
+  and the last scored pose (:func:`..lidar_trajectory.loop_metrics`): the end point's error after
+  putting the first poses on each other; ``tve_{x,y,z}_m`` that error in the estimate's own
+  gravity-aligned axes as seeds/002 Table V gives its drift x/y/z (:func:`loop_drift_g`);
 - ``lost_frac``: frames without a scored pose over the frames the pipeline received (the
   estimate's entries, or the RGB-D frames its counters say it used, if more: a frame the
   estimate left out is lost too);
@@ -123,6 +125,20 @@ def scored_mask(episode: Episode, est: TrajectoryEstimate) -> tuple[np.ndarray, 
     return stamps, P, ok & finite & inside
 
 
+def loop_drift_g(P0: np.ndarray, PN: np.ndarray, Q0: np.ndarray, QN: np.ndarray) -> np.ndarray:
+    """The loop's end-point error (first poses put on each other) in the axes seeds/002 Table V
+    reports its drift in: D-VIO's state lives in a gravity-aligned frame G (seeds/002 II-C), which
+    VINS-Mono, its base, turns so that the first frame's yaw (``R2ypr``: the heading of the body x
+    axis, the camera's right for a D455) is zero. So z is up as the estimator sees it, x the first
+    camera's right, y (z cross x) its forward. The pose-graph axes of the first camera (y down, z
+    forward) would put the vertical drift in -y and the forward drift in z. The norm is ``te_m``."""
+    d_est = PN[:3, 3] - P0[:3, 3]
+    d_true_in_est = P0[:3, :3] @ Q0[:3, :3].T @ (QN[:3, 3] - Q0[:3, 3])
+    yaw = math.atan2(P0[1, 0], P0[0, 0])
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]]) @ (d_est - d_true_in_est)
+
+
 def score_vio(episode: Episode, est: TrajectoryEstimate) -> dict[str, Any]:
     """The metrics of the module docstring (never raises on a bad estimate)."""
     try:
@@ -164,6 +180,9 @@ def _alignment_metrics(episode: Episode, out: dict[str, Any], stamps: np.ndarray
         r_traj = tj.Trajectory.from_poses(t_use, Q)
         out["ate_m"] = ate_rmse(P[use][:, :3, 3], Q[:, :3, 3], e_traj, r_traj)
         out.update(path_metrics(e_traj, r_traj, P[use], Q, truth))
+        if math.isfinite(out["te_m"]):
+            Pu = P[use]
+            out["tve_x_m"], out["tve_y_m"], out["tve_z_m"] = (float(v) for v in loop_drift_g(Pu[0], Pu[-1], Q[0], Q[-1]))
     except Exception as e:  # a scorer never raises on an estimate
         out.update({k: math.nan for k in ("ate_m", "rpe_1m_m", "drift_per_m")},
                    failed=True, failed_reason=f"scoring raised {type(e).__name__}: {e}")  # fmt: skip

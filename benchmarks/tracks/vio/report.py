@@ -109,8 +109,9 @@ def table_v(records: list[dict[str, Any]], pipelines: list[str]) -> list[str]:
         label = "D-VIO" if name == "dvio" else name
         lines.append(f"| paper {label} | 1 | {x:.3f} | {y:.3f} | {z:.3f} | {math.sqrt(x * x + y * y + z * z):.3f} |")
     lines += ["| paper VINS-Mono | 1 | > 10 | > 10 | > 10 | |", "",
-              "Drift: the relative pose error between the first and last pose, in the first pose's axes "
-              "(ours: the camera's optical frame, x right, y down, z forward; the paper's axes are not stated).", ""]  # fmt: skip
+              "Drift: the last pose's error after putting the first poses on each other, in the estimate's "
+              "gravity-aligned axes as D-VIO's frame G (VINS-Mono's: z up, x the first camera's right, y its "
+              "forward; the paper names the frame G, not its yaw).", ""]  # fmt: skip
     return lines
 
 
