@@ -94,8 +94,8 @@ class LtExosenseConfig:
             ``max_depth_m`` (up to what the camera reports, every ``cloud_stride_px``): the free
             space in front of a far wall and its hits, never map points. Without them a place
             that a camera saw through to a wall more than ``max_depth_m`` away counts as unseen,
-            and a change there is missed (docs/tracks/multisession.md, "The change and map
-            figures": 77 % of the *Human* case's misses).
+            and a change there is missed (docs/tracks/multisession.md, "The *Human* case's
+            change recall, point by point": 75 % of its misses).
         max_odometry_age_s: an image whose nearest odometry sample is further in time is skipped.
         use_place_labels: verify only candidates of the query's place type (when both have one).
         intra_session_loops: also propose loop closures within each session (keyframes at least
@@ -291,7 +291,7 @@ class LtExosense:
             if np.linalg.norm(rel[:3, 3]) < self.config.keyframe_distance_m and _angle_deg(rel[:3, :3]) < self.config.keyframe_angle_deg:
                 return
         valid = np.isfinite(depth) & (depth > 0)
-        far = {}
+        far: dict[str, np.ndarray] = {}
         if self.config.far_rays:  # rays the map does not keep, for the change stage's free space
             beyond = np.where(valid & (depth > self._max_depth), depth, 0.0)
             far["far"] = depth_cloud(beyond, K, self.config.cloud_stride_px, self._sensor_max_depth).astype(np.float32)
