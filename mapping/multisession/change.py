@@ -51,20 +51,35 @@ class Scan:
     """One cloud in the map frame and the sensor origin it was seen from.
 
     Attributes:
-        points_m: (n, 3) points, m.
+        points_m: (n, 3) points, m: the map's, which the stage classifies.
         origin_m: (3,) sensor position, m.
+        far_m: (k, 3) points measured beyond the map's depth cut, m: the stage integrates their
+            rays (the free space in front of them, and their hits) but never classifies them, and
+            they never enter the map. Without them the space a camera saw through to a far wall
+            counts as unseen, and a change there is missed (docs/tracks/multisession.md).
     """
 
     points_m: np.ndarray
     origin_m: np.ndarray
+    far_m: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def __post_init__(self) -> None:
-        pts = np.asarray(self.points_m, dtype=float).reshape(-1, 3) if np.size(self.points_m) else np.zeros((0, 3))
         origin = np.asarray(self.origin_m, dtype=float)
         if origin.shape != (3,) or not np.all(np.isfinite(origin)):
             raise ConfigError("scan.origin_m", origin.shape, "a finite (3,) position")
-        object.__setattr__(self, "points_m", pts[np.all(np.isfinite(pts), axis=1)])
+        object.__setattr__(self, "points_m", _finite_rows(self.points_m))
         object.__setattr__(self, "origin_m", origin)
+        object.__setattr__(self, "far_m", _finite_rows(self.far_m))
+
+    @property
+    def rays_m(self) -> np.ndarray:
+        """The end points of every ray the stage integrates: the map's points, then the far ones."""
+        return np.concatenate([self.points_m, self.far_m]) if len(self.far_m) else self.points_m
+
+
+def _finite_rows(points: np.ndarray) -> np.ndarray:
+    pts = np.asarray(points, dtype=float).reshape(-1, 3) if np.size(points) else np.zeros((0, 3))
+    return pts[np.all(np.isfinite(pts), axis=1)]
 
 
 @dataclass(frozen=True)
@@ -263,10 +278,10 @@ def _octree(scans: Sequence[Scan], cfg: OctreeConfig):  # -> pyoctomap.OcTree
     tree.setOccupancyThres(cfg.occupancy_threshold)
     max_range = -1.0 if cfg.max_range_m is None else cfg.max_range_m
     for scan in scans:
-        if len(scan.points_m):
+        if len(scan.rays_m):
             # discretize: one ray per end voxel, OctoMap's own batching (0.96 s against 1.28 s for
             # 307 200 points, docs/multisession.md)
-            tree.insertPointCloud(scan.points_m, scan.origin_m, max_range, discretize=True)
+            tree.insertPointCloud(scan.rays_m, scan.origin_m, max_range, discretize=True)
     return tree
 
 
@@ -283,7 +298,7 @@ class _Hits:
         self._packed = np.zeros(0, dtype=np.int64)
 
     def add(self, scan: Scan) -> Scan:
-        self._packed = np.union1d(self._packed, _pack(voxel_keys(scan.points_m, self.resolution_m)))
+        self._packed = np.union1d(self._packed, _pack(voxel_keys(scan.rays_m, self.resolution_m)))
         return scan
 
     @property
@@ -371,10 +386,10 @@ def _dufomap(built_from: Iterable[Scan], cfg: DufomapConfig):  # -> dufomap.dufo
 
     dufo = dufomap(cfg.resolution_m, cfg.inflate_hits_m, cfg.inflate_unknown, num_threads=cfg.num_threads)
     for scan in built_from:
-        if len(scan.points_m):
+        if len(scan.rays_m):
             pose = np.eye(4)
             pose[:3, 3] = scan.origin_m
-            dufo.run(scan.points_m, pose, cloud_transform=False)
+            dufo.run(scan.rays_m, pose, cloud_transform=False)
     return dufo
 
 
@@ -423,7 +438,7 @@ def updated_scans(prior: Sequence[Scan], current: Sequence[Scan], result: Change
     out, start = [], 0
     for scan in prior:
         stop = start + len(scan.points_m)
-        out.append(Scan(scan.points_m[keep[start:stop]], scan.origin_m))
+        out.append(Scan(scan.points_m[keep[start:stop]], scan.origin_m, scan.far_m))
         start = stop
     return [*out, *current]
 

@@ -11,7 +11,8 @@ Per session (``process``, online):
   ``keyframe_angle_deg`` since the last one (and at the session's first usable frame): its image
   and depth go to the :class:`~.keyframes.KeyframeStore` (on disk, the pipeline's own temporary
   folder), with its cloud (depth pixels every ``cloud_stride_px``, up to ``max_depth_m``, in the
-  camera frame); in memory only its pose, stamp and the place label in force.
+  camera frame) and, with ``far_rays``, the pixels measured beyond that as far rays (for the
+  change stage's free space only); in memory only its pose, stamp and the place label in force.
 
 At the end (``finalize``, offline as the paper merges):
 
@@ -29,7 +30,8 @@ At the end (``finalize``, offline as the paper merges):
    sessions) that no two agreeing edges join to it stays its own map (``separate_sessions``;
    the decisions in ``stats["merge_joins"]``).
 4. **Changes**: the sessions of the main map in order, each against the map updated by those
-   before it (:func:`~.change.change_classifier`, ``change.kind`` octree or dufomap; eq. 2-3).
+   before it (:func:`~.change.change_classifier`, ``change.kind`` octree or dufomap; eq. 2-3),
+   each keyframe's far rays integrated beside its cloud but never classified or mapped.
    The map stays on disk as the paper keeps it: the current session's clouds are read from the
    store, the prior's a keyframe at a time, into octrees (or DUFOMaps) and voxel sets as large
    as the area, not as the number of sessions; in memory only a flag per point (still in the
@@ -88,6 +90,12 @@ class LtExosenseConfig:
         keyframe_distance_m / keyframe_angle_deg: a new keyframe after this motion.
         cloud_stride_px: a keyframe's cloud takes every this-many pixels in both directions.
         max_depth_m: depth beyond this is left out of the clouds (the D435's useful range).
+        far_rays: the change stage also integrates the rays of the depth pixels beyond
+            ``max_depth_m`` (up to what the camera reports, every ``cloud_stride_px``): the free
+            space in front of a far wall and its hits, never map points. Without them a place
+            that a camera saw through to a wall more than ``max_depth_m`` away counts as unseen,
+            and a change there is missed (docs/tracks/multisession.md, "The *Human* case's
+            change recall, point by point": 75 % of its misses).
         max_odometry_age_s: an image whose nearest odometry sample is further in time is skipped.
         use_place_labels: verify only candidates of the query's place type (when both have one).
         intra_session_loops: also propose loop closures within each session (keyframes at least
@@ -104,6 +112,7 @@ class LtExosenseConfig:
     keyframe_angle_deg: float = 15.0
     cloud_stride_px: int = 4
     max_depth_m: float = 4.0
+    far_rays: bool = True
     max_odometry_age_s: float = 0.06
     use_place_labels: bool = True
     intra_session_loops: bool = False
@@ -281,11 +290,16 @@ class LtExosense:
             rel = np.linalg.inv(s.poses[-1]) @ T
             if np.linalg.norm(rel[:3, 3]) < self.config.keyframe_distance_m and _angle_deg(rel[:3, :3]) < self.config.keyframe_angle_deg:
                 return
-        depth = np.where(np.isfinite(depth) & (depth > 0) & (depth <= self._max_depth), depth, 0.0)
+        valid = np.isfinite(depth) & (depth > 0)
+        far: dict[str, np.ndarray] = {}
+        if self.config.far_rays:  # rays the map does not keep, for the change stage's free space
+            beyond = np.where(valid & (depth > self._max_depth), depth, 0.0)
+            far["far"] = depth_cloud(beyond, K, self.config.cloud_stride_px, self._sensor_max_depth).astype(np.float32)
+        depth = np.where(valid & (depth <= self._max_depth), depth, 0.0)
         self._K = K
         assert self._store is not None
         self._store.put((s.session, len(s.poses)), image=rgb, depth=depth.astype(np.float32),
-                        cloud=depth_cloud(depth, K, self.config.cloud_stride_px, self._max_depth).astype(np.float32))
+                        cloud=depth_cloud(depth, K, self.config.cloud_stride_px, self._max_depth).astype(np.float32), **far)
         s.stamps.append(float(frame.stamp_s))
         s.poses.append(T.copy())
         s.labels.append(self._label)
@@ -360,11 +374,11 @@ class LtExosense:
         def prior() -> Iterator[Scan]:
             for i in range(len(alive)):
                 bounds = np.concatenate([[0], np.cumsum(sizes[i])])
-                for k, scan in enumerate(self._scans(sessions[i], T_map[i])):
-                    yield Scan(scan.points_m[alive[i][bounds[k]:bounds[k + 1]]], scan.origin_m)
+                for k, scan in enumerate(self._scans(sessions[i], T_map[i], far=True)):
+                    yield Scan(scan.points_m[alive[i][bounds[k]:bounds[k + 1]]], scan.origin_m, scan.far_m)
 
         for i, s in enumerate(sessions):
-            current = list(self._scans(s, T_map[i]))
+            current = list(self._scans(s, T_map[i], far=True))
             sizes.append(np.array([len(c.points_m) for c in current], dtype=int))
             if i:
                 clf = change_classifier(prior, current, self.config.change)
@@ -446,13 +460,16 @@ class LtExosense:
         stats["n_inter_edges"] = len(edges)
         return edges, loops
 
-    def _scans(self, s: _Session, T_map: np.ndarray) -> Iterator[Scan]:
-        """The session's keyframe clouds at their merged poses, read from the store one by one."""
+    def _scans(self, s: _Session, T_map: np.ndarray, far: bool = False) -> Iterator[Scan]:
+        """The session's keyframe clouds at their merged poses, read from the store one by one;
+        with ``far`` their far rays too (``far_rays``), for the change stage."""
         assert self._store is not None
         for k in range(len(s.poses)):
             p = self._store.get((s.session, k), "cloud").astype(float)
             T = T_map[k]
-            yield Scan(p @ T[:3, :3].T + T[:3, 3], T[:3, 3].copy())
+            q = (self._store.get((s.session, k), "far").astype(float) if far and self._store.has((s.session, k), "far")
+                 else np.zeros((0, 3)))  # fmt: skip
+            yield Scan(p @ T[:3, :3].T + T[:3, 3], T[:3, 3].copy(), q @ T[:3, :3].T + T[:3, 3])
 
 
 @dataclass

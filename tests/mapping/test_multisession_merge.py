@@ -286,3 +286,31 @@ def test_keyframe_store_never_closed_goes_when_collected_or_at_exit(tmp_path, mo
             "kept = KeyframeStore(parent=sys.argv[1]); print(kept.root)")
     out = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, check=True)
     assert out.stdout.strip().startswith(str(tmp_path)) and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("far_rays", [True, False])
+def test_a_keyframe_keeps_the_pixels_beyond_the_depth_cut_as_far_rays_not_as_cloud(far_rays):
+    """Four sampled pixels (stride 4) at 2.0, 5.0, no depth and 3.9 m, the cut at 4 m, the camera
+    reaching 6 m: the cloud holds the 2.0 and 3.9 m pixels, the far rays the 5.0 m one (camera
+    frame, computed by hand from K), none without ``far_rays``."""
+    from exobench.core.frames import OdometrySample, RgbdFrame, SessionStart
+    from exobench.mapping.multisession.pipeline import LtExosenseConfig
+
+    mounts = (SensorMount("rgbd_thigh", "rgbd", "thigh", np.eye(4), {"max_depth_m": 6.0}),
+              SensorMount("odom_thigh", "odometry", "thigh", np.eye(4)))  # fmt: skip
+    pipe = LtExosense(LtExosenseConfig(far_rays=far_rays))
+    pipe.reset(Calibration("", "pelvis", (), mounts, 0.1, 0.26, 0.05))
+    depth = np.zeros((8, 8), np.float32)
+    depth[0, 0], depth[0, 4], depth[4, 0], depth[4, 4] = 2.0, 5.0, 0.0, 3.9
+    K = np.array([[4.0, 0.0, 4.0], [0.0, 4.0, 4.0], [0.0, 0.0, 1.0]])
+    for f in (SessionStart(0.0, "session", 0, 0), OdometrySample(0.0, "odom_thigh", np.eye(4), np.zeros(3)),
+              RgbdFrame(0.01, "rgbd_thigh", np.zeros((8, 8, 3), np.uint8), depth, K)):  # fmt: skip
+        pipe.process(f)
+    try:
+        # pixel (u, v) at depth z: ((u - 4) z / 4, (v - 4) z / 4, z)
+        np.testing.assert_allclose(pipe._store.get((0, 0), "cloud"), [[-2.0, -2.0, 2.0], [0.0, 0.0, 3.9]], rtol=1e-6)
+        assert pipe._store.has((0, 0), "far") == far_rays
+        if far_rays:
+            np.testing.assert_allclose(pipe._store.get((0, 0), "far"), [[0.0, -5.0, 5.0]], rtol=1e-6)
+    finally:
+        pipe._store.close()

@@ -8,7 +8,7 @@ import tracemalloc
 
 import numpy as np
 import pytest
-from box_scene import cast
+from box_scene import cast, on_box
 
 from exobench.core.errors import ConfigError
 from exobench.mapping.multisession.change import ChangeConfig, Scan, update_map
@@ -176,3 +176,44 @@ def test_the_hit_guard_costs_memory_like_the_hits_not_27_times_them(kind):
         tracemalloc.stop()
     assert n_voxels > 20000  # a check of the scene
     assert peak < 27 * 24 * n_voxels, (peak, n_voxels)  # below the dilated keys alone (27 int64 triples a voxel)
+
+
+@pytest.mark.parametrize("far_rays", [True, False])
+def test_the_far_rays_in_the_store_reach_the_change_stage_and_never_the_map(far_rays):
+    """Session 0 sees box A round it; session 1 (A gone) looks at A's place from the far corner
+    with its depth cut at 3 m, the rays beyond kept as the keyframe's ``far`` cloud. The merge
+    finds A removed from the far rays (from none without them) and maps only the clouds."""
+    pipe = LtExosense(LtExosenseConfig(far_rays=far_rays, change=ChangeConfig(kind="dufomap")))
+    pipe._store = KeyframeStore()
+    sessions, T_maps, clouds = [], [], []
+    views = ([((2.0, 2.0, 1.0), yaw, [BOX_A]) for yaw in np.arange(8) * math.pi / 4],
+             [((3.6, 0.4, 1.5), yaw, []) for yaw in np.radians([120.0, 135.0, 150.0])])
+    for sid, session_views in enumerate(views):
+        s, Ts = _Session(sid, sid), []
+        for o, yaw, boxes in session_views:
+            T = np.eye(4)
+            T[:3, 3] = o
+            pts = cast(o, boxes, yaw, pitch_rad=0.0, n_u=200, n_v=150) - o  # camera frame: a shift
+            near = np.linalg.norm(pts, axis=1) <= 3.0
+            arrays = {"cloud": pts[near].astype(np.float32)}
+            if far_rays:
+                arrays["far"] = pts[~near].astype(np.float32)
+            pipe._store.put((sid, len(s.poses)), **arrays)
+            clouds.append(pts[near].astype(np.float32).astype(float) + o)
+            s.poses.append(T)
+            Ts.append(T)
+        sessions.append(s)
+        T_maps.append(np.stack(Ts))
+    try:
+        out = pipe._changes(sessions, T_maps)
+        every = np.array(out["map_points_no_change_detection"])
+    finally:
+        pipe._store.close()
+    np.testing.assert_array_equal(every, np.concatenate(clouds))  # the far rays are no map points
+    on_a = on_box(every, BOX_A) & (every[:, 2] > 0.1)
+    removed = out["removed_points"][0]
+    found = (on_box(removed, BOX_A) & (removed[:, 2] > 0.1)).sum()
+    if far_rays:
+        assert on_box(removed, BOX_A).all() and found >= 0.9 * on_a.sum()
+    else:
+        assert len(removed) == 0
