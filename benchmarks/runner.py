@@ -29,13 +29,14 @@ suite grows, and ``--jobs N`` gives the same results as ``--jobs 1``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime as _dt
 import fnmatch
 import os
 import time
 import zlib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -542,9 +543,27 @@ def execute(
     episode's figure is written after its records, and a figure that cannot be written costs
     only itself (``RunOutcome.figure_errors``).
     """
+    jobs = check_jobs(jobs)
+    with run_folder(plan, out_dir, resume=resume, executor=executor_entry(executor, jobs)) as out:
+        return _execute(plan, out, jobs, on_start, on_episode, executor)
+
+
+def check_jobs(jobs: Any) -> int:
     jobs = int(coerce_like("jobs", jobs, 1))
     if jobs < 1:
         raise ConfigError("jobs", jobs, "jobs >= 1")
+    return jobs
+
+
+def executor_entry(executor: Any, jobs: int) -> dict[str, Any]:
+    """What ``run_config.json`` says ran the episodes (``executor``)."""
+    return executor.describe() if executor is not None else {"name": "local" if jobs == 1 else "pool", "jobs": jobs}
+
+
+@contextlib.contextmanager
+def run_folder(plan: RunPlan, out_dir: str | os.PathLike, *, resume: bool, executor: dict[str, Any]) -> Iterator[Path]:
+    """The plan's run folder for the block: checked (refused before it is touched), created,
+    locked, with its run_config.json (:func:`prepare_output`)."""
     out = Path(out_dir)
     if resume and not out.is_dir():
         raise ConfigError("--resume", str(out), "a run folder with run_config.json")
@@ -553,9 +572,8 @@ def execute(
             prepare_output(out, plan, resume=False)
         out.mkdir(parents=True, exist_ok=True)
     with exclusive_lock(out, "run"):
-        used = executor.describe() if executor is not None else {"name": "local" if jobs == 1 else "pool", "jobs": jobs}
-        prepare_output(out, plan, resume=resume, executor=used)
-        return _execute(plan, out, jobs, on_start, on_episode, executor)
+        prepare_output(out, plan, resume=resume, executor=executor)
+        yield out
 
 
 def _execute(
@@ -566,37 +584,51 @@ def _execute(
     on_episode: Callable[[str, list[dict[str, Any]]], None] | None,
     executor: Any = None,
 ) -> RunOutcome:
-    results = out / RESULTS_FILE
-    done = {r["episode"] for r in read_records(results)}
-    todo = [e for e in plan.episodes if e.key not in done]
-    outcome = RunOutcome(out, skipped=[e.key for e in plan.episodes if e.key in done])
+    writer = TrackWriter(plan, out, on_episode)
     if on_start:
-        on_start(len(todo), len(outcome.skipped))
-    vers = versions()
-    job_list = [_Job(plan.track, e, tuple(plan.pipelines), vers) for e in todo]
+        on_start(len(writer.todo), len(writer.outcome.skipped))
+    job_list = writer.jobs()
     if job_list:
         setup_pipelines(plan.pipelines)
-
-    def finish(key: str, records: list[dict[str, Any]], figure: dict[str, Any] | None) -> None:
-        append_records(results, records)  # the records first: a figure is a convenience
-        outcome.ran.append(key)
-        if figure is not None:
-            try:
-                _save_figure(out, key, figure)
-            except OSError as e:
-                outcome.figure_errors.append(f"{key}: {e.strerror or e}")
-        if on_episode:
-            on_episode(key, records)
-
     if executor is not None:
-        executor.run(job_list, _run_job, finish, _failed_job)
+        executor.run(job_list, _run_job, writer.finish, _failed_job)
     elif jobs == 1 or len(job_list) <= 1:
         for job in job_list:
-            finish(*_run_job(job))
+            writer.finish(*_run_job(job))
     else:
-        _run_pool(job_list, jobs, finish)
-    outcome.records = sort_records(read_records(results), [p.name for p in plan.pipelines])
-    return outcome
+        _run_pool(job_list, jobs, writer.finish)
+    return writer.close()
+
+
+class TrackWriter:
+    """The driver's side of one plan's run folder (already prepared, its lock held): which
+    episodes are left, and each finished episode's records (appended at once) and figure."""
+
+    def __init__(self, plan: RunPlan, out: Path, on_episode: Callable[[str, list[dict[str, Any]]], None] | None = None) -> None:
+        self.plan, self.results, self.on_episode = plan, out / RESULTS_FILE, on_episode
+        done = {r["episode"] for r in read_records(self.results)}
+        self.todo = [e for e in plan.episodes if e.key not in done]
+        self.outcome = RunOutcome(out, skipped=[e.key for e in plan.episodes if e.key in done])
+
+    def jobs(self) -> list[_Job]:
+        vers = versions()
+        return [_Job(self.plan.track, e, tuple(self.plan.pipelines), vers) for e in self.todo]
+
+    def finish(self, key: str, records: list[dict[str, Any]], figure: dict[str, Any] | None) -> None:
+        append_records(self.results, records)  # the records first: a figure is a convenience
+        self.outcome.ran.append(key)
+        if figure is not None:
+            try:
+                _save_figure(self.outcome.out_dir, key, figure)
+            except OSError as e:
+                self.outcome.figure_errors.append(f"{key}: {e.strerror or e}")
+        if self.on_episode:
+            self.on_episode(key, records)
+
+    def close(self) -> RunOutcome:
+        """The outcome, with every record of the folder (those kept from before too)."""
+        self.outcome.records = sort_records(read_records(self.results), [p.name for p in self.plan.pipelines])
+        return self.outcome
 
 
 def setup_pipelines(pipelines: Sequence[PipelineRun]) -> None:
