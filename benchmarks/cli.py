@@ -146,7 +146,8 @@ def run(
     from .overrides import parse_assignments
     from .ray_executor import connected, executor_from_options
     from .results import RUN_CONFIG_FILE
-    from .runner import check_resume, plan_run
+    from .run_folder import check_resume
+    from .runner import plan_run
     from .tracks import track_names
 
     if jobs is not None and jobs < 1:
@@ -290,7 +291,9 @@ def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, 
         with exclusive_lock(root, "run"):
             if not resume:  # what `--resume --out ROOT` reads to continue every track
                 write_json_atomic(root / RUN_ALL_FILE, run_all_config(names, suite, run_seeds))
-            execute_tracks(runs, jobs=jobs, on_start=on_start, on_episode=on_episode, on_done=on_done, executor=ray_ex)
+            recordings = [_rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None for plan in plans]
+            execute_tracks(runs, jobs=jobs, on_start=on_start, on_episode=on_episode, on_done=on_done, executor=ray_ex,
+                           recordings=recordings)  # fmt: skip
     except KeyboardInterrupt:  # while episodes run, or while a report or recording is written
         close_bar()
         click.echo(f"exobench: interrupted; finished episodes are kept in {root} (continue: {hint})", err=True)
@@ -380,7 +383,8 @@ def _run_plan(
         bar["tqdm"].update(1)
 
     try:
-        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode, executor=ray_ex)
+        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode, executor=ray_ex,
+                          recording=rerun_path)  # fmt: skip
         bar["tqdm"].close()
         bar["finished"] = True
         return _finish_plan(plan, outcome, out_dir, rerun_path, no_report, hint, last)
@@ -425,8 +429,10 @@ def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, 
         except FolderError as e:  # tracks not finished yet: continuing runs them
             later = f"write it later: exobench report {shlex.quote(out_dir)}" if last else f"continue: {hint}"
             raise FolderError(f"{e}; the records are kept ({later})") from None
-    if rerun_path:
-        echo(f"rerun recording: {rerun_first_episode(plan, rerun_path)}")
+    if rerun_path:  # written by the run's own first episode, when it could be (runner.execute)
+        if outcome.recording_error:
+            raise FolderError(outcome.recording_error)
+        echo(f"rerun recording: {outcome.recording or rerun_first_episode(plan, rerun_path)}")
     return harness_errors(outcome.records)
 
 

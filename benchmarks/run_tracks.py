@@ -7,7 +7,7 @@ episode as soon as it is free; each track's folder is written as a run of that t
 writes it (:func:`.runner.execute`):
 
 - Every plan's run folder is checked, created, locked and given its ``run_config.json``
-  (:func:`.runner.run_folder`) before any episode runs, and held until the end.
+  (:func:`.run_folder.run_folder`) before any episode runs, and held until the end.
 - The order: the tracks' own, each track's episodes longest first with more than one worker
   (:func:`.pool.longest_first`, by the scenario's length), and the pool keeps it (each job
   carries its rank as its ``cost``). Across tracks there is no common estimate: a scenario's
@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .pool import longest_first, run_pool
+from .run_folder import run_folder
 from .runner import (
     RunOutcome,
     RunPlan,
@@ -42,7 +43,6 @@ from .runner import (
     _run_job,
     check_jobs,
     executor_entry,
-    run_folder,
     setup_pipelines,
 )
 
@@ -56,11 +56,11 @@ class TrackJob:
     cost: float
 
 
-def run_track_job(tj: TrackJob) -> tuple[tuple[int, str], list[dict[str, Any]], dict[str, Any] | None]:
+def run_track_job(tj: TrackJob) -> tuple:
     """The runner's unit of work, keyed by (plan, episode): two tracks may have an episode of
     the same name (``corridor-4m/s0``)."""
-    key, records, figure = _run_job(tj.job)
-    return (tj.slot, key), records, figure
+    key, *rest = _run_job(tj.job)
+    return (tj.slot, key), *rest
 
 
 def lost_track_job(tj: TrackJob, reason: str) -> tuple[tuple[int, str], list[dict[str, Any]], None]:
@@ -68,9 +68,10 @@ def lost_track_job(tj: TrackJob, reason: str) -> tuple[tuple[int, str], list[dic
     return (tj.slot, key), records, figure
 
 
-def ranked_jobs(writers: Sequence[TrackWriter], workers: int) -> list[TrackJob]:
+def ranked_jobs(writers: Sequence[TrackWriter], workers: int, recordings: Sequence[Any]) -> list[TrackJob]:
     """Every episode left, in the order the pool should take them (see the module doc)."""
-    ordered = [(i, job) for i, w in enumerate(writers) for job in (longest_first(w.jobs()) if workers > 1 else w.jobs())]
+    per_track = [w.jobs(rec) for w, rec in zip(writers, recordings, strict=True)]
+    ordered = [(i, job) for i, jobs in enumerate(per_track) for job in (longest_first(jobs) if workers > 1 else jobs)]
     return [TrackJob(i, job, float(len(ordered) - n)) for n, (i, job) in enumerate(ordered)]
 
 
@@ -82,6 +83,7 @@ def execute_tracks(
     on_episode: Callable[[int, str, list[dict[str, Any]]], None] | None = None,
     on_done: Callable[[int, RunOutcome], None] | None = None,
     executor: Any = None,
+    recordings: Sequence[str | os.PathLike | None] | None = None,
 ) -> list[RunOutcome]:
     """Run each ``(plan, run folder, resume)`` of ``runs`` in one pool (see the module doc).
 
@@ -89,7 +91,8 @@ def execute_tracks(
     episode; ``on_episode(i, key, records)`` after each episode's records are stored;
     ``on_done(i, outcome)`` when plan ``i`` is complete. An exception of a callback, a
     KeyboardInterrupt or a write that fails stops the run with the finished episodes kept, as
-    :func:`.runner.execute` does. Returns every plan's outcome, in ``runs``' order.
+    :func:`.runner.execute` does. ``recordings``: each plan's ``--rerun`` path (or None), as
+    :func:`.runner.execute` takes it. Returns every plan's outcome, in ``runs``' order.
     """
     jobs = check_jobs(jobs)
     used = executor_entry(executor, jobs)
@@ -109,9 +112,9 @@ def execute_tracks(
             if on_done:
                 on_done(i, outcomes[i])
 
-        def finish(slot_key: tuple[int, str], records: list[dict[str, Any]], figure: dict[str, Any] | None) -> None:
+        def finish(slot_key: tuple[int, str], records: list[dict[str, Any]], *rest: Any) -> None:
             i, key = slot_key
-            writers[i].finish(key, records, figure)
+            writers[i].finish(key, records, *rest)
             left[i] -= 1
             if left[i] == 0:
                 done(i)
@@ -119,7 +122,8 @@ def execute_tracks(
         for i, w in enumerate(writers):
             if not w.todo:
                 done(i)
-        job_list = ranked_jobs(writers, jobs if executor is None else 2)  # an executor: several workers
+        recs = [None] * len(writers) if recordings is None or executor is not None else list(recordings)
+        job_list = ranked_jobs(writers, jobs if executor is None else 2, recs)  # an executor: several workers
         for w in writers:
             if w.todo:
                 setup_pipelines(w.plan.pipelines)

@@ -11,6 +11,7 @@ episode of "stairs" to start waits until a file named by the test appears (at mo
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import threading
@@ -27,7 +28,8 @@ from exobench.benchmarks.cli import cli
 from exobench.benchmarks.registry import PipelineRegistry
 from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE
 from exobench.benchmarks.run_tracks import execute_tracks
-from exobench.benchmarks.runner import plan_run, untimed_metrics
+from exobench.benchmarks.runner import plan_run, rerun_first_episode, untimed_metrics
+from exobench.core.episode import EpisodeStream
 
 STAMPS = "EXOBENCH_TEST_STAMPS"
 WAIT_S = 20.0
@@ -181,3 +183,61 @@ def test_ctrl_c_at_two_jobs_then_the_printed_command_completes_every_track_with_
     for track in ("stairs", "stairs2"):
         assert _comparable(tmp_path / "part" / track) == _comparable(tmp_path / "whole" / track)
         assert len(_comparable(tmp_path / "part" / track)) == 6
+
+
+# ---------------------------------------------------------------- --rerun from the run's own episode
+
+
+class RecordedTrack(StampedTrack):
+    """Notes every simulation (a line in ``calls``) and writes a recording of JSON: the
+    episode's seed and each pipeline's series of (time, riser)."""
+
+    def simulate(self, scenario, seed):
+        with open(Path(os.environ[STAMPS]) / "calls", "a") as f:
+            f.write(f"{seed}\n")
+        return super().simulate(scenario, seed)
+
+    def write_recording(self, episode, estimates_by_pipeline, path, scoring=None):
+        series = {p: [[t, float(e.riser_height_m)] for t, e in s] for p, s in estimates_by_pipeline.items()}
+        Path(path).write_text(json.dumps({"seed": episode.seed, "series": series}))
+        return Path(path)
+
+
+class StreamedTrack(RecordedTrack):
+    """Hands its frames out as a stream (the truth at the end, the frames not kept)."""
+
+    def stream(self, scenario, seed):
+        ep = self.simulate(scenario, seed)
+        return EpisodeStream(ep.scenario, ep.seed, ep.calibration, iter(ep.frames), lambda: dataclasses.replace(ep, frames=()))
+
+
+class OnlineStairs(FakeStairs):
+    """The fake pipeline, with an online estimate once it has three readings (a recording's
+    timeline)."""
+
+    def process(self, frame):
+        super().process(frame)
+        return self.finalize() if len(self._frames) >= 3 else None
+
+
+@pytest.mark.parametrize(("track_cls", "jobs", "simulations"), [(RecordedTrack, 1, 6), (RecordedTrack, 2, 6), (StreamedTrack, 1, 7)])
+def test_rerun_is_written_from_the_runs_own_first_episode_unless_it_streams(tmp_path, stamps, monkeypatch, track_cls, jobs, simulations):
+    """Six episodes: six simulations, the recording from the first (in a worker at two jobs); a
+    streamed track's frames are gone once read, and its first episode is simulated again. The
+    recording is the one `rerun_first_episode` writes on its own."""
+    (stamps / "go").write_text("")  # nobody waits
+    serve_tracks(monkeypatch, stairs=track_cls)
+    r = registry_mod.PipelineRegistry()
+    r.register("fake", OnlineStairs)
+    monkeypatch.setattr(registry_mod, "default_registry", lambda: r)
+    monkeypatch.setattr("exobench.benchmarks.runner.default_registry", lambda: r)
+    rrd = tmp_path / "first.rrd"
+    result = _run(["run", "--track", "stairs", "--jobs", jobs, "--out", tmp_path / "run", "--no-report", "--rerun", rrd])
+    assert result.exit_code == 0, result.stderr
+    assert f"rerun recording: {rrd}" in result.stdout
+    assert len((stamps / "calls").read_text().split()) == simulations
+    plan = plan_run(track_cls(), "quick", ["fake"], [0], registry=r)
+    alone = rerun_first_episode(plan, tmp_path / "alone.rrd")
+    written = json.loads(rrd.read_text())
+    assert written == json.loads(alone.read_text()) and written["seed"] == plan.episodes[0].seed
+    assert len(written["series"]["fake"]) > 3  # online estimates, then the final one
