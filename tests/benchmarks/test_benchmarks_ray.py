@@ -106,12 +106,12 @@ class OtherStairs(FakeStairs):
 
 def test_every_track_on_ray_in_one_run_gives_each_tracks_own_records(executor, reg, tmp_path):
     """Two tracks' episodes (of the same names) on Ray's actors at once (run_tracks): each track's
-    folder holds what the pool writes for that track alone, and says Ray ran it."""
+    folder holds what a run of that track alone writes, and says Ray ran it."""
     reg.register("fake2", OtherStairs)
     plans = [_plan(reg, pipelines=["fake"]), _plan(reg, track=OtherTrack(), pipelines=["fake2"])]
     outcomes = execute_tracks([(plan, tmp_path / plan.track.name, False) for plan in plans], executor=executor)
     for plan, outcome in zip(plans, outcomes, strict=True):
-        alone = execute(plan, tmp_path / "pool" / plan.track.name, jobs=2)
+        alone = execute(plan, tmp_path / "alone" / plan.track.name, jobs=1)
         assert len(outcome.records) == 6 and {r["track"] for r in outcome.records} == {plan.track.name}
         assert _comparable(outcome.records) == _comparable(alone.records)
         assert json.loads((tmp_path / plan.track.name / RUN_CONFIG_FILE).read_text())["executor"]["name"] == "ray"
