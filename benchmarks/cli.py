@@ -276,14 +276,14 @@ def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, 
         lines.append((f"\n== track {plan.track.name} / {plan.suite}", False))
         rrd = _rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None
         finished_tracks.add(i)
-        bar["reporting"] = True  # a report's error says itself how to go on
+        bar["reporting"] = True  # kept if it raises: a report's error says itself how to go on
         try:
             errors.extend(_finish_plan(plan, outcome, str(folders[i]), rrd, no_report, hint, len(finished_tracks) == len(plans),
                                        echo=lambda text, err=False: lines.append((text, err))))
         finally:
-            bar.pop("reporting")
             blocks[i] = lines
             flush()
+        bar.pop("reporting")
 
     # tracks not started yet get their folders; finished and interrupted ones are continued
     runs = [(plan, folder, resume and (folder / RUN_CONFIG_FILE).exists()) for plan, folder in zip(plans, folders, strict=True)]
@@ -300,9 +300,10 @@ def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, 
         sys.exit(EXIT_INTERRUPTED)
     except ExobenchError as e:
         lost = type(e).__name__ == "ClusterLostError"  # the Ray cluster went away mid-run
+        close_bar()
         if not (isinstance(e, FolderError) or lost) or "tqdm" not in bar or "reporting" in bar:
             raise  # refused before anything ran, or a report's error that says what to do
-        close_bar()  # a write failed during the run (disk full)
+        # a write failed during the run (disk full)
         click.echo(f"exobench: error: {e}; finished episodes are kept in {root} (continue: {hint})", err=True)
         sys.exit(EXIT_USAGE)
     return errors

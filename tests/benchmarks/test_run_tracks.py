@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import shlex
 import threading
 import time
 from pathlib import Path
@@ -241,3 +242,23 @@ def test_rerun_is_written_from_the_runs_own_first_episode_unless_it_streams(tmp_
     written = json.loads(rrd.read_text())
     assert written == json.loads(alone.read_text()) and written["seed"] == plan.episodes[0].seed
     assert len(written["series"]["fake"]) > 3  # online estimates, then the final one
+
+
+def test_a_report_that_fails_in_a_run_of_every_track_is_one_line_whose_hint_finishes_the_run(tmp_path, stamps, reg, monkeypatch):
+    import matplotlib.figure
+    from test_run_folders import _savefig_on_a_full_disk
+
+    (stamps / "go").write_text("")  # nobody waits
+    out = tmp_path / "all"
+    with monkeypatch.context() as m:
+        m.setattr(matplotlib.figure.Figure, "savefig", _savefig_on_a_full_disk)
+        result = _run(["run", "--jobs", "2", "--out", out])
+    assert result.exit_code == 2
+    said = [ln for ln in result.stderr.splitlines() if ln.startswith("exobench:")]
+    assert len(said) == 1 and "No space left on device" in said[0] and said[0].count("continue: ") == 1, said
+    assert not (out / "stairs" / "report.md").exists()
+    resumed = _run(shlex.split(said[0].split("continue: ", 1)[1].rsplit(")", 1)[0])[1:])
+    assert resumed.exit_code == 0, resumed.stderr
+    assert (out / "stairs" / "report.md").exists() and (out / "stairs2" / "report.md").exists()
+    for track in ("stairs", "stairs2"):
+        assert len(_comparable(out / track)) == 6
