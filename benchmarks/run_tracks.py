@@ -22,6 +22,9 @@ writes it (:func:`.runner.execute`):
   episodes go on in the workers: its table, report and recording can be made then.
 - With ``jobs`` 1 and no executor the episodes run in this process, track after track, as
   before; one episode left in all runs there too.
+- ``recordings`` (``--rerun``): each track's first episode writes its recording from its own
+  frames, in whichever worker runs it (:func:`.runner._run_job`); not on an executor, whose
+  worker may be on another machine.
 """
 
 from __future__ import annotations
@@ -122,7 +125,7 @@ def execute_tracks(
         for i, w in enumerate(writers):
             if not w.todo:
                 done(i)
-        recs = [None] * len(writers) if recordings is None or executor is not None else list(recordings)
+        recs = [None] * len(writers) if recordings is None or executor is not None else list(recordings)  # see the module doc
         job_list = ranked_jobs(writers, jobs if executor is None else 2, recs)  # an executor: several workers
         for w in writers:
             if w.todo:
