@@ -20,8 +20,8 @@ SYSTEM_LIBS := libusb-1.0.so.0 libEGL.so.1 libOSMesa.so libGL.so.1
 DEBIAN_PKGS := libusb-1.0-0 libegl1 libosmesa6 libgl1 libgomp1
 
 .PHONY: run test bench lint system clean
-# a track's episodes on every core (locomotion's, vio's and stairs' several at a time): the same
-# records as one at a time (runner.py: episode seeds do not depend on the jobs)
+# every track's episodes in one pool on every core (benchmarks/run_tracks.py): the same records
+# as one at a time (runner.py: episode seeds do not depend on the jobs or the order)
 JOBS ?= $(shell nproc 2>/dev/null || echo 1)
 run: $(STAMP)
 	$(VENV)/bin/exobench run --jobs $(JOBS)

@@ -18,6 +18,7 @@ import contextlib
 import json
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -145,7 +146,8 @@ def run(
     from .overrides import parse_assignments
     from .ray_executor import connected, executor_from_options
     from .results import RUN_CONFIG_FILE
-    from .runner import check_resume, plan_run
+    from .run_folder import check_resume
+    from .runner import plan_run
     from .tracks import track_names
 
     if jobs is not None and jobs < 1:
@@ -223,21 +225,87 @@ def _served_tracks(names: list[str]) -> tuple[list[str], list[str]]:
 
 def _run_all(plans: list[Any], root: Path, names: list[str], suite: str | None, run_seeds: list[int], jobs: int,
              resume: bool, rerun_path: str | None, no_report: bool, hint: str, ray_ex: Any) -> list[str]:
-    """Run every track's plan into its folder of ``root`` (a run of every track)."""
+    """Run every track's plan into its folder of ``root`` (a run of every track), all their
+    episodes in one pool (:func:`.run_tracks.execute_tracks`) under one progress bar. Each
+    track's table, report and recording are made as soon as its last episode is in, and
+    printed in the tracks' order, as a run of one track after the other printed them."""
+    from tqdm import tqdm
+
+    from exobench.core.errors import ExobenchError, FolderError
+
     from .out_paths import exclusive_lock
     from .results import RUN_ALL_FILE, RUN_CONFIG_FILE, run_all_config, write_json_atomic
+    from .run_tracks import execute_tracks
 
     errors: list[str] = []
-    with exclusive_lock(root, "run"):
-        if not resume:  # what `--resume --out ROOT` reads to continue every track
-            write_json_atomic(root / RUN_ALL_FILE, run_all_config(names, suite, run_seeds))
-        for plan in plans:
-            click.echo(f"\n== track {plan.track.name} / {plan.suite}")
-            rrd = _rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None
-            folder = root / plan.track.name
-            # tracks not started yet get their folders; finished and interrupted ones are continued
-            started = resume and (folder / RUN_CONFIG_FILE).exists()
-            errors += _run_plan(plan, str(folder), jobs, started, rrd, no_report, hint, ray_ex, last=plan is plans[-1])
+    bar: dict[str, Any] = {}
+    blocks: dict[int, list[tuple[str, bool]]] = {}  # finished tracks' lines (text, to stderr), not yet printed
+    shown, finished_tracks = [0], set()
+    folders = [root / plan.track.name for plan in plans]
+
+    def close_bar() -> None:
+        if "tqdm" in bar and "finished" not in bar:
+            bar["tqdm"].close()
+            bar["finished"] = True
+
+    def flush() -> None:
+        while shown[0] in blocks:
+            with tqdm.external_write_mode(file=sys.stdout):  # the bar (on stderr) stays whole
+                for text, err in blocks.pop(shown[0]):
+                    click.echo(text, err=err)
+            shown[0] += 1
+
+    def on_start(counts: list[tuple[int, int]]) -> None:
+        for plan, (_, n_skipped) in zip(plans, counts, strict=True):
+            for name, why in plan.skipped.items():  # left out of a run of all the track's pipelines
+                click.echo(f"exobench: skipping pipeline {name}: {why}", err=True)
+            if n_skipped:
+                click.echo(f"resuming {plan.track.name}: {n_skipped} finished episodes kept", err=True)
+        suites = "/".join(dict.fromkeys(plan.suite for plan in plans))
+        bar["tqdm"] = tqdm(total=sum(n for n, _ in counts), unit="episode", file=sys.stderr, desc=f"all/{suites}")
+        if not bar["tqdm"].total:
+            close_bar()
+
+    def on_episode(i: int, key: str, records: list[dict[str, Any]]) -> None:
+        bar["tqdm"].update(1)
+        if bar["tqdm"].n >= bar["tqdm"].total:  # before the last track's table
+            close_bar()
+
+    def on_done(i: int, outcome: Any) -> None:
+        plan, lines = plans[i], []
+        lines.append((f"\n== track {plan.track.name} / {plan.suite}", False))
+        rrd = _rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None
+        finished_tracks.add(i)
+        bar["reporting"] = True  # kept if it raises: a report's error says itself how to go on
+        try:
+            errors.extend(_finish_plan(plan, outcome, str(folders[i]), rrd, no_report, hint, len(finished_tracks) == len(plans),
+                                       echo=lambda text, err=False: lines.append((text, err))))
+        finally:
+            blocks[i] = lines
+            flush()
+        bar.pop("reporting")
+
+    # tracks not started yet get their folders; finished and interrupted ones are continued
+    runs = [(plan, folder, resume and (folder / RUN_CONFIG_FILE).exists()) for plan, folder in zip(plans, folders, strict=True)]
+    try:
+        with exclusive_lock(root, "run"):
+            if not resume:  # what `--resume --out ROOT` reads to continue every track
+                write_json_atomic(root / RUN_ALL_FILE, run_all_config(names, suite, run_seeds))
+            recordings = [_rerun_path(rerun_path, plan.track.name) if rerun_path is not None else None for plan in plans]
+            execute_tracks(runs, jobs=jobs, on_start=on_start, on_episode=on_episode, on_done=on_done, executor=ray_ex,
+                           recordings=recordings)  # fmt: skip
+    except KeyboardInterrupt:  # while episodes run, or while a report or recording is written
+        close_bar()
+        click.echo(f"exobench: interrupted; finished episodes are kept in {root} (continue: {hint})", err=True)
+        sys.exit(EXIT_INTERRUPTED)
+    except ExobenchError as e:
+        lost = type(e).__name__ == "ClusterLostError"  # the Ray cluster went away mid-run
+        close_bar()
+        if not (isinstance(e, FolderError) or lost) or "tqdm" not in bar or "reporting" in bar:
+            raise  # refused before anything ran, or a report's error that says what to do
+        # a write failed during the run (disk full)
+        click.echo(f"exobench: error: {e}; finished episodes are kept in {root} (continue: {hint})", err=True)
+        sys.exit(EXIT_USAGE)
     return errors
 
 
@@ -316,7 +384,8 @@ def _run_plan(
         bar["tqdm"].update(1)
 
     try:
-        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode, executor=ray_ex)
+        outcome = execute(plan, out_dir, jobs=jobs, resume=resume, on_start=on_start, on_episode=on_episode, executor=ray_ex,
+                          recording=rerun_path)  # fmt: skip
         bar["tqdm"].close()
         bar["finished"] = True
         return _finish_plan(plan, outcome, out_dir, rerun_path, no_report, hint, last)
@@ -335,8 +404,10 @@ def _run_plan(
         sys.exit(EXIT_USAGE)
 
 
-def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, no_report: bool, hint: str, last: bool) -> list[str]:
-    """Print the table of a finished plan, write its report and rerun recording."""
+def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, no_report: bool, hint: str, last: bool,
+                 echo: Callable[..., None] = click.echo) -> list[str]:
+    """Print the table of a finished plan (with ``echo(text, err=False)``), write its report
+    and rerun recording."""
     import shlex
 
     from exobench.core.errors import FolderError
@@ -346,21 +417,23 @@ def _finish_plan(plan: Any, outcome: Any, out_dir: str, rerun_path: str | None, 
 
     if outcome.figure_errors:
         first = outcome.figure_errors[0]
-        click.echo(f"exobench: warning: {len(outcome.figure_errors)} figures not saved ({first}); their records are kept", err=True)
+        echo(f"exobench: warning: {len(outcome.figure_errors)} figures not saved ({first}); their records are kept", err=True)
     names = [p.name for p in plan.pipelines]
-    click.echo(summary_text(outcome.records, plan.track, names, [e.key for e in plan.episodes]))
+    echo(summary_text(outcome.records, plan.track, names, [e.key for e in plan.episodes]))
     if plan.cases:  # a part of the suite: the table is not the suite's
-        click.echo(f"\nonly the cases matching --case {', '.join(plan.cases)}: {len(plan.episodes)} episodes")
+        echo(f"\nonly the cases matching --case {', '.join(plan.cases)}: {len(plan.episodes)} episodes")
     failed = sum(bool(r["metrics"].get("failed")) for r in outcome.records)
-    click.echo(f"\n{len(outcome.records)} records ({failed} failed) in {outcome.out_dir / 'results.jsonl'}")
+    echo(f"\n{len(outcome.records)} records ({failed} failed) in {outcome.out_dir / 'results.jsonl'}")
     if not no_report:
         try:
-            click.echo(f"report: {write_report(outcome.out_dir)}")
-        except FolderError as e:  # the tracks after this one have not run: continuing runs them
+            echo(f"report: {write_report(outcome.out_dir)}")
+        except FolderError as e:  # tracks not finished yet: continuing runs them
             later = f"write it later: exobench report {shlex.quote(out_dir)}" if last else f"continue: {hint}"
             raise FolderError(f"{e}; the records are kept ({later})") from None
-    if rerun_path:
-        click.echo(f"rerun recording: {rerun_first_episode(plan, rerun_path)}")
+    if rerun_path:  # written by the run's own first episode, when it could be (runner.execute)
+        if outcome.recording_error:
+            raise FolderError(outcome.recording_error)
+        echo(f"rerun recording: {outcome.recording or rerun_first_episode(plan, rerun_path)}")
     return harness_errors(outcome.records)
 
 

@@ -119,8 +119,13 @@ COST_KEYS = ("max_distance_m", "duration_s", "duration_cap_s")  # a scenario's l
 
 
 def episode_cost(job: Any) -> float:
-    """A cheap estimate of how long a job runs, for ordering only: its scenario's length (the
-    first of :data:`COST_KEYS` it gives; the cases of one suite give the same one), 0 without."""
+    """A cheap estimate of how long a job runs, for ordering only: its own ``cost`` when it has
+    one (the jobs of a run of several tracks, ranked by :mod:`.run_tracks`), else its
+    scenario's length (the first of :data:`COST_KEYS` it gives; the cases of one suite give the
+    same one), 0 without."""
+    own = getattr(job, "cost", None)
+    if isinstance(own, (int, float)) and not isinstance(own, bool):
+        return float(own)
     scenario = getattr(getattr(job, "plan", None), "scenario", None)
     if isinstance(scenario, Mapping):
         for key in COST_KEYS:

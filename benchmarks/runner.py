@@ -21,7 +21,10 @@ Two steps, so that nothing touches the disk until everything is valid:
   (:mod:`.pool`) retries the episode of a worker that died once, then records it as failed.
   An ``executor`` (:class:`.ray_executor.RayExecutor`) runs the same unit of work elsewhere
   under the same contract; ``run_config.json`` records which executor ran (``executor``), and
-  a resume may use any.
+  a resume may use any. With ``recording`` (``--rerun``) the first episode's rerun recording is
+  written from that episode's own frames when it is held whole (:func:`_run_job`).
+  :mod:`.run_tracks` runs several plans in one pool with the pieces of this one
+  (:func:`.run_folder.run_folder`, :class:`TrackWriter`).
 
 Episode seeds are derived from the run seed and the case name, so a case keeps its seed when a
 suite grows, and ``--jobs N`` gives the same results as ``--jobs 1``.
@@ -48,26 +51,21 @@ from exobench.core.errors import ConfigError, FolderError, UnknownNameError
 from exobench.core.pipeline import coerce_like, is_deterministic
 
 from .entry_points import load_entry_point
-from .out_paths import LOCK_FILE, exclusive_lock, probe_appendable, probe_writable
 from .overrides import check_scenario_overrides, split_overrides
 from .pool import run_pool
 from .registry import PipelineRegistry, default_registry
 from .results import (
     RESULTS_FILE,
-    RUN_CONFIG_FILE,
     append_records,
     json_safe,
     read_records,
-    read_run_config,
-    repair_results,
     sort_records,
     versions,
-    write_json_atomic,
 )
+from .run_folder import FIGURES_DIR, check_resume, prepare_output, run_folder, save_figure  # noqa: F401 (FIGURES_DIR, check_resume, prepare_output: kept importable from here)
 from .tracks import get_track
 from .tracks.spec import Case, EpisodePlan, Track, scoring_of
 
-FIGURES_DIR = "figures"
 MAX_SEEDS = 10_000
 
 
@@ -124,6 +122,8 @@ class RunOutcome:
     skipped: list[str] = field(default_factory=list)
     records: list[dict[str, Any]] = field(default_factory=list)
     figure_errors: list[str] = field(default_factory=list)  # "episode: reason" of figures not saved
+    recording: Path | None = None  # the rerun recording written from the run's own first episode
+    recording_error: str | None = None  # why it could not be written (disk full)
 
 
 def episode_seed(run_seed: int, case_name: str) -> int:
@@ -384,11 +384,20 @@ class _Job:
     plan: EpisodePlan
     pipelines: tuple[PipelineRun, ...]
     versions: dict[str, str]
+    recording: str | None = None  # --rerun: write this episode's recording there (from a worker too)
+
+
+RERUN_EVERY_S = 0.1  # a recording's online estimates, at most this often
 
 
 def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | None]:
     """Simulate an episode and run every pipeline on it; a track that streams (``stream``, see
-    :class:`~.tracks.spec.Track`) hands its frames to the pipelines as they are produced."""
+    :class:`~.tracks.spec.Track`) hands its frames to the pipelines as they are produced.
+
+    With ``job.recording`` the episode's rerun recording is written from these very frames and
+    estimates (a fourth item: :func:`_recording_result`), unless the track streams: a stream's
+    frames are gone once read (holding them for it would undo the streaming), and
+    :func:`rerun_first_episode` simulates it again instead."""
     plan, track = job.plan, job.track
     stream = getattr(track, "stream", None)
     t0 = time.perf_counter()
@@ -399,6 +408,7 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
     sim_wall = time.perf_counter() - t0
     harness: dict[str, str] = {}
     scoring = scoring_of(track, plan.scenario)
+    every = None
     if isinstance(episode, EpisodeStream):
         timed = _TimedFrames(episode.frames)
         episode = dataclasses.replace(episode, frames=timed)
@@ -409,14 +419,29 @@ def _run_job(job: _Job) -> tuple[str, list[dict[str, Any]], dict[str, Any] | Non
         sim_wall += timed.wall_s
         episode = episode.finish()
     else:
-        estimates, metrics, walls, _ = run_pipelines(track, episode, job.pipelines, scoring=scoring, scorer_errors=harness)
+        every = RERUN_EVERY_S if job.recording is not None else None
+        estimates, metrics, walls, timelines = run_pipelines(track, episode, job.pipelines, scoring=scoring,
+                                                             scorer_errors=harness, timeline_every_s=every)  # fmt: skip
     figure = None
     if plan.case.figure:
         try:
             figure = track.figure_data(episode, estimates, scoring)
         except Exception:  # a figure is a convenience; never lose the episode's scores to it
             figure = None
-    return plan.key, _records(job, metrics, walls, sim_wall, harness), figure
+    records = _records(job, metrics, walls, sim_wall, harness)
+    if every is not None:  # held whole, not streamed: the recording from these frames
+        return plan.key, records, figure, _recording_result(track, episode, estimates, timelines, str(job.recording), scoring)
+    return plan.key, records, figure
+
+
+def _recording_result(track: Track, episode: Any, estimates: dict[str, Any], timelines: dict[str, list], path: str,
+                      scoring: Mapping[str, Any]) -> dict[str, str]:  # fmt: skip
+    """``{"path": ...}`` of the recording written, or ``{"error": ...}`` (plain strings: it
+    comes back from a worker)."""
+    try:
+        return {"path": str(write_rerun(track, episode, estimates, timelines, path, scoring))}
+    except FolderError as e:
+        return {"error": str(e)}
 
 
 def _failed_job(job: _Job, reason: str, sim_wall: float = 0.0) -> tuple[str, list[dict[str, Any]], None]:
@@ -460,64 +485,6 @@ def _records(
 # ---------------------------------------------------------------- the run
 
 
-def check_resume(out: str | os.PathLike, plan: RunPlan) -> None:
-    """ConfigError unless ``plan`` is the run whose folder ``out`` is (same track, suite,
-    pipelines and their configs, seeds, overrides, --case patterns); FolderError if the folder
-    is damaged."""
-    old = read_run_config(out)
-    new = json_safe(plan.run_config())
-    for key in ("track", "suite", "pipelines", "seeds", "overrides", "pipeline_overrides", "cases"):
-        if old.get(key) != new.get(key):
-            raise ConfigError(f"--resume {key}", new.get(key), f"the value of the run being resumed: {old.get(key)!r}")
-
-
-def _holds_only_lock(out: Path) -> bool:
-    return all(p.name == LOCK_FILE for p in out.iterdir())
-
-
-def prepare_output(out_dir: str | os.PathLike, plan: RunPlan, *, resume: bool, executor: dict[str, Any] | None = None) -> Path:
-    """Check the run folder (resuming: its run_config.json matches the plan, its results can be
-    appended to; else: it is new or empty) and write run_config.json. Call it holding the
-    folder's lock (see :func:`execute`); it runs nothing."""
-    out = Path(out_dir)
-    if resume:
-        if not (out / RUN_CONFIG_FILE).exists():
-            raise ConfigError("--resume", str(out), "a run folder with run_config.json")
-        check_resume(out, plan)
-        results = out / RESULTS_FILE
-        if results.exists() or results.is_symlink():
-            if not results.is_file():
-                raise FolderError(f"{results}: not a file; a run folder's {RESULTS_FILE} is a file of records")
-            err = probe_appendable(results)
-            if err is not None:
-                raise FolderError(f"{results}: cannot be written ({err.strerror})")
-        err = probe_writable(out)
-        if err is not None:
-            raise FolderError(f"{out}: cannot be written ({err.strerror})")
-        repair_results(results)
-        return out
-    if not _holds_only_lock(out):
-        again = " (or --resume to continue the run in it)" if (out / RUN_CONFIG_FILE).exists() else ""
-        raise ConfigError("--out", str(out), f"a new or empty folder{again}")
-    write_json_atomic(out / RUN_CONFIG_FILE, {**plan.run_config(), **({"executor": executor} if executor else {})})
-    return out
-
-
-def _save_figure(out: Path, key: str, figure: dict[str, Any]) -> None:
-    """Write an episode's figure data; on failure (disk full) nothing of it stays behind."""
-    folder = out / FIGURES_DIR
-    folder.mkdir(exist_ok=True)
-    target = folder / (key.replace("/", "__") + ".npz")
-    tmp = folder / (".tmp-" + target.name)
-    try:
-        with open(tmp, "wb") as f:
-            np.savez(f, **figure)
-        os.replace(tmp, target)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def execute(
     plan: RunPlan,
     out_dir: str | os.PathLike,
@@ -527,8 +494,13 @@ def execute(
     on_start: Callable[[int, int], None] | None = None,
     on_episode: Callable[[str, list[dict[str, Any]]], None] | None = None,
     executor: Any = None,
+    recording: str | os.PathLike | None = None,
 ) -> RunOutcome:
     """Run the plan into ``out_dir`` (see the module docstring).
+
+    ``recording`` (``--rerun``): the first episode, when this run runs it on this machine, also
+    writes its rerun recording there (``RunOutcome.recording``, or ``recording_error``); else
+    ``RunOutcome.recording`` stays None (:func:`rerun_first_episode` makes it).
 
     ``executor``: None runs the episodes in this process (``jobs`` 1) or the local pool; else
     an object with ``run(jobs, work, finish, on_lost)`` and ``describe()`` (a connected
@@ -542,20 +514,21 @@ def execute(
     episode's figure is written after its records, and a figure that cannot be written costs
     only itself (``RunOutcome.figure_errors``).
     """
+    jobs = check_jobs(jobs)
+    with run_folder(plan, out_dir, resume=resume, executor=executor_entry(executor, jobs)) as out:
+        return _execute(plan, out, jobs, on_start, on_episode, executor, recording)
+
+
+def check_jobs(jobs: Any) -> int:
     jobs = int(coerce_like("jobs", jobs, 1))
     if jobs < 1:
         raise ConfigError("jobs", jobs, "jobs >= 1")
-    out = Path(out_dir)
-    if resume and not out.is_dir():
-        raise ConfigError("--resume", str(out), "a run folder with run_config.json")
-    if not resume:
-        if out.is_dir() and not _holds_only_lock(out):  # refused before the folder is touched
-            prepare_output(out, plan, resume=False)
-        out.mkdir(parents=True, exist_ok=True)
-    with exclusive_lock(out, "run"):
-        used = executor.describe() if executor is not None else {"name": "local" if jobs == 1 else "pool", "jobs": jobs}
-        prepare_output(out, plan, resume=resume, executor=used)
-        return _execute(plan, out, jobs, on_start, on_episode, executor)
+    return jobs
+
+
+def executor_entry(executor: Any, jobs: int) -> dict[str, Any]:
+    """What ``run_config.json`` says ran the episodes (``executor``)."""
+    return executor.describe() if executor is not None else {"name": "local" if jobs == 1 else "pool", "jobs": jobs}
 
 
 def _execute(
@@ -565,38 +538,60 @@ def _execute(
     on_start: Callable[[int, int], None] | None,
     on_episode: Callable[[str, list[dict[str, Any]]], None] | None,
     executor: Any = None,
+    recording: str | os.PathLike | None = None,
 ) -> RunOutcome:
-    results = out / RESULTS_FILE
-    done = {r["episode"] for r in read_records(results)}
-    todo = [e for e in plan.episodes if e.key not in done]
-    outcome = RunOutcome(out, skipped=[e.key for e in plan.episodes if e.key in done])
+    writer = TrackWriter(plan, out, on_episode)
     if on_start:
-        on_start(len(todo), len(outcome.skipped))
-    vers = versions()
-    job_list = [_Job(plan.track, e, tuple(plan.pipelines), vers) for e in todo]
+        on_start(len(writer.todo), len(writer.outcome.skipped))
+    job_list = writer.jobs(recording if executor is None else None)  # a Ray worker may be on another machine
     if job_list:
         setup_pipelines(plan.pipelines)
-
-    def finish(key: str, records: list[dict[str, Any]], figure: dict[str, Any] | None) -> None:
-        append_records(results, records)  # the records first: a figure is a convenience
-        outcome.ran.append(key)
-        if figure is not None:
-            try:
-                _save_figure(out, key, figure)
-            except OSError as e:
-                outcome.figure_errors.append(f"{key}: {e.strerror or e}")
-        if on_episode:
-            on_episode(key, records)
-
     if executor is not None:
-        executor.run(job_list, _run_job, finish, _failed_job)
+        executor.run(job_list, _run_job, writer.finish, _failed_job)
     elif jobs == 1 or len(job_list) <= 1:
         for job in job_list:
-            finish(*_run_job(job))
+            writer.finish(*_run_job(job))
     else:
-        _run_pool(job_list, jobs, finish)
-    outcome.records = sort_records(read_records(results), [p.name for p in plan.pipelines])
-    return outcome
+        _run_pool(job_list, jobs, writer.finish)
+    return writer.close()
+
+
+class TrackWriter:
+    """The driver's side of one plan's run folder (already prepared, its lock held): which
+    episodes are left, and each finished episode's records (appended at once) and figure."""
+
+    def __init__(self, plan: RunPlan, out: Path, on_episode: Callable[[str, list[dict[str, Any]]], None] | None = None) -> None:
+        self.plan, self.results, self.on_episode = plan, out / RESULTS_FILE, on_episode
+        done = {r["episode"] for r in read_records(self.results)}
+        self.todo = [e for e in plan.episodes if e.key not in done]
+        self.outcome = RunOutcome(out, skipped=[e.key for e in plan.episodes if e.key in done])
+
+    def jobs(self, recording: str | os.PathLike | None = None) -> list[_Job]:
+        """The jobs of the episodes left; with ``recording``, the plan's first episode (if it is
+        left) writes its rerun recording there."""
+        vers, first = versions(), self.plan.episodes[0].key if self.plan.episodes else None
+        rec = None if recording is None else str(recording)
+        return [_Job(self.plan.track, e, tuple(self.plan.pipelines), vers, rec if e.key == first else None) for e in self.todo]
+
+    def finish(self, key: str, records: list[dict[str, Any]], figure: dict[str, Any] | None,
+               recording: dict[str, str] | None = None) -> None:  # fmt: skip
+        append_records(self.results, records)  # the records first: a figure is a convenience
+        self.outcome.ran.append(key)
+        if recording is not None:
+            self.outcome.recording = Path(recording["path"]) if "path" in recording else None
+            self.outcome.recording_error = recording.get("error")
+        if figure is not None:
+            try:
+                save_figure(self.outcome.out_dir, key, figure)
+            except OSError as e:
+                self.outcome.figure_errors.append(f"{key}: {e.strerror or e}")
+        if self.on_episode:
+            self.on_episode(key, records)
+
+    def close(self) -> RunOutcome:
+        """The outcome, with every record of the folder (those kept from before too)."""
+        self.outcome.records = sort_records(read_records(self.results), [p.name for p in self.plan.pipelines])
+        return self.outcome
 
 
 def setup_pipelines(pipelines: Sequence[PipelineRun]) -> None:
@@ -617,16 +612,25 @@ def harness_errors(records: Sequence[Mapping[str, Any]]) -> list[str]:
     return [f"{r['episode']} {r['pipeline']}: {r['harness_error']}" for r in records if r.get("harness_error")]
 
 
-def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: float = 0.1) -> Path:
-    """Simulate the plan's first episode again and write a rerun recording of it."""
+def rerun_first_episode(plan: RunPlan, path: str | os.PathLike, *, every_s: float = RERUN_EVERY_S) -> Path:
+    """Simulate the plan's first episode again and write a rerun recording of it (what a run
+    does when its own first episode could not be recorded: streamed, run elsewhere, or kept
+    from before a resume)."""
 
     first = plan.episodes[0]
     episode = plan.track.simulate(first.scenario, first.seed)
     scoring = scoring_of(plan.track, first.scenario)
     estimates, _, _, timelines = run_pipelines(plan.track, episode, plan.pipelines, scoring=scoring, timeline_every_s=every_s)
+    return write_rerun(plan.track, episode, estimates, timelines, path, scoring)
+
+
+def write_rerun(track: Track, episode: Any, estimates: dict[str, Any], timelines: dict[str, list], path: str | os.PathLike,
+                scoring: Mapping[str, Any] | None) -> Path:  # fmt: skip
+    """The track's rerun recording of an episode, its pipelines' online ``timelines`` each
+    ended by the final estimate; FolderError, nothing half-written, when it cannot be written."""
     series = {n: timelines[n] + [(float(episode.frames[-1].stamp_s), e)] for n, e in estimates.items()}
     try:
-        return plan.track.write_recording(episode, series, Path(path), scoring)
+        return track.write_recording(episode, series, Path(path), scoring)
     except OSError as e:  # disk full: no half-written recording
         Path(path).unlink(missing_ok=True)
         raise FolderError(f"{path}: cannot be written ({e.strerror or e})") from None

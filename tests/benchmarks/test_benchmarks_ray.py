@@ -13,11 +13,12 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 import ray
 from test_benchmarks_runner import KillingTrack, _comparable, _plan
-from test_benchmarks_support import FakeStairs
+from test_benchmarks_support import FakeStairs, FakeTrack
 
 from exobench.benchmarks import ray_executor
 from exobench.benchmarks.cli import main
@@ -25,6 +26,7 @@ from exobench.benchmarks.pool import Death, lost_reason
 from exobench.benchmarks.ray_executor import ClusterLostError, RayExecutor, run_actors
 from exobench.benchmarks.registry import PipelineRegistry
 from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE
+from exobench.benchmarks.run_tracks import execute_tracks
 from exobench.benchmarks.runner import execute
 from exobench.core import ConfigError
 
@@ -91,6 +93,28 @@ def test_a_run_started_on_ray_is_resumed_on_the_pool_and_the_other_way(executor,
         resumed = execute(plan, out, resume=True, executor=executor if then == "ray" else None, jobs=2)
         assert len(resumed.skipped) == 2 and len(resumed.ran) == len(plan.episodes) - 2
         assert _comparable(resumed.records) == _comparable(full)
+
+
+class OtherTrack(FakeTrack):
+    name: ClassVar[str] = "stairs2"
+
+
+class OtherStairs(FakeStairs):
+    name: ClassVar[str] = "fake2"
+    track: ClassVar[str] = "stairs2"
+
+
+def test_every_track_on_ray_in_one_run_gives_each_tracks_own_records(executor, reg, tmp_path):
+    """Two tracks' episodes (of the same names) on Ray's actors at once (run_tracks): each track's
+    folder holds what a run of that track alone writes, and says Ray ran it."""
+    reg.register("fake2", OtherStairs)
+    plans = [_plan(reg, pipelines=["fake"]), _plan(reg, track=OtherTrack(), pipelines=["fake2"])]
+    outcomes = execute_tracks([(plan, tmp_path / plan.track.name, False) for plan in plans], executor=executor)
+    for plan, outcome in zip(plans, outcomes, strict=True):
+        alone = execute(plan, tmp_path / "alone" / plan.track.name, jobs=1)
+        assert len(outcome.records) == 6 and {r["track"] for r in outcome.records} == {plan.track.name}
+        assert _comparable(outcome.records) == _comparable(alone.records)
+        assert json.loads((tmp_path / plan.track.name / RUN_CONFIG_FILE).read_text())["executor"]["name"] == "ray"
 
 
 def test_a_killed_worker_is_retried_once_then_recorded_failed_with_the_pools_reason(executor, reg, tmp_path):

@@ -514,7 +514,8 @@ def test_ctrl_c_while_the_report_is_written_leaves_none_of_it_and_the_hint_finis
         stopped = _run(["run", "--out", out])
     assert stopped.exit_code == 130
     assert not list(out.rglob("*.png")) and not list(out.rglob("*.tmp")) and not (out / "stairs" / "report.md").exists()
-    assert not (out / "stairs2").exists()
+    # every track's folder is made before any episode runs; stairs2's had not run (one job)
+    assert (out / "stairs2" / RUN_CONFIG_FILE).exists() and not (out / "stairs2" / RESULTS_FILE).exists()
     resumed = _run(_printed_command(stopped.stderr))
     assert resumed.exit_code == 0, resumed.stderr
     assert (out / "stairs" / "report.md").exists() and (out / "stairs2" / "report.md").exists()
@@ -542,7 +543,7 @@ def test_resuming_every_track_checks_every_track_folder_before_any_runs(tmp_path
     with monkeypatch.context() as m:
         _interrupt_after(m, 3)
         assert _run(["run", "--out", out, "--no-report"]).exit_code == 130
-    (out / "stairs2").mkdir()
+    (out / "stairs2" / RUN_CONFIG_FILE).unlink()  # made before any episode ran: now a folder of something else
     (out / "stairs2" / "notes.txt").write_text("not a run")
     monkeypatch.setattr(FakeTrack, "simulate", lambda *a: pytest.fail("ran before every folder was checked"))
     result = _run(["run", "--resume", "--out", out])
