@@ -135,7 +135,7 @@ class WindowConfig:
     max_gyro_bias: float = 1.0
     max_update_speed_mps: float = 4.0
     max_update_climb_mps: float = 1.0
-    update_slack_m: float = 0.05
+    update_slack_m: float = 0.5
     max_update_turn_deg: float = 50.0
     linear_solver: str = "cholesky"
     bias_sigma_acc: float = 0.2
