@@ -27,9 +27,10 @@ are speeds over that interval, with a slack for the window's correction of the n
   newest pose 0.4 m back onto its landmarks after drifting (65.9 s: 0.53 m in 67 ms, the segment
   then ended 0.05 m off; with a 0.05 m slack that correction was declared a failure and the
   walk's ATE went 0.69 -> 0.80 m). A correction is one step; a window that runs away does so at a
-  few m/s over many updates, which the speed bound below sees;
-- ``max_update_turn_deg`` 50: VINS-Mono's, now a failure; a head turns at most about 20 deg
-  between two keyframes (keyframes come by parallax, which a turn raises quickly) [A];
+  few m/s over many updates, which only the speed bound below sees, once past it (docs/dvio.md
+  "Failure detection": too late to make QR pay on that walk);
+- ``max_update_turn_deg`` 50: VINS-Mono's, now a failure; the head turned at most 7.3 deg between
+  two updates on that jog (keyframes come by parallax, which a turn raises quickly);
 - ``max_speed_mps`` 8.0 (the velocity state; a walking person's bound [A]: the head's true speed
   peaks at 3.4 m/s on that jog, a thigh camera's swing is faster), ``max_accel_bias`` 2.5 and
   ``max_gyro_bias`` 1.0 (VINS-Mono's).
