@@ -142,6 +142,12 @@ def test_process_before_reset_and_bad_parameters_are_refused(walk):
         DvioConfig(kernel="tukey")
     with pytest.raises(ConfigError, match="max_features"):
         DvioConfig(max_features=0)
+    with pytest.raises(ConfigError, match="update_slack_m"):
+        DvioConfig(update_slack_m=-0.1)
+    with pytest.raises(ConfigError, match="max_gyro_bias"):
+        DvioConfig(max_gyro_bias=0.0)
+    with pytest.raises(ConfigError, match="linear_solver"):
+        DvioConfig(linear_solver="lu")
     cal = walk.calibration
     bent = dataclasses.replace(cal, extra={**cal.extra, "T_camera_imu": (2.0 * np.eye(4)).tolist()})
     with pytest.raises(ConfigError, match="T_camera_imu"):

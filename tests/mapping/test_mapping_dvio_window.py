@@ -4,6 +4,7 @@ gyro bias, tracking loss."""
 
 import dataclasses
 
+import gtsam
 import numpy as np
 import pytest
 from dvio_synthetic import EXT, NOISE, F, ate_m, camera_pose, imu_samples, landmarks, observe, truth
@@ -12,6 +13,7 @@ from exobench.benchmarks.trajectory import umeyama_alignment
 from exobench.core.errors import ConfigError
 from exobench.core.transforms import rot_x, rot_z
 from exobench.mapping.odometry.dvio import window as window_module
+from exobench.mapping.odometry.dvio.failure import REASONS
 from exobench.mapping.odometry.dvio.imu import ImuNoise
 from exobench.mapping.odometry.dvio.window import SlidingWindow, WindowConfig
 
@@ -19,14 +21,14 @@ RATE = 30.0
 
 
 def run(depth_factors=True, seed=0, dur=3.0, kf_every=4, window=10, max_features=40, gyro_bias=(0.0, 0.0, 0.0),
-        blind=(np.inf, np.inf), untracked=(np.inf, np.inf), glass=0.0):
+        blind=(np.inf, np.inf), untracked=(np.inf, np.inf), glass=0.0, **config):
     """Frames at 30 Hz, a keyframe every ``kf_every``; no features during ``blind`` (t0, t1); during
     ``untracked`` (t0, t1) as many features as before, but each under a new id in every frame (a
     front end that finds corners and holds none of them); ``glass``: the share of landmarks seen
     through a pane at half their distance, whose depth is the pane's."""
     rng = np.random.default_rng(seed)
     L = landmarks(rng)
-    w = SlidingWindow(WindowConfig(window=window, init_keyframes=window, depth_factors=depth_factors), EXT,
+    w = SlidingWindow(WindowConfig(window=window, init_keyframes=window, depth_factors=depth_factors, **config), EXT,
                       ImuNoise(), NOISE, F)
     imu = list(imu_samples(0.0, dur + 0.1, gyro_bias=gyro_bias))
     k, out = 0, []
@@ -224,3 +226,74 @@ def test_window_parameters_out_of_range_are_refused():
         WindowConfig(tilt_sigma_rad=0.0)
     with pytest.raises(ConfigError, match="depth_gate_px"):
         WindowConfig(depth_gate_px=-1.0)
+    with pytest.raises(ConfigError, match="max_update_speed_mps"):
+        WindowConfig(max_update_speed_mps=0.0)
+    with pytest.raises(ConfigError, match="max_update_climb_mps"):
+        WindowConfig(max_update_climb_mps=-1.0)
+    with pytest.raises(ConfigError, match="update_slack_m"):
+        WindowConfig(update_slack_m=float("nan"))
+    with pytest.raises(ConfigError, match="max_update_turn_deg"):
+        WindowConfig(max_update_turn_deg=200.0)
+    with pytest.raises(ConfigError, match="max_accel_bias"):
+        WindowConfig(max_accel_bias=0.0)
+    with pytest.raises(ConfigError, match="linear_solver"):
+        WindowConfig(linear_solver="lu")
+
+
+def _corrupt_update(monkeypatch, at_s, shift=(0.0, 0.0, 0.0), accel_bias=None):
+    """The first window update at or after ``at_s`` returns a diverged newest state: its position
+    moved by ``shift`` (m, in G) and/or its accelerometer bias set to ``accel_bias``, as a window
+    that a solver has run away with (docs/dvio.md "Long walks": with QR, windows Cholesky had given
+    up on ran 10-23 m off). Returns the stamps it corrupted."""
+    real = window_module.SlidingWindow._update
+    done = []
+
+    def update(self, *args, **kwargs):
+        real(self, *args, **kwargs)
+        if done or self._kfs[-1].stamp_s < at_s:
+            return
+        done.append(self._kfs[-1].stamp_s)
+        pose = self._nav.pose()
+        self._nav = gtsam.NavState(gtsam.Pose3(pose.rotation(), pose.translation() + np.asarray(shift)),
+                                   self._nav.velocity())
+        if accel_bias is not None:
+            self._bias = gtsam.imuBias.ConstantBias(np.asarray(accel_bias, float), self._bias.gyroscope())
+
+    monkeypatch.setattr(window_module.SlidingWindow, "_update", update)
+    return done
+
+
+@pytest.mark.parametrize(("shift", "accel_bias", "reason"), [
+    ((6.0, 0.0, 0.0), None, "jump"),  # VINS-Mono's 5 m, and more than a walker's 4 m/s over 0.13 s
+    ((0.0, 0.0, 0.8), None, "vertical jump"),  # within the jump bound (1.03 m here), not the climb's (0.63 m)
+    ((0.0, 0.0, 0.0), (3.0, 0.0, 0.0), "accel bias"),  # VINS-Mono's 2.5 m/s^2
+])
+def test_a_diverged_window_update_is_discarded_and_re_initialised(monkeypatch, shift, accel_bias, reason):
+    """A window update whose newest state runs away is VINS-Mono's ``failureDetection`` case: the
+    update is discarded, the walk is lost until a re-initialisation, and the new segment continues
+    from the state before the bad update (as after a solver failure). Before the failure detection
+    a jump was kept as a pose (6 m off, ATE 2.4 m) and a bias out of bounds re-initialised from the
+    bad state (the loss propagated with a 3 m/s^2 bias)."""
+    corrupted = _corrupt_update(monkeypatch, 1.5, shift, accel_bias)
+    out, w = run(True, window=5, dur=3.4)
+    assert corrupted
+    bad = next(i for i, (t, *_) in enumerate(out) if t == corrupted[0])
+    assert out[bad][1] == "lost" and out[bad][2] is None  # the diverged pose is never output
+    assert w.loss_reasons == {"diverged: " + reason: 1} and w.stats["reinitialisations"] == 1
+    assert w.stats["failures_" + reason.replace(" ", "_")] == 1
+    assert sum(w.stats["failures_" + r.replace(" ", "_")] for r in REASONS) == 1
+    after = [t for t, st, *_ in out[bad:] if st == "ok"]
+    assert len(after) >= 10 and out[-1][1] == "ok"
+    # Anchored on the state before the bad update propagated through the loss: one alignment fits both.
+    assert ate_m(*ok_poses(out)) < 0.05
+
+
+@pytest.mark.parametrize(("depth_factors", "kf_every"), [(True, 4), (False, 4), (True, 1)])
+def test_a_normal_walk_never_trips_the_failure_detection(depth_factors, kf_every):
+    """The helix at 1.2 m/s, climbing at up to 0.45 m/s and turning at 0.8 rad/s, with and without
+    depth factors, a keyframe every 4 frames or every frame (the shortest interval, the tightest
+    translation bounds): no update is declared diverged."""
+    out, w = run(depth_factors, dur=2.5, kf_every=kf_every)
+    assert all(w.stats["failures_" + r.replace(" ", "_")] == 0 for r in REASONS)
+    assert w.stats["reinitialisations"] == 0 and w.loss_reasons == {}
+    assert [st for _, st, *_ in out].count("ok") >= 30

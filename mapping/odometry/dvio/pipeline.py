@@ -71,6 +71,10 @@ class DvioConfig:
         max_iterations: Levenberg-Marquardt iterations per keyframe.
         min_features: fewer tracked features is a tracking loss.
         min_landmarks: a keyframe observing fewer window landmarks is a tracking loss.
+        max_speed_mps / max_accel_bias / max_gyro_bias / max_update_speed_mps /
+            max_update_climb_mps / update_slack_m / max_update_turn_deg: the failure detection's
+            bounds on a window update (:class:`.failure.FailureBounds`).
+        linear_solver: the window smoother's linear solver ("cholesky" or "qr").
         max_wait_s: longest a frame waits for the IMU to reach its time, s.
         camera_id / imu_id: streams to read ("" = the calibration's camera and its IMU).
     """
@@ -88,6 +92,14 @@ class DvioConfig:
     max_iterations: int = 8
     min_features: int = 10
     min_landmarks: int = 2
+    max_speed_mps: float = 8.0
+    max_accel_bias: float = 2.5
+    max_gyro_bias: float = 1.0
+    max_update_speed_mps: float = 4.0
+    max_update_climb_mps: float = 1.0
+    update_slack_m: float = 0.5
+    max_update_turn_deg: float = 50.0
+    linear_solver: str = "cholesky"
     max_wait_s: float = 0.5
     camera_id: str = ""
     imu_id: str = ""
@@ -107,7 +119,10 @@ class DvioConfig:
         return WindowConfig(window=self.window, init_keyframes=self.init_keyframes, pixel_sigma_px=self.pixel_sigma_px,
                             kernel=self.kernel, kernel_k=self.kernel_k, depth_factors=self.depth_factors,
                             max_iterations=self.max_iterations, min_features=self.min_features,
-                            min_landmarks=self.min_landmarks)
+                            min_landmarks=self.min_landmarks, max_speed_mps=self.max_speed_mps,
+                            max_accel_bias=self.max_accel_bias, max_gyro_bias=self.max_gyro_bias, max_update_speed_mps=self.max_update_speed_mps,
+                            max_update_climb_mps=self.max_update_climb_mps, update_slack_m=self.update_slack_m,
+                            max_update_turn_deg=self.max_update_turn_deg, linear_solver=self.linear_solver)
 
 
 @dataclass(frozen=True)

@@ -37,13 +37,14 @@ by a PnP of the frame's features on the window's landmarks (``cv2.solvePnPRansac
 the propagation), kept only when enough inliers agree. The IMU-rate pose
 (:meth:`SlidingWindow.imu_pose`) propagates the newest window state with every sample.
 
-Failure (VINS-Mono's ``failureDetection``): an optimisation that raises, a speed or bias beyond
-the config's bounds, too few features tracked, or a new keyframe that observes fewer than
-``min_landmarks`` of the window's landmarks (checked before the smoother runs: a window held by
-the IMU alone is not solvable in double precision, docs/dvio.md "The indeterminate system").
-The window is then cleared; the caller re-initialises (:mod:`.init`) and the new segment is
-anchored (position and yaw, its velocities turned with it; the gravity direction is the new
-initialisation's) on the last good state propagated by the IMU through the loss to the first
+Failure: an optimisation that raises, too few features tracked, a new keyframe that observes
+fewer than ``min_landmarks`` of the window's landmarks (checked before the smoother runs: a window
+held by the IMU alone is not solvable in double precision, docs/dvio.md "The indeterminate
+system"), or a window update whose newest state fails VINS-Mono's ``failureDetection`` adapted to a
+walker (:mod:`.failure`: speed, biases, a jump, a vertical jump or a turn since the previous
+update; that update is discarded). The window is then cleared; the caller re-initialises
+(:mod:`.init`) and the new segment is anchored (position and yaw, its velocities turned with it; the gravity direction is the new
+initialisation's) on the last good state (before the failed update) propagated by the IMU through the loss to the first
 keyframe of the new initialisation (on the last good pose when the loss lasted longer than
 ``_MAX_DEAD_RECKON_S``).
 """
@@ -61,6 +62,7 @@ import numpy as np
 from exobench.core.errors import ConfigError, check_int, check_range
 
 from .factors import KERNELS, DepthNoise, Extrinsics, landmark_in_camera
+from .failure import REASONS, FailureBounds, diverged
 from .grouped import HostedLandmark, host_group_factor
 from .imu import ImuNoise, ImuPreintegrator, combined_factor
 from .init import InitResult, KeyframeObs, initialise
@@ -73,6 +75,7 @@ Sample = tuple[float, np.ndarray, np.ndarray]
 # Longest IMU-only propagation a re-initialised segment is anchored on [A]: a walking person's IMU
 # with a calibrated bias stays within centimetres for a few seconds.
 _MAX_DEAD_RECKON_S = 3.0
+_SOLVERS = {"cholesky": "MULTIFRONTAL_CHOLESKY", "qr": "MULTIFRONTAL_QR"}
 
 
 @dataclass(frozen=True)
@@ -91,8 +94,13 @@ class WindowConfig:
             tracking loss (VINS-Mono's "little feature" bound, ``last_track_num < 2``): its pose,
             and once the window's last landmarks age out the whole window, would rest on the IMU
             alone, an optimisation whose system gtsam's Cholesky finds indeterminate.
-        max_speed_mps / max_accel_bias / max_gyro_bias: failure bounds (VINS-Mono: 2.5 m/s^2
-            and 1 rad/s biases; the speed bound is a walking person's, [A]).
+        max_speed_mps / max_accel_bias / max_gyro_bias / max_update_speed_mps /
+            max_update_climb_mps / update_slack_m / max_update_turn_deg: the failure detection's
+            bounds on the newest state after a window update (:class:`.failure.FailureBounds`:
+            VINS-Mono's, adapted to a walker).
+        linear_solver: the smoother's linear solver, "cholesky" (gtsam's default, multifrontal
+            Cholesky on the normal equations) or "qr" (multifrontal QR on the Jacobian; docs/dvio.md
+            "Long walks" for why it is not the default).
         bias_sigma_acc / bias_sigma_gyro: prior sigma of the initial biases (m/s^2, rad/s).
         depth_gate_px: a landmark whose reprojections miss by more than this on average (px),
             started from its host depth when it is made or at the estimate after a window
@@ -125,6 +133,11 @@ class WindowConfig:
     max_speed_mps: float = 8.0
     max_accel_bias: float = 2.5
     max_gyro_bias: float = 1.0
+    max_update_speed_mps: float = 4.0
+    max_update_climb_mps: float = 1.0
+    update_slack_m: float = 0.5
+    max_update_turn_deg: float = 50.0
+    linear_solver: str = "cholesky"
     bias_sigma_acc: float = 0.2
     bias_sigma_gyro: float = 0.02
     depth_gate_px: float = 3.0
@@ -140,13 +153,17 @@ class WindowConfig:
         check_int("max_iterations", self.max_iterations, 1, 100)
         check_int("min_features", self.min_features, 0, 1000)
         check_int("min_landmarks", self.min_landmarks, 0, 1000)
-        check_range("max_speed_mps", self.max_speed_mps, 0.0, 100.0, low_open=True)
-        check_range("max_accel_bias", self.max_accel_bias, 0.0, 50.0, low_open=True)
-        check_range("max_gyro_bias", self.max_gyro_bias, 0.0, 10.0, low_open=True)
+        self.failure_bounds()  # its own checks name the field and its range
+        if self.linear_solver not in _SOLVERS:
+            raise ConfigError("linear_solver", self.linear_solver, "one of " + ", ".join(_SOLVERS))
         check_range("bias_sigma_acc", self.bias_sigma_acc, 0.0, 10.0, low_open=True)
         check_range("bias_sigma_gyro", self.bias_sigma_gyro, 0.0, 1.0, low_open=True)
         check_range("depth_gate_px", self.depth_gate_px, 0.0, 1000.0)
         check_range("tilt_sigma_rad", self.tilt_sigma_rad, 0.0, math.pi, low_open=True)
+
+    def failure_bounds(self) -> FailureBounds:
+        return FailureBounds(self.max_speed_mps, self.max_accel_bias, self.max_gyro_bias, self.max_update_speed_mps,
+                             self.max_update_climb_mps, self.update_slack_m, self.max_update_turn_deg)
 
 
 @dataclass(eq=False)
@@ -194,10 +211,11 @@ class SlidingWindow:
         self._T_IC = gtsam.Pose3(gtsam.Rot3(ext.R_IC), ext.p_IC)
         self.stats = {"keyframes": 0, "reinitialisations": 0, "init_attempts": 0, "optimisation_failures": 0,
                       "pnp_refined": 0, "landmarks": 0, "depths_gated": 0,
-                      "lm_iterations": 0}
+                      "lm_iterations": 0, **{"failures_" + r.replace(" ", "_"): 0 for r in REASONS}}
         self.init_time_s: float | None = None  # stamp of the first pose
         self._anchor: gtsam.Pose3 | None = None  # last good IMU pose, for a re-initialised segment
         self.loss_reasons: dict[str, int] = {}
+        self._bounds = config.failure_bounds()
         self.last_error = ""  # gtsam's message of the last failed optimisation
         # While lost: the IMU propagation of the last good state (preintegrator, nav, bias).
         self._lost: tuple[ImuPreintegrator, gtsam.NavState, gtsam.imuBias.ConstantBias] | None = None
@@ -265,6 +283,8 @@ class SlidingWindow:
         self._prop.integrate_to(stamp_s)
         if not is_keyframe:
             return "ok", self._motion_only(stamp_s, feats).matrix()
+        before = (self._prop, self._nav, self._bias)
+        t_before = self._kfs[-1].stamp_s
         try:
             if not self._add_keyframe(stamp_s, feats):
                 return self._fail("too few landmarks")
@@ -272,26 +292,23 @@ class SlidingWindow:
             self.stats["optimisation_failures"] += 1
             self.last_error = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
             return self._fail("optimisation")
-        if not self._healthy():
-            return self._fail("state out of bounds")
+        why = diverged(self._bounds, before[1], self._nav, self._bias, stamp_s - t_before)
+        if why:
+            # The diverged update is discarded: the loss continues from the state before it, as
+            # after a solver failure (whose update never set a state).
+            self.stats["failures_" + why.replace(" ", "_")] += 1
+            return self._fail("diverged: " + why, before)
         T = self._nav.pose()
         self._anchor = T
         return "ok", (T * self._T_IC).matrix()
 
-    def _fail(self, why: str) -> tuple[str, None]:
+    def _fail(self, why: str, last_good: tuple | None = None) -> tuple[str, None]:
         self.stats["reinitialisations"] += 1
         self.loss_reasons[why] = self.loss_reasons.get(why, 0) + 1
-        lost = (self._prop, self._nav, self._bias) if self._nav is not None else None
+        lost = last_good or ((self._prop, self._nav, self._bias) if self._nav is not None else None)
         self._clear()
         self._lost = lost
         return "lost", None
-
-    def _healthy(self) -> bool:
-        c = self.config
-        return bool(np.linalg.norm(self._nav.velocity()) <= c.max_speed_mps
-                    and np.linalg.norm(self._bias.accelerometer()) <= c.max_accel_bias
-                    and np.linalg.norm(self._bias.gyroscope()) <= c.max_gyro_bias
-                    and np.all(np.isfinite(self._nav.pose().matrix())))
 
     # -- initialisation -------------------------------------------------------------------------
     def _take_samples(self, stamp_s: float) -> list[Sample]:
@@ -378,6 +395,7 @@ class SlidingWindow:
         # A keyframe's step changes the window little: stop once the cost moves by < 0.1 %
         # (gtsam's default 1e-5 spends most iterations on digits no metric sees).
         lm_params.setRelativeErrorTol(1e-3)
+        lm_params.setLinearSolverType(_SOLVERS[c.linear_solver])
         self._smoother = gtsam.BatchFixedLagSmoother(c.window - 0.5, lm_params)
         graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), gtsam.FixedLagSmootherKeyTimestampMap()
         for k, kf in enumerate(self._kfs):
