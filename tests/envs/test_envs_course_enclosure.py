@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from exobench.core import ConfigError, ContactSample, ImuSample, RgbdFrame
-from exobench.envs.sim.scenarios.course import LocomotionScenario, simulate_locomotion
+from exobench.envs.sim.scenarios.course import LocomotionScenario, enclosure_of, simulate_locomotion
 from exobench.envs.sim.scenarios.course_enclosure import enclose_stairwell
 from exobench.envs.sim.scenarios.course_world import build_locomotion_world
 
@@ -114,6 +114,11 @@ def test_the_stairwell_changes_what_the_camera_sees_and_no_terrain_truth(walks):
 
 def test_a_stairwell_needs_walls_and_is_not_for_the_parallel_course():
     assert LocomotionScenario().enclosure == "open"
+    # auto: a stairwell where one can stand, else open
+    assert enclosure_of(LocomotionScenario(enclosure="auto")) == "stairwell"
+    assert enclosure_of(LocomotionScenario(terrain="ramp", enclosure="auto")) == "stairwell"
+    assert enclosure_of(LocomotionScenario(terrain="parallel", enclosure="auto")) == "open"
+    assert enclosure_of(LocomotionScenario(walls=False, enclosure="auto")) == "open"
     for bad in ({"terrain": "parallel"}, {"walls": False}):
         with pytest.raises(ConfigError, match="enclosure"):
             LocomotionScenario(**bad, enclosure="stairwell")

@@ -73,10 +73,12 @@ COURSE_LOOK: dict[str, Any] = {"surfaces": "textured"}
 # Where the courses are: the paper's generality, disturbance and unconventional-view trials were
 # indoors (Sec. III-B, IV-C), so their courses stand in a stairwell (end walls and a ceiling,
 # envs.sim.scenarios.course_enclosure): a head camera pitched up sees a wall or the ceiling
-# within the D455's range, never sky. The multi-direction walks were outdoors (III-B 3, Fig.
-# 3(b)): the parallel course stays open (OUTDOORS). ``--set enclosure=open`` gives the open
-# courses back (docs/tracks/locomotion.md, "The courses' enclosure").
-INDOORS: dict[str, Any] = {"enclosure": "stairwell"}
+# within the D455's range, never sky. ``auto`` rather than ``stairwell``, so that ``--set
+# terrain=parallel`` (or ``walls=false``) on these cases builds an open course instead of being
+# refused. The multi-direction walks were outdoors (III-B 3, Fig. 3(b)): the parallel course
+# stays open (OUTDOORS). ``--set enclosure=open`` gives the open courses back
+# (docs/tracks/locomotion.md, "The courses' enclosure").
+INDOORS: dict[str, Any] = {"enclosure": "auto"}
 OUTDOORS: dict[str, Any] = {"enclosure": "open"}
 QUICK_COURSE: dict[str, Any] = {"n_steps": 3, "approach_m": 2.0, "landing_m": 1.2, "ramp_length_m": 1.5, "rate_hz": 10.0}
 QUICK_CASES: tuple[tuple[str, float, str], ...] = (

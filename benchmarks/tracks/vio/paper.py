@@ -59,8 +59,9 @@ MOUNTS = ("head", "chest", "thigh")
 USERS_M = (1.65, 1.70, 1.75, 1.79, 1.84, 1.88)  # the paper's subjects span 1.65-1.88 m
 TEXTURED = {"surfaces": "textured"}
 # the course walks are indoor stairs and ramps: in a stairwell (end walls and a ceiling,
-# envs.sim.scenarios.course_enclosure), as the locomotion track's indoor protocols
-STAIRWELL = {"enclosure": "stairwell"}
+# envs.sim.scenarios.course_enclosure), as the locomotion track's indoor protocols (``auto``: a
+# parallel course or one without walls, set on the command line, stays open instead of refused)
+STAIRWELL = {"enclosure": "auto"}
 
 
 def pace_of(speed_m_s: float) -> str:

@@ -138,7 +138,7 @@ VIEWS = ("normal", "unconventional")
 PARALLEL_FIRST = ("stairs", "ramp")
 STOPS = ("none", "transitions")
 GAZES = ("transitions", "random")
-ENCLOSURES = ("open", "stairwell")
+ENCLOSURES = ("open", "stairwell", "auto")
 
 PARAMS: dict[str, ParamSpec] = {
     "terrain": ParamSpec("stairs", None, None, "", "course: stairs (LG SA LG SD LG), ramp (LG RA LG RD LG), parallel (a stair lane beside a ramp lane, up one, down the other)", choices=TERRAINS),
@@ -153,7 +153,9 @@ PARAMS: dict[str, ParamSpec] = {
     "walls": ParamSpec(True, None, None, "", "side walls along the course", choices=(False, True)),
     "enclosure": ParamSpec("open", None, None, "", "open: the course between its side walls, open at its ends and above "
                            "(sky beyond); stairwell: end walls 1 m beyond its ends and a ceiling 2.4 m over its landing, "
-                           "as indoors (stairs and ramp courses with walls; course_enclosure)", choices=ENCLOSURES),
+                           "as indoors (stairs and ramp courses with walls; course_enclosure); auto: stairwell where it "
+                           "can be, open for the parallel course (the paper's outdoor walks) and a course without walls",
+                           choices=ENCLOSURES),
     "parallel_first": ParamSpec("stairs", None, None, "", "parallel course: the lane walked first (out along +x; back along the other after a U-turn)", choices=PARALLEL_FIRST),
     "stops": ParamSpec("none", None, None, "", "none: walk through every transition without stopping, as the paper's subjects did; transitions: stop-and-go, standing with the feet together just before every transition from level ground to stairs or a ramp (and after the parallel course's U-turn), as exoskeleton users often do", choices=STOPS),
     "mount": ParamSpec("head", None, None, "", "camera mount: head (helmet), chest (chest bag), thigh", choices=MOUNTS),
@@ -237,6 +239,18 @@ PLAN_TRIES = tuple(
 )
 PENETRATION_RATE_HZ = 250.0
 CONTACT_ORDER = ("contact_l_heel", "contact_l_toe", "contact_r_heel", "contact_r_toe")
+
+
+def enclosure_of(sc: Any) -> str:
+    """The enclosure a scenario's course is built with (``open`` or ``stairwell``): ``auto`` is a
+    stairwell around a stair or ramp course with walls, as indoors, and open for the parallel
+    course (the paper's multi-direction walks were outdoors) and a course without walls, so
+    that ``--set terrain=parallel`` or ``--set walls=false`` on an indoor case gives an open
+    course rather than a refusal."""
+    enc = getattr(sc, "enclosure", "open")
+    if enc == "auto":
+        return "stairwell" if sc.terrain != "parallel" and bool(sc.walls) else "open"
+    return str(enc)
 
 
 def sensor_ids(mount: str) -> tuple[str, str, str]:
@@ -408,7 +422,8 @@ def _locomotion_setup(sc: LocomotionScenario, seed: int, rig: Sequence[MountedSe
         rig = with_segmentation_truth(rig)
     exo = sc.exo_spec()
     _, wps, motion, info = plan_locomotion(sc)
-    world = _enclosed(_world_key(sc), exo, sc.pattern, sc.enclosure)
+    enclosure = enclosure_of(sc)
+    world = _enclosed(_world_key(sc), exo, sc.pattern, enclosure)
     dur = float(min(motion.duration_s, sc.duration_cap_s))
     ped_rng = sensor_rngs(seed, "locomotion_pedestrians")[0]
 
@@ -423,7 +438,7 @@ def _locomotion_setup(sc: LocomotionScenario, seed: int, rig: Sequence[MountedSe
     look = WorldLook(sc.surfaces, sc.light_level)
     scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds),
                       *((look, sc.texture_seed) if not look.is_default else ()),
-                      **({"enclosure": sc.enclosure} if sc.enclosure != "open" else {}))  # fmt: skip
+                      **({"enclosure": enclosure} if enclosure != "open" else {}))  # fmt: skip
     ped_hook = PedestrianHook(peds, Terrain(world.truth))
     hooks = (_view_hook(sc, exo, motion, info, world.truth, dur, seed), ped_hook)
     return _Setup(rig, exo, world, wps, motion, info, dur, scene, ped_hook, hooks)
