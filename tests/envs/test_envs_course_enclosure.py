@@ -12,6 +12,8 @@ from exobench.envs.sim.scenarios.course import LocomotionScenario, enclosure_of,
 from exobench.envs.sim.scenarios.course_enclosure import enclose_stairwell
 from exobench.envs.sim.scenarios.course_world import build_locomotion_world
 
+pytestmark = pytest.mark.long(seconds=20)  # the workers take it first (tests/conftest.py); 20: two walks and terrain-recon, 29 s wall at -n 0, load 12
+
 # a head camera that looks up more than the paper's (mean pitch 0.1 rad above the horizon), so a
 # 6 s walk sees the ceiling; 212 px wide so plane extraction finds it (at 64 px it finds none)
 WALK = {"width_px": 212, "height_px": 120, "rate_hz": 5.0, "duration_cap_s": 6.0, "surfaces": "textured", "mount": "head",
