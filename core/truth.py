@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-SURFACE_KINDS = ("ground", "tread", "riser", "ramp", "landing", "wall", "side")
+SURFACE_KINDS = ("ground", "tread", "riser", "ramp", "landing", "wall", "side", "ceiling")
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,7 +30,8 @@ __all__ = [
 ]
 
 TERRAIN_TYPES = ("level", "ramp", "stairs")
-PLANE_CLASSES = ("horizontal", "ramp", "steep")
+# "overhead": a plane no steeper than a ramp seen from below (a ceiling, a soffit): never walked on
+PLANE_CLASSES = ("horizontal", "ramp", "steep", "overhead")
 
 
 @dataclass(frozen=True)
@@ -110,8 +111,13 @@ def slope_deg(normal: np.ndarray) -> float:
 
 
 def plane_class(normal: np.ndarray, config: TerrainConfig) -> str:
-    """``"horizontal"``, ``"ramp"`` or ``"steep"`` by slope."""
+    """``"horizontal"``, ``"ramp"`` or ``"steep"`` by slope; ``"overhead"`` for a plane no steeper
+    than a ramp whose normal, oriented towards the camera that saw it (as plane extraction and
+    tracking keep it), points down: the camera was below it, so it is the underside of something
+    (a stairwell's ceiling), never walked on. A walkable surface is always seen from above."""
     th = slope_deg(normal)
+    if th <= config.ramp_max_slope_deg and float(np.asarray(normal, dtype=float)[2]) < 0.0:
+        return "overhead"
     if th <= config.level_max_slope_deg:
         return "horizontal"
     if th <= config.ramp_max_slope_deg:

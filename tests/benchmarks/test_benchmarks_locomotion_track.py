@@ -336,3 +336,34 @@ def test_the_courses_are_textured_and_as_built_on_request(track):
         assert {track.validate_scenario(c.scenario)["surfaces"] for c in track.cases(suite)} == {"textured"}
     plan = plan_run("locomotion", "quick", ["terrain-recon"], [0], {"surfaces": "default"})
     assert {e.scenario.get("surfaces", "default") for e in plan.episodes} == {"default"}
+
+
+def test_the_indoor_courses_stand_in_a_stairwell_and_the_outdoor_ones_are_open(track):
+    """The paper's generality, disturbance and unconventional-view trials were indoors, its
+    multi-direction walks outdoors (Sec. III-B, IV-C): every stair and ramp course of every suite
+    is in a stairwell, every parallel course open; ``--set enclosure=open`` opens them all. The
+    vio track's course walks (stairs and ramps indoors) are in a stairwell too."""
+    from types import SimpleNamespace
+
+    from exobench.benchmarks.runner import plan_run
+    from exobench.benchmarks.tracks.vio import paper as vio_paper
+    from exobench.benchmarks.tracks.vio.general import general_cases
+    from exobench.envs.sim.scenarios.course import enclosure_of
+
+    def built(values):
+        return enclosure_of(SimpleNamespace(**values))
+
+    for suite in track.suites:
+        for c in track.cases(suite):
+            values = track.validate_scenario(c.scenario)
+            assert built(values) == ("open" if values["terrain"] == "parallel" else "stairwell"), c.name
+    groups = {c.group for c in track.cases("paper") if c.scenario["terrain"] != "parallel"}
+    assert {"disturbance", "unconventional view"} <= groups
+    plan = plan_run("locomotion", "quick", ["terrain-recon"], [0], {"enclosure": "open"})
+    assert {built(e.scenario) for e in plan.episodes} == {"open"}
+    # an indoor case turned into the parallel course or stripped of its walls is open, not refused
+    plan = plan_run("locomotion", "quick", ["terrain-recon"], [0], {"terrain": "parallel"})
+    assert {built(e.scenario) for e in plan.episodes} == {"open"}
+    vio = get_track("vio")
+    courses = [c for c in [*vio_paper.paper_cases(), *general_cases(0)] if c.scenario["world"] == "course"]
+    assert courses and all(built(vio.validate_scenario(c.scenario)) == "stairwell" for c in courses)

@@ -331,3 +331,29 @@ def test_crease_ahead_puts_the_foot_past_a_ramp_crease():
         p.score = 3
     st = describe_terrain(stairs, CFG)
     assert st.crease_ahead([tread_x(1) + 0.12, 0.0], fwd, 0.06) is None
+
+
+def test_a_ceiling_seen_from_below_is_no_terrain():
+    """A stairwell's ceiling over the course (2.4 m over its landing): extracted as a level plane
+    whose normal, oriented towards the camera below it, points down. It is classed overhead and
+    never walked on: the floor stays the plane under a footprint (before, the ceiling, as large
+    and higher, won the look-up) and the stairs under it keep their modes."""
+    from exobench.perception.terrain.plane_tracking import plane_from_points
+
+    camera = np.array([1.0, 0.0, 1.6])
+    xs, ys = np.meshgrid(np.arange(-0.5, 5.0, 0.5 * CELL), np.arange(-0.5, 0.5, 0.5 * CELL), indexing="ij")
+    pts = np.column_stack([xs.ravel(), ys.ravel(), np.full(xs.size, 0.17 * 5 + 2.4)])
+    ceiling = plane_from_points(pts, CELL, toward_m=camera)
+    assert ceiling.normal[2] == pytest.approx(-1.0)
+    assert plane_class(ceiling.normal, CFG) == "overhead"
+    assert plane_class([0.0, 0.0, 1.0], CFG) == "horizontal"
+    ps = staircase()
+    ps.add(ceiling)
+    desc = describe_terrain(ps, CFG)
+    ceiling_id = max(desc.planes)
+    assert desc.plane_classes[ceiling_id] == "overhead"
+    assert ceiling_id not in desc.terrain_of_plane
+    assert desc.plane_under(np.array([1.0, 0.0])) == 0
+    assert predict_mode(ps, np.array([1.6, 0.0]), np.array([1.0, 0.0]), CFG).mode == "LG"
+    assert predict_mode(ps, np.array([tread_x(2), 0.0]), np.array([tread_x(1), 0.0]), CFG).mode == "SA"
+    assert predict_mode(ps, np.array([tread_x(1), 0.0]), np.array([tread_x(2), 0.0]), CFG).mode == "SD"

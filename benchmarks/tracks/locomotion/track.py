@@ -27,7 +27,9 @@ paper repeated each experiment three times: ``--seeds 3``):
 Every course is textured (:data:`COURSE_LOOK`: posters, wood grain, carpet; the depth is the
 as-built course's but on the posters) and starts with a level approach of :data:`APPROACH_M` so
 that the three warm-up steps the scoring leaves out (eq. 17 needs three heel strikes) are level
-walking.
+walking. The stair and ramp courses (every protocol but multi-direction, and the quick suite)
+stand in a stairwell, end walls and a ceiling as indoors (:data:`INDOORS`); the parallel course of
+the outdoor multi-direction walks is open (:data:`OUTDOORS`).
 
 Groups: the six terrains (Table III's rows), the three protocols and the variations. The
 summary prints Table III's figure (and Sec. IV's for the protocols) beside ours; the report adds
@@ -68,6 +70,16 @@ APPROACH_M = 2.2
 # time (docs/tracks/locomotion.md, "Why D-VIO started late or never"). ``--set
 # surfaces=default`` gives the as-built courses back.
 COURSE_LOOK: dict[str, Any] = {"surfaces": "textured"}
+# Where the courses are: the paper's generality, disturbance and unconventional-view trials were
+# indoors (Sec. III-B, IV-C), so their courses stand in a stairwell (end walls and a ceiling,
+# envs.sim.scenarios.course_enclosure): a head camera pitched up sees a wall or the ceiling
+# within the D455's range, never sky. ``auto`` rather than ``stairwell``, so that ``--set
+# terrain=parallel`` (or ``walls=false``) on these cases builds an open course instead of being
+# refused. The multi-direction walks were outdoors (III-B 3, Fig. 3(b)): the parallel course
+# stays open (OUTDOORS). ``--set enclosure=open`` gives the open courses back
+# (docs/tracks/locomotion.md, "The courses' enclosure").
+INDOORS: dict[str, Any] = {"enclosure": "auto"}
+OUTDOORS: dict[str, Any] = {"enclosure": "open"}
 QUICK_COURSE: dict[str, Any] = {"n_steps": 3, "approach_m": 2.0, "landing_m": 1.2, "ramp_length_m": 1.5, "rate_hz": 10.0}
 QUICK_CASES: tuple[tuple[str, float, str], ...] = (
     ("stairs", 0.15, "head"),
@@ -94,9 +106,10 @@ VARIATIONS: dict[str, dict[str, Any]] = {
 
 def terrain_values(terrain: str, value: float) -> dict[str, Any]:
     """Scenario values of one terrain level: riser height (m) for stairs, slope (deg) for ramps,
-    the level approach :data:`APPROACH_M` and the courses' look :data:`COURSE_LOOK`."""
+    the level approach :data:`APPROACH_M`, the courses' look :data:`COURSE_LOOK` and their
+    stairwell :data:`INDOORS`."""
     return {"terrain": terrain, "riser_m" if terrain == "stairs" else "slope_deg": value, "approach_m": APPROACH_M,
-            **COURSE_LOOK}
+            **COURSE_LOOK, **INDOORS}
 
 
 def terrain_slug(terrain: str, value: float) -> str:
@@ -137,7 +150,7 @@ def protocol_cases() -> list[Case]:
     for first in ("stairs", "ramp"):
         for h in HEIGHTS_M:
             scen = {"terrain": "parallel", "approach_m": APPROACH_M, "parallel_first": first, "mount": "head", "pattern": "walk",
-                    "user_height_m": h, **MULTI_DIRECTION_ODOMETRY, **COURSE_LOOK}
+                    "user_height_m": h, **MULTI_DIRECTION_ODOMETRY, **COURSE_LOOK, **OUTDOORS}
             name = f"multi-direction/{first}-first/h{h:.2f}"
             out.append(Case(name, "multi-direction", scen, figure=first == "stairs" and h == MIDDLE_HEIGHT_M))
     return out

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..spec import Case
-from .paper import MOUNTS, PACES
+from .paper import MOUNTS, PACES, STAIRWELL
 
 GENERAL_SEED = 27  # the issue that asked for this suite
 GENERAL_EPISODES = 8
@@ -49,7 +49,7 @@ def _draw(rng: np.random.Generator) -> dict[str, Any]:
     geometry = ({"riser_m": float(rng.choice((0.15, 0.20))), "tread_m": 0.30, "n_steps": int(rng.integers(3, 6))}
                 if terrain == "stairs" else {"slope_deg": float(rng.choice((11.8, 15.8, 17.8)))})  # fmt: skip
     return {"world": "course", "terrain": terrain, **geometry, "pattern": pace,
-            "texture_seed": int(rng.integers(0, 2**31 - 1)), **common}  # fmt: skip
+            "texture_seed": int(rng.integers(0, 2**31 - 1)), **STAIRWELL, **common}  # fmt: skip
 
 
 @functools.lru_cache(maxsize=8)

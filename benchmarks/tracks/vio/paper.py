@@ -58,6 +58,10 @@ PACES = {"wander": (0.35, 0.55), "walk": (0.40, 0.42), "jog": (0.45, 0.30)}
 MOUNTS = ("head", "chest", "thigh")
 USERS_M = (1.65, 1.70, 1.75, 1.79, 1.84, 1.88)  # the paper's subjects span 1.65-1.88 m
 TEXTURED = {"surfaces": "textured"}
+# the course walks are indoor stairs and ramps: in a stairwell (end walls and a ceiling,
+# envs.sim.scenarios.course_enclosure), as the locomotion track's indoor protocols (``auto``: a
+# parallel course or one without walls, set on the command line, stays open instead of refused)
+STAIRWELL = {"enclosure": "auto"}
 
 
 def pace_of(speed_m_s: float) -> str:
@@ -94,11 +98,11 @@ def paper_cases() -> list[Case]:
                                          "out_and_back": True, "mount": "chest", "user_height_m": 1.84, **TEXTURED},
              figure=True),
         Case("stairs-head-walk", "course", {"world": "course", "terrain": "stairs", "riser_m": 0.15, "mount": "head",
-                                            "pattern": "walk", "user_height_m": 1.70, **TEXTURED}, figure=True),
+                                            "pattern": "walk", "user_height_m": 1.70, **TEXTURED, **STAIRWELL}, figure=True),
         Case("ramp-chest-wander", "course", {"world": "course", "terrain": "ramp", "slope_deg": 15.8, "mount": "chest",
-                                             "pattern": "wander", "user_height_m": 1.79, **TEXTURED}, figure=True),
+                                             "pattern": "wander", "user_height_m": 1.79, **TEXTURED, **STAIRWELL}, figure=True),
         Case("stairs-thigh-jog", "course", {"world": "course", "terrain": "stairs", "riser_m": 0.20, "mount": "thigh",
-                                            "pattern": "jog", "user_height_m": 1.88, **TEXTURED}, figure=True),
+                                            "pattern": "jog", "user_height_m": 1.88, **TEXTURED, **STAIRWELL}, figure=True),
     ]  # fmt: skip
     return out
 

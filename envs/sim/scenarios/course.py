@@ -138,6 +138,7 @@ VIEWS = ("normal", "unconventional")
 PARALLEL_FIRST = ("stairs", "ramp")
 STOPS = ("none", "transitions")
 GAZES = ("transitions", "random")
+ENCLOSURES = ("open", "stairwell", "auto")
 
 PARAMS: dict[str, ParamSpec] = {
     "terrain": ParamSpec("stairs", None, None, "", "course: stairs (LG SA LG SD LG), ramp (LG RA LG RD LG), parallel (a stair lane beside a ramp lane, up one, down the other)", choices=TERRAINS),
@@ -150,6 +151,11 @@ PARAMS: dict[str, ParamSpec] = {
     "approach_m": ParamSpec(1.5, 1.0, 5.0, "m", "level walk before the first transition and after the last"),
     "width_m": ParamSpec(1.2, 0.9, 3.0, "m", "width of a flight / ramp lane"),
     "walls": ParamSpec(True, None, None, "", "side walls along the course", choices=(False, True)),
+    "enclosure": ParamSpec("open", None, None, "", "open: the course between its side walls, open at its ends and above "
+                           "(sky beyond); stairwell: end walls 1 m beyond its ends and a ceiling 2.4 m over its landing, "
+                           "as indoors (stairs and ramp courses with walls; course_enclosure); auto: stairwell where it "
+                           "can be, open for the parallel course (the paper's outdoor walks) and a course without walls",
+                           choices=ENCLOSURES),
     "parallel_first": ParamSpec("stairs", None, None, "", "parallel course: the lane walked first (out along +x; back along the other after a U-turn)", choices=PARALLEL_FIRST),
     "stops": ParamSpec("none", None, None, "", "none: walk through every transition without stopping, as the paper's subjects did; transitions: stop-and-go, standing with the feet together just before every transition from level ground to stairs or a ramp (and after the parallel course's U-turn), as exoskeleton users often do", choices=STOPS),
     "mount": ParamSpec("head", None, None, "", "camera mount: head (helmet), chest (chest bag), thigh", choices=MOUNTS),
@@ -204,6 +210,8 @@ class LocomotionScenario(scenario_base("LocomotionScenario", "locomotion", PARAM
         super().__post_init__()
         if self.min_depth_m >= self.max_depth_m:
             raise ConfigError("min_depth_m", self.min_depth_m, f"less than max_depth_m = {self.max_depth_m}")
+        if self.enclosure == "stairwell" and (self.terrain == "parallel" or not self.walls):
+            raise ConfigError("enclosure", self.enclosure, "open for the parallel course (outdoors) or a course without walls")
 
     def exo_spec(self) -> ExoSpec:
         return ExoSpec(user_height_m=self.user_height_m, user_mass_kg=self.user_mass_kg)
@@ -231,6 +239,18 @@ PLAN_TRIES = tuple(
 )
 PENETRATION_RATE_HZ = 250.0
 CONTACT_ORDER = ("contact_l_heel", "contact_l_toe", "contact_r_heel", "contact_r_toe")
+
+
+def enclosure_of(sc: Any) -> str:
+    """The enclosure a scenario's course is built with (``open`` or ``stairwell``): ``auto`` is a
+    stairwell around a stair or ramp course with walls, as indoors, and open for the parallel
+    course (the paper's multi-direction walks were outdoors) and a course without walls, so
+    that ``--set terrain=parallel`` or ``--set walls=false`` on an indoor case gives an open
+    course rather than a refusal."""
+    enc = getattr(sc, "enclosure", "open")
+    if enc == "auto":
+        return "stairwell" if sc.terrain != "parallel" and bool(sc.walls) else "open"
+    return str(enc)
 
 
 def sensor_ids(mount: str) -> tuple[str, str, str]:
@@ -280,9 +300,22 @@ def plan_locomotion(scenario: LocomotionScenario) -> tuple[Any, tuple, Motion, d
 
 
 @lru_cache(maxsize=8)
-def _compiled(key: tuple, exo: ExoSpec, pattern: str, sites: tuple[tuple[str, Any], ...], chest_rig: bool,
-              ped_heights: tuple[float, ...], look: WorldLook | None = None, texture_seed: int = 0) -> Any:  # fmt: skip
+def _enclosed(key: tuple, exo: ExoSpec, pattern: str, enclosure: str) -> Any:
+    """The built world of a scenario with its ``enclosure``: the walk is planned on the open
+    course (the enclosure adds no walkable surface), so both have the same walk and steps."""
     world = _plan_cached(key, exo, pattern)[0]
+    if enclosure == "open":
+        return world
+    from .course_enclosure import enclose_stairwell
+
+    return enclose_stairwell(world, float(dict(zip(_WORLD_FIELDS, key))["width_m"]))
+
+
+@lru_cache(maxsize=8)
+def _compiled(key: tuple, exo: ExoSpec, pattern: str, sites: tuple[tuple[str, Any], ...], chest_rig: bool,
+              ped_heights: tuple[float, ...], look: WorldLook | None = None, texture_seed: int = 0,
+              enclosure: str = "open") -> Any:  # fmt: skip
+    world = _enclosed(key, exo, pattern, enclosure)
     return compose_rig(world, exo, sites, chest_rig=chest_rig, ped_heights_m=list(ped_heights), look=look,
                        look_seed=texture_seed)  # fmt: skip
 
@@ -388,7 +421,9 @@ def _locomotion_setup(sc: LocomotionScenario, seed: int, rig: Sequence[MountedSe
     if getattr(sc, "segmentation_truth", False):  # a scenario class may leave the row out (the vio track's)
         rig = with_segmentation_truth(rig)
     exo = sc.exo_spec()
-    world, wps, motion, info = plan_locomotion(sc)
+    _, wps, motion, info = plan_locomotion(sc)
+    enclosure = enclosure_of(sc)
+    world = _enclosed(_world_key(sc), exo, sc.pattern, enclosure)
     dur = float(min(motion.duration_s, sc.duration_cap_s))
     ped_rng = sensor_rngs(seed, "locomotion_pedestrians")[0]
 
@@ -402,7 +437,8 @@ def _locomotion_setup(sc: LocomotionScenario, seed: int, rig: Sequence[MountedSe
     chest = any(s.sensor_id == CHEST_CAMERA for s in rig)
     look = WorldLook(sc.surfaces, sc.light_level)
     scene = _compiled(_world_key(sc), exo, sc.pattern, attached_sites(rig), chest, tuple(p.height_m for p in peds),
-                      *((look, sc.texture_seed) if not look.is_default else ()))  # fmt: skip
+                      *((look, sc.texture_seed) if not look.is_default else ()),
+                      **({"enclosure": enclosure} if enclosure != "open" else {}))  # fmt: skip
     ped_hook = PedestrianHook(peds, Terrain(world.truth))
     hooks = (_view_hook(sc, exo, motion, info, world.truth, dur, seed), ped_hook)
     return _Setup(rig, exo, world, wps, motion, info, dur, scene, ped_hook, hooks)
