@@ -194,6 +194,38 @@ def nearest_listed(redo, splits, ids, pos, mat, size, plane, rbound, rk, skip, o
 
 
 @_jit
+def near_hits(named, p, nb_start, nb_geom, lo, hi, pos, mat, size, plane, rbound, rk, skip, o, u, cutoff,
+              gid, x, nrm, state):  # noqa: ANN001, ANN201
+    """``StaticBvh._recast``: for each ray ``r`` not left rejected (``state[r]`` 0 or 1), the geom Embree
+    named at ``p[r]`` (``named[r]``) and its neighbours (``nb_start, nb_geom``: CSR of the geoms whose
+    boxes ``lo, hi`` overlap its box) whose box holds ``p[r]``, each judged by its exact hit from the
+    ray's own origin against the hit in ``gid, x, nrm`` (``state`` 1): the nearest kept, of equal ones
+    the first in ``rk``, not culled beyond ``cutoff`` (< 0: none) nor on a ``skip`` geom; ``state``
+    becomes 1 where one is kept."""
+    for r in range(len(named)):
+        if state[r] == 2:
+            continue
+        px, py, pz = p[r, 0], p[r, 1], p[r, 2]
+        o0, o1, o2, u0, u1, u2 = o[r, 0], o[r, 1], o[r, 2], u[r, 0], u[r, 1], u[r, 2]
+        k = np.int64(named[r])
+        bx, brank, bg, bf = -1.0, 0, -1, -1
+        if state[r] == 1:
+            bx, brank, bg = x[r], rk[gid[r]], gid[r]
+        for a in range(nb_start[k], nb_start[k + 1] + 1):
+            q = k if a == nb_start[k + 1] else nb_geom[a]
+            if skip[q] or not _in_box(lo[q, 0], lo[q, 1], lo[q, 2], hi[q, 0], hi[q, 1], hi[q, 2], px, py, pz):
+                continue
+            x2, f2 = _geom_hit(pos, mat, size, plane, q, o0, o1, o2, u0, u1, u2)
+            if not x2 >= 0 or _beyond(pos[q, 0], pos[q, 1], pos[q, 2], rbound[q], o0, o1, o2, cutoff):
+                continue
+            if bg < 0 or x2 < bx or (x2 == bx and rk[q] < brank):
+                bx, brank, bg, bf = x2, rk[q], q, f2
+        if bf >= 0:
+            gid[r], x[r], state[r] = bg, bx, 1
+            _normal(mat, bg, bf, nrm, r)
+
+
+@_jit
 def _in_box(lx, ly, lz, hx, hy, hz, px, py, pz):  # noqa: ANN001, ANN202
     return lx <= px <= hx and ly <= py <= hy and lz <= pz <= hz
 
