@@ -323,12 +323,13 @@ class _SecondaryCast:
         return self.parts.static.exact_on(geoms, o, d)
 
 
-_MJ_RAY_GEOM_RAYS = 60_000
+_MJ_RAY_GEOM_RAYS = 20_000
 """A secondary batch of at most this many rays times geoms is cast by ``mj_ray`` one ray at a time:
-``mj_ray`` costs about 3-8 us per ray in the office scenes (316-900 geoms), a batch through the BVH
-about 0.4-0.7 ms of fixed costs (Embree calls, exact hits, seams, proxies; a secondary ray starting
-just past a pane is often listed through, see ``StaticBvh._listed``), so the two break even at
-about 150 rays there (measured on the bench's scenes)."""
+``mj_ray`` costs about (0.5 + 0.0075 x geoms) us per ray (3 us in the default office's 316 geoms, 6.5
+us in 24 offices' 834), a batch through the BVH about 0.12-0.17 ms of fixed costs (Embree calls, exact
+hits, seams, edge tubes, proxies) and 0.6 us a ray, so the two break even at about 20,000 rays times
+geoms (measured on the bench's scenes: 60 rays at 6 offices, 20 at 24). It was 60,000 while a batch's
+rays starting on a surface float32 rounds them back onto were listed whole (``StaticBvh._recast``)."""
 
 _POSE_FIELDS = ("xpos", "xmat", "xquat", "xipos", "ximat", "geom_xpos", "geom_xmat")
 """The ``MjData`` state ``mj_multiRay`` reads (poses of bodies and geoms), copied to scratch data."""
