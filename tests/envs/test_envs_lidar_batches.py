@@ -190,6 +190,49 @@ def test_a_small_batch_in_a_large_building_goes_through_the_bvh(monkeypatch):
     assert sum(sent) < 5
 
 
+def test_rays_sure_to_leave_their_pane_first_are_those_mj_ray_says():
+    """``own_first`` (optics' ``_leave`` casts a crossing ray from inside its pane only where it is not
+    sure): a ray is sure to meet its pane first, where it leaves it, only if ``mj_ray`` from inside says
+    so (the pane at that exact distance). Not sure: rays meeting a box embedded in the pane, a mullion
+    through it, or a box abutting its far face that ``mj_ray`` reports first; every ray leaving a pane
+    a moving body's box overlaps. Most other rays are sure."""
+    spec = mujoco.MjSpec()
+    box = mujoco.mjtGeom.mjGEOM_BOX
+    x0, t = 20.0, 2.0**-7  # dyadic: the abutting box's near face and the pane's far face tie exactly
+    spec.worldbody.add_geom(type=box, size=[2.0**-4, 0.2, 0.2], pos=[x0 + t + 2.0**-4, 0.7, 0.0])  # 0: abutting, first
+    spec.worldbody.add_geom(type=box, size=[t, 1.0, 1.0], pos=[x0, 0.0, 0.0])  # 1: the pane
+    spec.worldbody.add_geom(type=box, size=[0.003, 0.1, 0.1], pos=[x0, -0.5, 0.0])  # 2: embedded in it
+    spec.worldbody.add_geom(type=box, size=[0.03, 0.1, 0.3], pos=[x0, 0.0, 0.6])  # 3: a mullion through it
+    spec.worldbody.add_geom(type=box, size=[t, 1.0, 1.0], pos=[x0 + 2.0, 0.0, 0.0])  # 4: a second pane
+    spec.worldbody.add_geom(type=box, size=[0.1, 2.0, 2.0], pos=[x0 + 5.0, 0.0, 0.0])  # 5: a wall behind
+    walker = spec.worldbody.add_body(pos=[x0 + 2.0, 0.5, 0.5], mocap=True)
+    walker.add_geom(type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[0.05, 0, 0])  # 6: moving, overlapping the second pane
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    group = np.ones(6, dtype=np.uint8)
+    cast = cast_module.RayCaster(LidarConfig(caster="bvh"), group, -1).secondary(model, data)
+    rng = np.random.default_rng(9)
+    n = 6000
+    own = np.where(rng.random(n) < 0.75, 1, 4)
+    o = np.column_stack([x0 + 2.0 * (own == 4) - t + 1e-6, rng.uniform(-0.95, 0.95, n), rng.uniform(-0.95, 0.95, n)])
+    d = np.column_stack([np.ones(n), rng.normal(scale=0.3, size=n), rng.normal(scale=0.3, size=n)])
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    x = cast.exit_m(o, d, own)
+    assert np.all(x > 0.0)
+    sure = cast.own_first(o, d, own, x)
+    r0, g0, _ = cast_rays(model, data, group, o, d)
+    first = (g0 == own) & (r0 == x)
+    assert not np.any(sure & ~first)  # never sure where mj_ray meets another geom first
+    assert not np.any(sure[own == 4])  # the moving body's box overlaps that pane
+    # each case occurs (the abutting box wins its ties: its id is lower; the mullion's side is met within
+    # the pane only by rays starting within a few millimetres of it)
+    for g, least in ((0, 10), (2, 10), (3, 1)):
+        assert np.count_nonzero((own == 1) & (g0 == g)) >= least
+    assert np.count_nonzero((g0 == 0) & (r0 == x)) > 10  # ties with the pane's far face
+    assert np.count_nonzero(sure) > 0.9 * np.count_nonzero(first & (own == 1))
+
+
 def test_a_recast_judges_the_geoms_met_within_its_shift():
     """A ray leaving a slab through its face, with thin boxes just past that face, nearer than the
     recast's shift (:func:`bvh._recast` starts Embree 50 um past the rejected hit), and a box

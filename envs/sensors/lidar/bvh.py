@@ -221,10 +221,14 @@ class StaticBvh:
         self._row = np.full(int(m.ngeom), -1, dtype=np.int64)  # type: ignore[attr-defined]
         self._row[self.geom] = np.arange(len(self.geom))
 
+    def row_of(self, geoms: np.ndarray) -> np.ndarray:
+        """The BVH rows of the original geom ids ``geoms`` (-1 for a geom not in the BVH, or -1)."""
+        return np.where(geoms >= 0, self._row[np.maximum(geoms, 0)], -1)
+
     def exact_on(self, geoms: np.ndarray, o: np.ndarray, u: np.ndarray) -> np.ndarray:
         """MuJoCo's distance from each ray (``o, u``) to its geom of ``geoms`` (original ids), -1 where
         the ray misses it or the geom is not one of these."""
-        k = np.where(geoms >= 0, self._row[np.maximum(geoms, 0)], -1)
+        k = self.row_of(geoms)
         x = np.full(len(o), -1.0)
         rows = np.flatnonzero(k >= 0)
         if len(rows):
