@@ -11,8 +11,11 @@ bit, whenever Embree names the geom MuJoCo would. Embree casts in single precisi
 name another geom only where two surfaces lie within its rounding (~1e-6 of the range) of each
 other: a beam grazing a box's silhouette edge, coplanar faces meeting at a seam, or two faces
 closer than a few micrometres. When the exact recomputation rejects Embree's geom (a plane seen
-from behind, which MuJoCo does not hit, or an edge Embree's rounding caught), the ray's every
-Embree intersection is listed and the nearest one the exact test accepts is taken. Embree can
+from behind, which MuJoCo does not hit, an edge Embree's rounding caught, or the surface a
+secondary ray has just left, which float32 rounds its start back onto), the ray is cast again from
+just past that hit, the geoms whose boxes hold the hit point judged exactly (:meth:`StaticBvh._recast`);
+where that hit is rejected too, the ray's every Embree intersection is listed and the nearest one
+the exact test accepts is taken. Embree can
 also miss a box whose edge a ray grazes where MuJoCo hits it (a mullion's corner, a pane's end
 against a mullion's side), metres before the surface it names: the geoms whose edges a ray passes
 near before its hit (:mod:`~exobench.envs.sensors.lidar.edges`) are judged exactly too.
