@@ -11,8 +11,11 @@ bit, whenever Embree names the geom MuJoCo would. Embree casts in single precisi
 name another geom only where two surfaces lie within its rounding (~1e-6 of the range) of each
 other: a beam grazing a box's silhouette edge, coplanar faces meeting at a seam, or two faces
 closer than a few micrometres. When the exact recomputation rejects Embree's geom (a plane seen
-from behind, which MuJoCo does not hit, or an edge Embree's rounding caught), the ray's every
-Embree intersection is listed and the nearest one the exact test accepts is taken. Embree can
+from behind, which MuJoCo does not hit, an edge Embree's rounding caught, or the surface a
+secondary ray has just left, which float32 rounds its start back onto), the ray is cast again from
+just past that hit, the geoms whose boxes hold the hit point judged exactly (:meth:`StaticBvh._recast`);
+where that hit is rejected too, the ray's every Embree intersection is listed and the nearest one
+the exact test accepts is taken. Embree can
 also miss a box whose edge a ray grazes where MuJoCo hits it (a mullion's corner, a pane's end
 against a mullion's side), metres before the surface it names: the geoms whose edges a ray passes
 near before its hit (:mod:`~exobench.envs.sensors.lidar.edges`) are judged exactly too.
@@ -35,6 +38,7 @@ from .kernels import (
     exact_hits_into,
     face_hits_into,
     first_hits,
+    near_hits,
     nearest_listed,
     odd_crossings,
     proxy_hits,
@@ -75,6 +79,7 @@ def embree_rays(o: np.ndarray, u: np.ndarray) -> object:
     return o3d.core.Tensor(r)
 
 
+_SHIFT_M = 0.5 * TUBE_M  # a rejected hit's recast starts this far past it (StaticBvh._recast), far above float32's rounding
 _PROBE = np.array([0.2672612419124244, 0.5345224838248488, 0.8017837257372732])  # (1, 2, 3) / |(1, 2, 3)|
 _EDGE_M = 1e-4  # hits this near a face's edge are checked against every face (Embree rounds in float32)
 _OTHER = np.array([[1, 2], [0, 2], [0, 1]])
@@ -214,14 +219,19 @@ class StaticBvh:
         self.lo = np.array([v.min(axis=0) for v, _ in meshes]).reshape(-1, 3) - TUBE_M
         self.hi = np.array([v.max(axis=0) for v, _ in meshes]).reshape(-1, 3) + TUBE_M
         self.edges = EdgeTubes(self.pos, self.mat, self.size, self.plane, far_m)
+        self.neighbours = _overlapping(self.lo, self.hi)
         self._no_skip = np.zeros(len(self.geom), dtype=bool)
         self._row = np.full(int(m.ngeom), -1, dtype=np.int64)  # type: ignore[attr-defined]
         self._row[self.geom] = np.arange(len(self.geom))
 
+    def row_of(self, geoms: np.ndarray) -> np.ndarray:
+        """The BVH rows of the original geom ids ``geoms`` (-1 for a geom not in the BVH, or -1)."""
+        return np.where(geoms >= 0, self._row[np.maximum(geoms, 0)], -1)
+
     def exact_on(self, geoms: np.ndarray, o: np.ndarray, u: np.ndarray) -> np.ndarray:
         """MuJoCo's distance from each ray (``o, u``) to its geom of ``geoms`` (original ids), -1 where
         the ray misses it or the geom is not one of these."""
-        k = np.where(geoms >= 0, self._row[np.maximum(geoms, 0)], -1)
+        k = self.row_of(geoms)
         x = np.full(len(o), -1.0)
         rows = np.flatnonzero(k >= 0)
         if len(rows):
@@ -265,10 +275,50 @@ class StaticBvh:
         nrm[~good] = 0.0
         redo = np.flatnonzero(state == 2)
         if len(redo):
+            redo = self._recast(ans, redo, o, u, nthreads, cut, rk, inside, skip, gid, dist, nrm)
+        if len(redo):
             self._listed(rays[redo], redo, o, u, cutoff, rk, gid, dist, nrm, None if skip is self._no_skip else skip)
         self._grazed(o, u, nthreads, cutoff, rk, None if skip is self._no_skip else skip, gid, dist, nrm)
         out = np.where(gid >= 0, self.geom[np.maximum(gid, 0)], -1).astype(np.int32)
         return out, dist, nrm
+
+    def _recast(self, ans: dict, redo: np.ndarray, o: np.ndarray, u: np.ndarray, nthreads: int, cut: float,
+                rk: np.ndarray, inside: bool, skip: np.ndarray, gid: np.ndarray, dist: np.ndarray,
+                nrm: np.ndarray) -> np.ndarray:  # fmt: skip
+        """The rays ``redo``, whose geom Embree named (``ans``) the exact test rejected, cast once more by
+        Embree from ``_SHIFT_M`` past that hit, and judged from their own origins: their hits (``gid, dist,
+        nrm``, updated in place); returns those the recast's exact test rejected again, for :meth:`_listed`.
+
+        Nearly all such rays are secondary ones starting 1 um past the surface they leave, which float32
+        rounds them back onto (Embree names it at t = 0); listing their whole paths through the building
+        cost about 1 us a ray. Embree's nearest hit was the rejected one, so it lists no other before it;
+        a geom met within the shift past it has a surface point within ``_SHIFT_M`` of that hit point
+        ``p``, so its box (``lo, hi``, grown by ``TUBE_M``) holds ``p`` and overlaps the named geom's
+        box: those neighbours are judged by their exact hits (:func:`kernels.near_hits`), the recast's
+        hit goes through the same exact test and seams as a first cast, and the edge tubes
+        (:meth:`_grazed`) follow for every ray as before."""
+        m = len(redo)
+        named = ans["geometry_ids"].numpy()[redo].astype(np.int64)
+        t1 = ans["t_hit"].numpy()[redo].astype(np.float64)
+        o_r, u_r = o[redo], u[redo]
+        p = o_r + t1[:, None] * u_r
+        again = self.scene.cast_rays(embree_rays(p + _SHIFT_M * u_r, u_r), nthreads=nthreads)
+        g2, x2, n2 = np.full(m, -1, dtype=np.int64), np.full(m, -1.0), np.zeros((m, 3))
+        f2, s2 = np.full(m, -1, dtype=np.int64), np.zeros(m, dtype=np.int8)
+        first_hits(again["geometry_ids"].numpy(), again["primitive_ids"].numpy(), _TRI_FACE, len(self.geom),
+                   self.faces, self.pos, self.mat, self.size, self.plane, self.rbound, o_r, u_r, cut, skip,
+                   g2, x2, n2, f2, s2)  # fmt: skip
+        # a box the ray starts in holds its origin, within t1 of p: where every t1 is within the shift,
+        # near_hits judges each such box exactly, so the seams need not probe for them
+        self._seams(o_r, u_r, cut, rk, inside and bool(np.any(t1 > _SHIFT_M)), skip, g2, x2, n2, f2, s2)
+        start, geoms = self.neighbours
+        near_hits(named, p, start, geoms, self.lo, self.hi, self.pos, self.mat, self.size, self.plane, self.rbound,
+                  _i64(rk), skip, o_r, u_r, cut, g2, x2, n2, s2)  # fmt: skip
+        good = s2 == 1
+        gid[redo] = np.where(good, g2, -1)
+        dist[redo] = np.where(good, x2, -1.0)
+        nrm[redo] = np.where(good[:, None], n2, 0.0)
+        return redo[s2 == 2]
 
     def _seams(self, o: np.ndarray, u: np.ndarray, cut: float, rk: np.ndarray, inside: bool, skip: np.ndarray,
                gid: np.ndarray, x: np.ndarray, nrm: np.ndarray, face: np.ndarray, state: np.ndarray) -> None:  # fmt: skip
@@ -454,6 +504,19 @@ class FewBoxes:
         if len(self.geom) and len(o):
             boxes_before(_f64(o), _f64(u), _f64(dist), self.pos, self.mat, self.ctr, self.half, self.lo, self.hi, out)
         return out
+
+
+def _overlapping(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each box ``[lo, hi]``, the other boxes overlapping it (closed), as (start (G + 1), boxes): CSR."""
+    rows: list[np.ndarray] = []
+    for a in range(0, len(lo), 512):  # a block of rows at a time: G x G booleans for a large building
+        touch = np.ones((min(512, len(lo) - a), len(lo)), dtype=bool)
+        for c in range(3):
+            touch &= (lo[a : a + 512, c, None] <= hi[None, :, c]) & (hi[a : a + 512, c, None] >= lo[None, :, c])
+        touch[np.arange(len(touch)), a + np.arange(len(touch))] = False
+        rows.extend(np.flatnonzero(t) for t in touch)
+    start = np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(np.int64)
+    return start, (np.concatenate(rows) if rows else np.zeros(0)).astype(np.int64)
 
 
 def _col_min_max(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -33,7 +33,7 @@ import numpy as np
 
 from .bvh import FewBoxes, Proxies, StaticBvh, embree_rays
 from .config import LidarConfig
-from .kernels import to_own_origins
+from .kernels import own_first, to_own_origins, world_boxes
 from .optics import RayCastFn, cast_rays
 from .pattern import RayTable
 from .ray_scene import PRIMITIVE_TYPES, RayScene, build_ray_scene, ray_visible_geoms
@@ -280,6 +280,7 @@ class _SecondaryCast:
         self.primary = primary
         self.proxies: Proxies | None = None
         self.own: FewBoxes | None = None
+        self._others_box: tuple[np.ndarray, np.ndarray] | None = None
 
     def __call__(self, o: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         model, data = self.model, self.data
@@ -291,15 +292,7 @@ class _SecondaryCast:
         gid, r, nrm = self.parts.static.cast(o, d, self.k, inside=True, rays=rays_f)
         gid = gid.astype(np.int64)
         # the few rays that may meet a moving or curved geom first: exactly as the reference
-        if self.primary is not None:
-            if self.own is None:
-                self.own = FewBoxes(model, data, self.parts.own_others)
-            may = self.own.may_hit_before(o, d, r, self.primary.may_hit_before(o, d, r, self.k, rays=rays_f))
-        else:
-            if self.proxies is None:
-                self.proxies = Proxies(model, data, self.parts.others)
-            may = self.proxies.may_hit_before(o, d, r, self.k, rays=rays_f)
-        near = np.flatnonzero(may)
+        near = np.flatnonzero(self._may_meet_others(o, d, r, rays_f))
         if len(near) == 0:
             return r, gid, nrm
         # those that may meet a static curved geom: mj_ray on every geom; the others, nearly all, on the
@@ -317,18 +310,49 @@ class _SecondaryCast:
             r[w], gid[w], nrm[w] = r2[take], g2[take], n2[take]
         return r, gid, nrm
 
+    def _may_meet_others(self, o: np.ndarray, d: np.ndarray, r: np.ndarray, rays_f: object) -> np.ndarray:
+        """Rays that may meet a moving or curved geom (``others``) nearer than ``r`` (-1: no hit)."""
+        if self.primary is not None:
+            if self.own is None:
+                self.own = FewBoxes(self.model, self.data, self.parts.own_others)
+            return self.own.may_hit_before(o, d, r, self.primary.may_hit_before(o, d, r, self.k, rays=rays_f))
+        if self.proxies is None:
+            self.proxies = Proxies(self.model, self.data, self.parts.others)
+        return self.proxies.may_hit_before(o, d, r, self.k, rays=rays_f)
+
+    def own_first(self, o: np.ndarray, d: np.ndarray, geoms: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """Rays starting in the static box ``geoms`` and leaving it at ``x`` (:meth:`exit_m`) whose cast
+        would surely report that box at ``x`` (optics' ``_leave``: it then casts only the ray from just
+        past it). Every geom met within the box overlaps it: none of the static ones that do is met as
+        near by its exact hit, and no moving or curved geom's box overlaps it (their world boxes in this
+        sweep's poses, 1 mm larger): :func:`kernels.own_first`, one compiled pass."""
+        st = self.parts.static
+        if self._others_box is None:
+            g = np.ascontiguousarray(self.parts.others, dtype=np.int64)
+            lo, hi = np.empty((len(g), 3)), np.empty((len(g), 3))
+            world_boxes(g, np.asarray(self.model.geom_aabb), np.asarray(self.data.geom_xpos),  # type: ignore[attr-defined]
+                        np.asarray(self.data.geom_xmat), 1e-3, lo, hi)  # type: ignore[attr-defined]  # fmt: skip
+            self._others_box = (lo, hi)
+        out = np.empty(len(o), dtype=bool)
+        start, nb = st.neighbours
+        own_first(np.ascontiguousarray(geoms, dtype=np.int64), st._row, np.ascontiguousarray(o, dtype=float),
+                  np.ascontiguousarray(d, dtype=float), np.ascontiguousarray(x, dtype=float), start, nb, st.pos, st.mat,
+                  st.size, st.plane, st.lo, st.hi, st.geom, *self._others_box, out)  # fmt: skip
+        return out
+
     def exit_m(self, o: np.ndarray, d: np.ndarray, geoms: np.ndarray) -> np.ndarray:
         """Where each ray would meet the geom ``geoms`` (MuJoCo's distance: what a cast reports if that
         geom is the hit), -1 where it does not or is not a static box or plane (optics' ``_leave``)."""
         return self.parts.static.exact_on(geoms, o, d)
 
 
-_MJ_RAY_GEOM_RAYS = 60_000
+_MJ_RAY_GEOM_RAYS = 20_000
 """A secondary batch of at most this many rays times geoms is cast by ``mj_ray`` one ray at a time:
-``mj_ray`` costs about 3-8 us per ray in the office scenes (316-900 geoms), a batch through the BVH
-about 0.4-0.7 ms of fixed costs (Embree calls, exact hits, seams, proxies; a secondary ray starting
-just past a pane is often listed through, see ``StaticBvh._listed``), so the two break even at
-about 150 rays there (measured on the bench's scenes)."""
+``mj_ray`` costs about (0.5 + 0.0075 x geoms) us per ray (3 us in the default office's 316 geoms, 6.5
+us in 24 offices' 834), a batch through the BVH about 0.12-0.17 ms of fixed costs (Embree calls, exact
+hits, seams, edge tubes, proxies) and 0.6 us a ray, so the two break even at about 20,000 rays times
+geoms (measured on the bench's scenes: 60 rays at 6 offices, 20 at 24). It was 60,000 while a batch's
+rays starting on a surface float32 rounds them back onto were listed whole (``StaticBvh._recast``)."""
 
 _POSE_FIELDS = ("xpos", "xmat", "xquat", "xipos", "ximat", "geom_xpos", "geom_xmat")
 """The ``MjData`` state ``mj_multiRay`` reads (poses of bodies and geoms), copied to scratch data."""

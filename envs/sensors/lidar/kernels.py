@@ -194,6 +194,101 @@ def nearest_listed(redo, splits, ids, pos, mat, size, plane, rbound, rk, skip, o
 
 
 @_jit
+def near_hits(named, p, nb_start, nb_geom, lo, hi, pos, mat, size, plane, rbound, rk, skip, o, u, cutoff,
+              gid, x, nrm, state):  # noqa: ANN001, ANN201
+    """``StaticBvh._recast``: for each ray ``r`` not left rejected (``state[r]`` 0 or 1), the geom Embree
+    named at ``p[r]`` (``named[r]``) and its neighbours (``nb_start, nb_geom``: CSR of the geoms whose
+    boxes ``lo, hi`` overlap its box) whose box holds ``p[r]``, each judged by its exact hit from the
+    ray's own origin against the hit in ``gid, x, nrm`` (``state`` 1): the nearest kept, of equal ones
+    the first in ``rk``, not culled beyond ``cutoff`` (< 0: none) nor on a ``skip`` geom; ``state``
+    becomes 1 where one is kept."""
+    for r in range(len(named)):
+        if state[r] == 2:
+            continue
+        px, py, pz = p[r, 0], p[r, 1], p[r, 2]
+        o0, o1, o2, u0, u1, u2 = o[r, 0], o[r, 1], o[r, 2], u[r, 0], u[r, 1], u[r, 2]
+        k = np.int64(named[r])
+        bx, brank, bg, bf = -1.0, 0, -1, -1
+        if state[r] == 1:
+            bx, brank, bg = x[r], rk[gid[r]], gid[r]
+        for a in range(nb_start[k], nb_start[k + 1] + 1):
+            q = k if a == nb_start[k + 1] else nb_geom[a]
+            if skip[q] or not _in_box(lo[q, 0], lo[q, 1], lo[q, 2], hi[q, 0], hi[q, 1], hi[q, 2], px, py, pz):
+                continue
+            x2, f2 = _geom_hit(pos, mat, size, plane, q, o0, o1, o2, u0, u1, u2)
+            if not x2 >= 0 or _beyond(pos[q, 0], pos[q, 1], pos[q, 2], rbound[q], o0, o1, o2, cutoff):
+                continue
+            if bg < 0 or x2 < bx or (x2 == bx and rk[q] < brank):
+                bx, brank, bg, bf = x2, rk[q], q, f2
+        if bf >= 0:
+            gid[r], x[r], state[r] = bg, bx, 1
+            _normal(mat, bg, bf, nrm, r)
+
+
+@_jit
+def own_first(geoms, row, o, u, x, nb_start, nb_geom, pos, mat, size, plane, lo, hi, rk, others_lo, others_hi,
+              out):  # noqa: ANN001, ANN201
+    """Rays that surely meet the static box ``geoms[r]`` (original id; ``row``: its BVH row) first, at
+    ``x[r]`` (its exact distance, where the ray leaves it): the origin lies in the box, so every geom
+    met before is a geom whose box overlaps it. None of its static neighbours (``nb_start, nb_geom``:
+    CSR of the BVH geoms whose boxes ``lo, hi`` overlap its box) whose box meets the ray's segment is
+    met nearer by its exact hit, nor as near and first in ``rk``; none of the boxes ``others_lo,
+    others_hi`` (the moving and curved geoms) overlaps its box. ``out[r]`` True for those rays."""
+    clear = np.full(len(lo), -1, dtype=np.int8)  # per BVH geom: no other geom's box overlaps it (1) or one does (0)
+    for r in range(len(geoms)):
+        out[r] = False
+        k = row[geoms[r]]
+        if k < 0 or plane[k]:
+            continue
+        if clear[k] < 0:
+            clear[k] = 1
+            for b in range(len(others_lo)):
+                if (lo[k, 0] <= others_hi[b, 0] and hi[k, 0] >= others_lo[b, 0] and lo[k, 1] <= others_hi[b, 1]
+                        and hi[k, 1] >= others_lo[b, 1] and lo[k, 2] <= others_hi[b, 2] and hi[k, 2] >= others_lo[b, 2]):  # fmt: skip
+                    clear[k] = 0
+                    break
+        if clear[k] == 0:
+            continue
+        o0, o1, o2, u0, u1, u2 = o[r, 0], o[r, 1], o[r, 2], u[r, 0], u[r, 1], u[r, 2]
+        m = mat[k]
+        d0, d1, d2 = o0 - pos[k, 0], o1 - pos[k, 1], o2 - pos[k, 2]
+        if not (abs(m[0] * d0 + m[3] * d1 + m[6] * d2) <= size[k, 0] and abs(m[1] * d0 + m[4] * d1 + m[7] * d2) <= size[k, 1]
+                and abs(m[2] * d0 + m[5] * d1 + m[8] * d2) <= size[k, 2]):  # fmt: skip
+            continue
+        # the segment's bounds: a geom met on it has its hit point there
+        e0, e1, e2 = o0 + x[r] * u0, o1 + x[r] * u1, o2 + x[r] * u2
+        s0, s1, s2 = min(o0, e0), min(o1, e1), min(o2, e2)
+        t0, t1, t2 = max(o0, e0), max(o1, e1), max(o2, e2)
+        sure = True
+        for a in range(nb_start[k], nb_start[k + 1]):
+            q = nb_geom[a]
+            if not (lo[q, 0] <= t0 and hi[q, 0] >= s0 and lo[q, 1] <= t1 and hi[q, 1] >= s1 and lo[q, 2] <= t2
+                    and hi[q, 2] >= s2):  # fmt: skip
+                continue
+            x2, _ = _geom_hit(pos, mat, size, plane, q, o0, o1, o2, u0, u1, u2)
+            if x2 >= 0 and (x2 < x[r] or (x2 == x[r] and rk[q] < rk[k])):
+                sure = False
+                break
+        out[r] = sure
+
+
+@_jit
+def world_boxes(geoms, aabb, xpos, xmat, margin, lo, hi):  # noqa: ANN001, ANN201
+    """World bounds of the boxes ``aabb`` (centre, half sizes in the geom frame) of ``geoms``, posed by
+    ``xpos, xmat``, ``margin`` larger, into ``lo, hi``."""
+    for i in range(len(geoms)):
+        g = geoms[i]
+        for a in range(3):
+            c = xpos[g, a]
+            e = 0.0
+            for b in range(3):
+                c += xmat[g, 3 * a + b] * aabb[g, b]
+                e += abs(xmat[g, 3 * a + b]) * aabb[g, 3 + b]
+            lo[i, a] = c - e - margin
+            hi[i, a] = c + e + margin
+
+
+@_jit
 def _in_box(lx, ly, lz, hx, hy, hz, px, py, pz):  # noqa: ANN001, ANN202
     return lx <= px <= hx and ly <= py <= hy and lz <= pz <= hz
 

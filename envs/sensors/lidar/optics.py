@@ -377,8 +377,20 @@ def _leave(cast: RayCastFn, p: np.ndarray, d: np.ndarray, own: np.ndarray, mirro
     redos = np.zeros(n, dtype=np.int64)  # redo casts each ray has had
     if len(ahead):
         o2 = o[ahead] + (x + EPS_M)[:, None] * d[ahead]  # as the redo below moves the origin
-        r, gi, nn = cast(np.concatenate([o, o2]), np.concatenate([d, d[ahead]]))
-        r, gi, nn, r2, g2, n2 = r[:n], gi[:n], nn[:n], r[n:], gi[n:], nn[n:]
+        # the rays that surely meet their own pane first where they leave it (``cast.own_first``) are
+        # not cast from inside it: that cast would report the pane at x, and the redo takes over
+        own_first = getattr(cast, "own_first", None)
+        sure = np.zeros(len(ahead), dtype=bool)
+        if own_first is not None:
+            sure = own_first(o[ahead], d[ahead], own[ahead], x)
+        rest = np.ones(n, dtype=bool)
+        rest[ahead[sure]] = False
+        ci = np.flatnonzero(rest)
+        rc, gc, nc = cast(np.concatenate([o[ci], o2]), np.concatenate([d[ci], d[ahead]]))
+        r, gi, nn = np.empty(n), np.empty(n, dtype=np.int64), np.zeros((n, 3))
+        r[ci], gi[ci], nn[ci] = rc[: len(ci)], gc[: len(ci)], nc[: len(ci)]
+        r[ahead[sure]], gi[ahead[sure]] = x[sure], own[ahead[sure]]
+        r2, g2, n2 = rc[len(ci) :], gc[len(ci) :], nc[len(ci) :]
         take = (r[ahead] >= 0.0) & (gi[ahead] == own[ahead]) & (r[ahead] == x)
         s = ahead[take]
         o[s], r[s], gi[s], nn[s] = o2[take], r2[take], g2[take], n2[take]
