@@ -92,7 +92,11 @@ class OctreeConfig:
         clamping_min / clamping_max: occupancy clamping (keeps the map updatable).
         occupancy_threshold: probability above which a voxel is occupied.
         max_range_m: rays are cut here (free space beyond is not trusted; the point is dropped);
-            None integrates every ray in full.
+            None (the default) integrates every ray in full. The pipeline already bounds what it
+            gives: its map's points by depth (4 m along the optical axis, up to 5.7 m from the
+            camera at the image's edge), its far rays by the camera's range. A cut at 5 m left
+            the map's own points beyond it unknown in their session's octree, never a change
+            (the *Human* case's cabinet2, docs/tracks/multisession.md).
         hit_guard_voxels: a voxel is removed (added) only if no point of the other side lies
             within this many voxels of it (0: no guard). Rays grazing a floor or a wall cross
             the voxels of its surface, so OctoMap marks voxels free that the same session also
@@ -105,7 +109,7 @@ class OctreeConfig:
     clamping_min: float = 0.1192
     clamping_max: float = 0.971
     occupancy_threshold: float = 0.5
-    max_range_m: float | None = 5.0
+    max_range_m: float | None = None
     hit_guard_voxels: int = 1
 
     def __post_init__(self) -> None:
