@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import cv2
 import gtsam
@@ -162,8 +162,8 @@ class WindowConfig:
         check_range("tilt_sigma_rad", self.tilt_sigma_rad, 0.0, math.pi, low_open=True)
 
     def failure_bounds(self) -> FailureBounds:
-        return FailureBounds(self.max_speed_mps, self.max_accel_bias, self.max_gyro_bias, self.max_update_speed_mps,
-                             self.max_update_climb_mps, self.update_slack_m, self.max_update_turn_deg)
+        # by name, so a bound added to FailureBounds cannot be passed in the wrong place
+        return FailureBounds(**{f.name: getattr(self, f.name) for f in fields(FailureBounds)})
 
 
 @dataclass(eq=False)
