@@ -108,11 +108,13 @@ class Trajectory:
         return Trajectory(self.stamps_s.copy(), (scale * self.positions_xyz) @ R.T + np.asarray(t, dtype=float), q)
 
 
-def umeyama_alignment(src: np.ndarray, dst: np.ndarray, with_scale: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
+def umeyama_alignment(src: np.ndarray, dst: np.ndarray, with_scale: bool = False,
+                      allow_collinear: bool = False) -> tuple[np.ndarray, np.ndarray, float]:
     """``(R, t, s)`` minimising ``sum |dst_i - (s R src_i + t)|^2`` for points (N, 3) (Umeyama 1991).
 
     ``s`` is 1 unless ``with_scale``. Raises :class:`ConfigError` when the points are collinear
-    (the rotation about their line is not determined), as evo does.
+    (the rotation about their line is not determined), as evo does; with ``allow_collinear`` it
+    returns one of the minimisers instead (for drawing: every one moves the points alike).
     """
     x, y = np.asarray(src, dtype=float), np.asarray(dst, dtype=float)
     if x.shape != y.shape or x.ndim != 2:
@@ -123,7 +125,7 @@ def umeyama_alignment(src: np.ndarray, dst: np.ndarray, with_scale: bool = False
     sigma_x = float(np.sum(xc * xc)) / n
     cov = yc.T @ xc / n
     u, d, vt = np.linalg.svd(cov)
-    if np.count_nonzero(d > np.finfo(d.dtype).eps) < m - 1:
+    if np.count_nonzero(d > np.finfo(d.dtype).eps) < m - 1 and not allow_collinear:
         raise ConfigError("umeyama.src", f"{n} points of rank {np.count_nonzero(d > np.finfo(d.dtype).eps)}",
                           f"points spanning at least {m - 1} dimensions (not collinear)")
     S = np.eye(m)

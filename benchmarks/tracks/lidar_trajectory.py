@@ -172,13 +172,14 @@ def trajectory_figure_data(episode: Episode, estimates: Mapping[str, Any]) -> di
 
 def alignment(truth: np.ndarray, stamps: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(R, t) of the SE(3) Umeyama fit of the estimated positions onto the true ones (as the ATE);
-    identity when fewer than 3 poses fall inside the truth."""
+    identity when fewer than 3 poses fall inside the truth. For the figures: on a collinear estimate
+    (a straight walk) one of the fits that all give the ATE's minimum."""
     inside, Q = interpolate_poses(truth, stamps)
     P = poses[inside]
     ok = np.all(np.isfinite(P.reshape(len(P), -1)), axis=1)
     if ok.sum() < 3:
         return np.eye(3), np.zeros(3)
-    R, t, _ = tj.umeyama_alignment(P[ok, :3, 3], Q[ok, :3, 3])
+    R, t, _ = tj.umeyama_alignment(P[ok, :3, 3], Q[ok, :3, 3], allow_collinear=True)
     return R, t
 
 
