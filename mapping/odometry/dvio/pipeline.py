@@ -73,8 +73,8 @@ class DvioConfig:
         min_landmarks: a keyframe observing fewer window landmarks is a tracking loss.
         max_speed_mps / max_accel_bias / max_gyro_bias / max_update_speed_mps /
             max_update_climb_mps / update_slack_m / max_update_turn_deg / max_depth_misfit /
-            max_init_tilt_deg / max_init_gyro_bias: the failure detection's bounds on a window update and on a
-            re-initialisation (:class:`.failure.FailureBounds`).
+            max_init_tilt_deg / max_init_gyro_bias: the failure detection's bounds on a window
+            update and on an initialisation (:class:`.failure.FailureBounds`).
         linear_solver: the window smoother's linear solver ("cholesky" or "qr").
         max_wait_s: longest a frame waits for the IMU to reach its time, s.
         camera_id / imu_id: streams to read ("" = the calibration's camera and its IMU).

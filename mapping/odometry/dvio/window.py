@@ -100,9 +100,9 @@ class WindowConfig:
             alone, an optimisation whose system gtsam's Cholesky finds indeterminate.
         max_speed_mps / max_accel_bias / max_gyro_bias / max_update_speed_mps /
             max_update_climb_mps / update_slack_m / max_update_turn_deg / max_depth_misfit /
-            max_init_tilt_deg / max_init_gyro_bias: the failure detection's bounds on the newest state after a window
-            update and on a re-initialisation (:class:`.failure.FailureBounds`: VINS-Mono's,
-            adapted to a walker, and two of this estimator's).
+            max_init_tilt_deg / max_init_gyro_bias: the failure detection's bounds on the newest
+            state after a window update and on an initialisation (:class:`.failure.FailureBounds`:
+            VINS-Mono's, adapted to a walker, and three of this estimator's).
         linear_solver: the smoother's linear solver, "cholesky" (gtsam's default, multifrontal
             Cholesky on the normal equations) or "qr" (multifrontal QR on the Jacobian; docs/dvio.md
             "Long walks" for why it is not the default).
@@ -220,7 +220,8 @@ class SlidingWindow:
         self._T_IC = gtsam.Pose3(gtsam.Rot3(ext.R_IC), ext.p_IC)
         self.stats = {"keyframes": 0, "reinitialisations": 0, "init_attempts": 0, "optimisation_failures": 0,
                       "pnp_refined": 0, "landmarks": 0, "depths_gated": 0,
-                      "lm_iterations": 0, "inits_refused_tilt": 0, "inits_refused_gyro_bias": 0, **{"failures_" + r.replace(" ", "_"): 0 for r in REASONS}}
+                      "lm_iterations": 0, "inits_refused_tilt": 0, "inits_refused_gyro_bias": 0,
+                      **{"failures_" + r.replace(" ", "_"): 0 for r in REASONS}}
         self.init_time_s: float | None = None  # stamp of the first pose
         self._anchor: gtsam.Pose3 | None = None  # last good IMU pose, for a re-initialised segment
         self.loss_reasons: dict[str, int] = {}
