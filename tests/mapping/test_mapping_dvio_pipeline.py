@@ -146,6 +146,12 @@ def test_process_before_reset_and_bad_parameters_are_refused(walk):
         DvioConfig(update_slack_m=-0.1)
     with pytest.raises(ConfigError, match="max_gyro_bias"):
         DvioConfig(max_gyro_bias=0.0)
+    with pytest.raises(ConfigError, match="max_depth_misfit"):  # the pipeline's field reaches the window's check
+        DvioConfig(max_depth_misfit=-1.0)
+    with pytest.raises(ConfigError, match="max_init_tilt_deg"):
+        DvioConfig(max_init_tilt_deg=181.0)
+    with pytest.raises(ConfigError, match="max_init_gyro_bias"):
+        DvioConfig(max_init_gyro_bias=float("nan"))
     with pytest.raises(ConfigError, match="linear_solver"):
         DvioConfig(linear_solver="lu")
     cal = walk.calibration

@@ -35,6 +35,31 @@ are speeds over that interval, with a slack for the window's correction of the n
   peaks at 3.4 m/s on that jog, a thigh camera's swing is faster), ``max_accel_bias`` 2.5 and
   ``max_gyro_bias`` 1.0 (VINS-Mono's).
 
+Three checks VINS-Mono does not have, for what the paper suite's ring loop showed passing all of the
+above (docs/dvio.md "The ring loop's two stretches"):
+
+- ``max_depth_misfit`` 100: the window's depth misfit (:func:`depth_misfit`), the median over every
+  depth measurement of the window's landmarks, the gated ones included, of its residual at the
+  estimate in sigmas of the depth noise model. Depth measures metric scale: a window that runs off
+  along the walk keeps its reprojections (its landmarks move with it) but not its depths. The
+  depth gate (``WindowConfig.depth_gate_px``) then drops those depths as wrong one by one, so the
+  misfit only shows when the gated ones are counted. Replayed: a healthy window 0.4-0.5 (median),
+  at most 36.7 (ring loop) and 40.9 (MH04-like) in short stretches that recovered; the windows that
+  ran off 100-3800 for seconds (the ring loop's 2.78 m segment, MH04-like's segment at 5.4-9.4 s);
+- ``max_init_gyro_bias`` 0.05 rad/s: an initialisation whose gyroscope bias (from the SfM's
+  rotations) no gyroscope has: a D455's IMU is specified within 1 deg/s (0.017 rad/s) [A]; the
+  replayed walks' good alignments gave 0.5-45 mrad/s, alignments over a third of a second of
+  keyframes 110-207 (their segments ran away or carried that bias into the next loss);
+- ``max_init_tilt_deg`` 5: a re-initialisation's first keyframe's vertical (its alignment's
+  gravity) against the last good state's, propagated by the gyroscope through the loss (the
+  anchor of the new segment): the gyroscope keeps the vertical over a short loss, an alignment
+  over 0.3 s of keyframes does not (the ring loop: 10.6 deg off the truth, 10.9 deg off the
+  carried vertical). The window checks it within the first half of the dead reckoning's 3 s only,
+  so a refused segment still starts on a propagated anchor.
+
+Both refuse the initialisation (counted in ``stats["inits_refused_<reason>"]``), not a window
+update; the next keyframe tries again.
+
 The window (:mod:`.window`) discards a window that fails any of them and re-initialises as after a
 solver failure, from the state before that update.
 """
@@ -42,6 +67,7 @@ solver failure, from the state before that update.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import gtsam
@@ -49,10 +75,12 @@ import numpy as np
 
 from exobench.core.errors import check_range
 
-__all__ = ["REASONS", "FailureBounds", "diverged"]
+__all__ = ["REASONS", "FailureBounds", "depth_misfit", "diverged", "init_refused", "tilt_between_deg"]
 
 # Reasons in the order they are checked; ``stats["failures_<reason with _>"]`` counts each.
-REASONS = ("not finite", "speed", "accel bias", "gyro bias", "jump", "vertical jump", "turn")
+REASONS = ("not finite", "speed", "accel bias", "gyro bias", "jump", "vertical jump", "turn", "depth misfit")
+# Fewer depth measurements in the window than this give no misfit (a median of a handful is noise).
+_MIN_MISFIT_DEPTHS = 20
 
 
 @dataclass(frozen=True)
@@ -66,6 +94,9 @@ class FailureBounds:
     max_update_climb_mps: float = 1.0
     update_slack_m: float = 0.5
     max_update_turn_deg: float = 50.0
+    max_depth_misfit: float = 100.0
+    max_init_tilt_deg: float = 5.0
+    max_init_gyro_bias: float = 0.05
 
     def __post_init__(self) -> None:
         check_range("max_speed_mps", self.max_speed_mps, 0.0, 100.0, low_open=True)
@@ -75,12 +106,47 @@ class FailureBounds:
         check_range("max_update_climb_mps", self.max_update_climb_mps, 0.0, 100.0, low_open=True)
         check_range("update_slack_m", self.update_slack_m, 0.0, 100.0)
         check_range("max_update_turn_deg", self.max_update_turn_deg, 0.0, 180.0, low_open=True)
+        check_range("max_depth_misfit", self.max_depth_misfit, 0.0, 1e9, low_open=True)
+        check_range("max_init_tilt_deg", self.max_init_tilt_deg, 0.0, 180.0, low_open=True)
+        check_range("max_init_gyro_bias", self.max_init_gyro_bias, 0.0, 10.0, low_open=True)
+
+
+def depth_misfit(residuals: Sequence[float]) -> float:
+    """The window's depth misfit: the median of its depth measurements' residuals at the estimate,
+    each ``|depth of the landmark at the estimate - measured depth|`` over the measurement's sigma
+    (NaN for fewer than ``_MIN_MISFIT_DEPTHS`` of them)."""
+    r = np.asarray(residuals, dtype=float)
+    r = r[np.isfinite(r)]
+    return float(np.median(r)) if len(r) >= _MIN_MISFIT_DEPTHS else math.nan
+
+
+def tilt_between_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    """Angle (deg) between the vertical of the attitude ``R_a`` (body to a gravity-aligned frame,
+    z up) and that of ``R_b``, each seen in the body's axes: their yaws do not count."""
+    up_a = np.asarray(R_a, dtype=float).T @ np.array([0.0, 0.0, 1.0])
+    up_b = np.asarray(R_b, dtype=float).T @ np.array([0.0, 0.0, 1.0])
+    return math.degrees(math.acos(float(np.clip(up_a @ up_b, -1.0, 1.0))))
+
+
+def init_refused(bounds: FailureBounds, R_init: np.ndarray, gyro_bias: np.ndarray,
+                 R_carried: np.ndarray | None = None) -> str:
+    """Why an initialisation is refused ("" if it is not): its gyroscope bias (rad/s) above
+    ``max_init_gyro_bias`` ("gyro bias"), or its first keyframe's attitude ``R_init`` (its
+    alignment's gravity) more than ``max_init_tilt_deg`` off ``R_carried``, the last good state's
+    attitude propagated by the gyroscope through the loss to that keyframe ("tilt"; None: not
+    checked)."""
+    if not float(np.linalg.norm(gyro_bias)) <= bounds.max_init_gyro_bias:
+        return "gyro bias"
+    if R_carried is not None and tilt_between_deg(R_init, R_carried) > bounds.max_init_tilt_deg:
+        return "tilt"
+    return ""
 
 
 def diverged(bounds: FailureBounds, before: gtsam.NavState, after: gtsam.NavState,
-             bias: gtsam.imuBias.ConstantBias, dt_s: float) -> str:
+             bias: gtsam.imuBias.ConstantBias, dt_s: float, misfit: float = math.nan) -> str:
     """The first of :data:`REASONS` that the newest state ``after`` (with its ``bias``) fails,
-    ``dt_s`` after the newest state of the previous update ``before``; "" when it fails none."""
+    ``dt_s`` after the newest state of the previous update ``before``, with the window's depth
+    ``misfit`` (:func:`depth_misfit`; NaN: not checked); "" when it fails none."""
     T0, T1 = before.pose(), after.pose()
     if not (np.all(np.isfinite(T1.matrix())) and np.all(np.isfinite(after.velocity()))
             and np.all(np.isfinite(bias.vector()))):
@@ -100,4 +166,6 @@ def diverged(bounds: FailureBounds, before: gtsam.NavState, after: gtsam.NavStat
     turn = np.linalg.norm(gtsam.Rot3.Logmap(T0.rotation().between(T1.rotation())))
     if math.degrees(float(turn)) > bounds.max_update_turn_deg:
         return "turn"
+    if math.isfinite(misfit) and misfit > bounds.max_depth_misfit:
+        return "depth misfit"
     return ""

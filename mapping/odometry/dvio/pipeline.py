@@ -72,8 +72,9 @@ class DvioConfig:
         min_features: fewer tracked features is a tracking loss.
         min_landmarks: a keyframe observing fewer window landmarks is a tracking loss.
         max_speed_mps / max_accel_bias / max_gyro_bias / max_update_speed_mps /
-            max_update_climb_mps / update_slack_m / max_update_turn_deg: the failure detection's
-            bounds on a window update (:class:`.failure.FailureBounds`).
+            max_update_climb_mps / update_slack_m / max_update_turn_deg / max_depth_misfit /
+            max_init_tilt_deg / max_init_gyro_bias: the failure detection's bounds on a window
+            update and on an initialisation (:class:`.failure.FailureBounds`).
         linear_solver: the window smoother's linear solver ("cholesky" or "qr").
         max_wait_s: longest a frame waits for the IMU to reach its time, s.
         camera_id / imu_id: streams to read ("" = the calibration's camera and its IMU).
@@ -99,6 +100,9 @@ class DvioConfig:
     max_update_climb_mps: float = 1.0
     update_slack_m: float = 0.5
     max_update_turn_deg: float = 50.0
+    max_depth_misfit: float = 100.0
+    max_init_tilt_deg: float = 5.0
+    max_init_gyro_bias: float = 0.05
     linear_solver: str = "cholesky"
     max_wait_s: float = 0.5
     camera_id: str = ""
@@ -122,7 +126,9 @@ class DvioConfig:
                             min_landmarks=self.min_landmarks, max_speed_mps=self.max_speed_mps,
                             max_accel_bias=self.max_accel_bias, max_gyro_bias=self.max_gyro_bias, max_update_speed_mps=self.max_update_speed_mps,
                             max_update_climb_mps=self.max_update_climb_mps, update_slack_m=self.update_slack_m,
-                            max_update_turn_deg=self.max_update_turn_deg, linear_solver=self.linear_solver)
+                            max_update_turn_deg=self.max_update_turn_deg, max_depth_misfit=self.max_depth_misfit,
+                            max_init_tilt_deg=self.max_init_tilt_deg, max_init_gyro_bias=self.max_init_gyro_bias,
+                            linear_solver=self.linear_solver)
 
 
 @dataclass(frozen=True)

@@ -62,7 +62,7 @@ import numpy as np
 from exobench.core.errors import ConfigError, check_int, check_range
 
 from .factors import KERNELS, DepthNoise, Extrinsics, landmark_in_camera
-from .failure import REASONS, FailureBounds, diverged
+from .failure import REASONS, FailureBounds, depth_misfit, diverged, init_refused
 from .grouped import HostedLandmark, host_group_factor
 from .imu import ImuNoise, ImuPreintegrator, combined_factor
 from .init import InitResult, KeyframeObs, initialise
@@ -75,6 +75,10 @@ Sample = tuple[float, np.ndarray, np.ndarray]
 # Longest IMU-only propagation a re-initialised segment is anchored on [A]: a walking person's IMU
 # with a calibrated bias stays within centimetres for a few seconds.
 _MAX_DEAD_RECKON_S = 3.0
+# A re-initialisation is checked against the carried vertical only this long into a loss: refused
+# any longer, the next segment would start after the propagation's limit, on the last good pose's
+# stale yaw (the ring loop: a 3.3 s loss at its first corner, 55 deg of yaw; docs/dvio.md).
+_MAX_REFUSING_S = _MAX_DEAD_RECKON_S / 2.0
 _SOLVERS = {"cholesky": "MULTIFRONTAL_CHOLESKY", "qr": "MULTIFRONTAL_QR"}
 
 
@@ -95,9 +99,10 @@ class WindowConfig:
             and once the window's last landmarks age out the whole window, would rest on the IMU
             alone, an optimisation whose system gtsam's Cholesky finds indeterminate.
         max_speed_mps / max_accel_bias / max_gyro_bias / max_update_speed_mps /
-            max_update_climb_mps / update_slack_m / max_update_turn_deg: the failure detection's
-            bounds on the newest state after a window update (:class:`.failure.FailureBounds`:
-            VINS-Mono's, adapted to a walker).
+            max_update_climb_mps / update_slack_m / max_update_turn_deg / max_depth_misfit /
+            max_init_tilt_deg / max_init_gyro_bias: the failure detection's bounds on the newest
+            state after a window update and on an initialisation (:class:`.failure.FailureBounds`:
+            VINS-Mono's, adapted to a walker, and three of this estimator's).
         linear_solver: the smoother's linear solver, "cholesky" (gtsam's default, multifrontal
             Cholesky on the normal equations) or "qr" (multifrontal QR on the Jacobian; docs/dvio.md
             "Long walks" for why it is not the default).
@@ -137,6 +142,9 @@ class WindowConfig:
     max_update_climb_mps: float = 1.0
     update_slack_m: float = 0.5
     max_update_turn_deg: float = 50.0
+    max_depth_misfit: float = 100.0
+    max_init_tilt_deg: float = 5.0
+    max_init_gyro_bias: float = 0.05
     linear_solver: str = "cholesky"
     bias_sigma_acc: float = 0.2
     bias_sigma_gyro: float = 0.02
@@ -173,6 +181,7 @@ class _Keyframe:
     features: dict[int, tuple[np.ndarray, float]]
     samples: list[Sample]  # IMU samples from the previous keyframe to this one (camera clock)
     dead_reckoned: np.ndarray | None = None  # T_G_imu from the last good state, while lost
+    dead_reckoned_s: float = math.inf  # how long that state was propagated, s
 
 
 @dataclass(eq=False)
@@ -211,7 +220,8 @@ class SlidingWindow:
         self._T_IC = gtsam.Pose3(gtsam.Rot3(ext.R_IC), ext.p_IC)
         self.stats = {"keyframes": 0, "reinitialisations": 0, "init_attempts": 0, "optimisation_failures": 0,
                       "pnp_refined": 0, "landmarks": 0, "depths_gated": 0,
-                      "lm_iterations": 0, **{"failures_" + r.replace(" ", "_"): 0 for r in REASONS}}
+                      "lm_iterations": 0, "inits_refused_tilt": 0, "inits_refused_gyro_bias": 0,
+                      **{"failures_" + r.replace(" ", "_"): 0 for r in REASONS}}
         self.init_time_s: float | None = None  # stamp of the first pose
         self._anchor: gtsam.Pose3 | None = None  # last good IMU pose, for a re-initialised segment
         self.loss_reasons: dict[str, int] = {}
@@ -236,6 +246,7 @@ class SlidingWindow:
         self._last_sample: Sample | None = None
         self._prop = ImuPreintegrator(self.imu)
         self._estimate: gtsam.Values | None = None
+        self._misfit = math.nan  # the window's depth misfit after the last update
 
     @property
     def tracking(self) -> bool:
@@ -292,7 +303,7 @@ class SlidingWindow:
             self.stats["optimisation_failures"] += 1
             self.last_error = str(err).strip().splitlines()[0][:200] if str(err).strip() else type(err).__name__
             return self._fail("optimisation")
-        why = diverged(self._bounds, before[1], self._nav, self._bias, stamp_s - t_before)
+        why = diverged(self._bounds, before[1], self._nav, self._bias, stamp_s - t_before, self._misfit)
         if why:
             # The diverged update is discarded: the loss continues from the state before it, as
             # after a solver failure (whose update never set a state).
@@ -320,16 +331,17 @@ class SlidingWindow:
             self._pending.insert(0, (stamp_s, taken[-1][1], taken[-1][2]))
         return taken
 
-    def _dead_reckon(self, stamp_s: float) -> np.ndarray | None:
+    def _dead_reckon(self, stamp_s: float) -> tuple[np.ndarray | None, float]:
         """T_G_imu at ``stamp_s`` propagated from the last good state; None when there is none or
-        it is older than ``_MAX_DEAD_RECKON_S`` (an IMU alone drifts quadratically)."""
+        it is older than ``_MAX_DEAD_RECKON_S`` (an IMU alone drifts quadratically); and how long
+        it was propagated (inf without one)."""
         if self._lost is None:
-            return None
+            return None, math.inf
         prop, nav, bias = self._lost
         prop.integrate_to(stamp_s)
         if prop.start_s is None or prop.end_s is None or prop.end_s - prop.start_s > _MAX_DEAD_RECKON_S:
-            return None
-        return prop.predict(nav, bias).pose().matrix()
+            return None, math.inf
+        return prop.predict(nav, bias).pose().matrix(), prop.end_s - prop.start_s
 
     def _pim(self, kf: _Keyframe, bias: gtsam.imuBias.ConstantBias) -> gtsam.PreintegratedCombinedMeasurements:
         pre = ImuPreintegrator(self.imu, bias)
@@ -343,7 +355,7 @@ class SlidingWindow:
         if not is_keyframe:
             return status, None
         samples = self._take_samples(stamp_s)
-        self._kfs.append(_Keyframe(self._serial, stamp_s, feats, samples, self._dead_reckon(stamp_s)))
+        self._kfs.append(_Keyframe(self._serial, stamp_s, feats, samples, *self._dead_reckon(stamp_s)))
         self._serial += 1
         n = self.config.init_keyframes
         if len(self._kfs) > n:
@@ -360,6 +372,14 @@ class SlidingWindow:
             return status, None  # an interval without IMU samples: wait for the stream
         res = initialise(obs, pims, self.ext, self.depth, self.sigma, self.imu.gravity_mps2)
         if not res.ok:
+            return status, None
+        first = self._kfs[0]
+        carried = first.dead_reckoned[:3, :3] if first.dead_reckoned_s <= _MAX_REFUSING_S else None
+        why = init_refused(self._bounds, res.T_G_imu[0, :3, :3], res.gyro_bias, carried)
+        if why:
+            # An alignment over too short a window (docs/dvio.md "The ring loop"): the next
+            # keyframe tries again.
+            self.stats["inits_refused_" + why.replace(" ", "_")] += 1
             return status, None
         try:
             self._start(res)
@@ -513,22 +533,38 @@ class SlidingWindow:
             return HostedLandmark(lm.key, lm.u_host, lm.d_host, tuple(lm.observations))
         return HostedLandmark(lm.key, lm.u_host, math.nan, tuple((k, u, math.nan) for k, u, _ in lm.observations))
 
-    def _gate_depths(self, est: gtsam.Values) -> None:
+    def _gate_depths(self, est: gtsam.Values) -> float:
         """Depths off for the landmarks whose reprojections miss by more than ``depth_gate_px``
-        on average at the new estimate; their host factors are rebuilt at the next keyframe."""
-        gate = self.config.depth_gate_px
-        if not (self.config.depth_factors and gate > 0.0):
-            return
+        on average at the new estimate (their host factors are rebuilt at the next keyframe), and
+        the window's depth misfit at it (:func:`.failure.depth_misfit`; NaN without depth factors)."""
+        c = self.config
+        if not c.depth_factors:
+            return math.nan
+        gate = c.depth_gate_px
+        residuals: list[float] = []
         for lm in self._landmarks.values():
-            if lm.feature in self._depth_off or not lm.observations or not est.exists(lm.key):
+            if not lm.observations or not est.exists(lm.key):
                 continue
             T_h = est.atPose3(X(lm.host))
             xi = max(float(est.atVector(lm.key)[0]), 1e-3)
-            miss = [self._miss_px(T_h, est.atPose3(key), xi, lm.u_host, uu) for key, uu, _ in lm.observations]
-            if float(np.mean(miss)) > gate:
+            # Gated depths count in the misfit too: the gate drops the depths that disagree with
+            # the estimate, so a window running off sheds them and shows no misfit in the rest.
+            if self.depth.valid(lm.d_host):
+                residuals.append(abs(1.0 / xi - lm.d_host) / self.depth.sigma_m(lm.d_host))
+            miss = []
+            for key, uu, d in lm.observations:
+                P = landmark_in_camera(T_h, est.atPose3(key), xi, lm.u_host, self.ext, jacobians=False)[0]
+                if P[2] <= 1e-3:
+                    miss.append(math.inf)
+                    continue
+                miss.append(float(np.linalg.norm(P[:2] / P[2] - uu) * self._focal_px))
+                if self.depth.valid(d):
+                    residuals.append(abs(float(P[2]) - d) / self.depth.sigma_m(d))
+            if gate > 0.0 and lm.feature not in self._depth_off and float(np.mean(miss)) > gate:
                 self._depth_off.add(lm.feature)
                 self._dirty_hosts.add(lm.host)
                 self.stats["depths_gated"] += 1
+        return depth_misfit(residuals)
 
     def _miss_px(self, T_h: gtsam.Pose3, T_o: gtsam.Pose3, xi: float, u_host: np.ndarray, u_obs: np.ndarray) -> float:
         """How far (px) the landmark at inverse depth ``xi`` on the host's ray projects from its
@@ -583,7 +619,7 @@ class SlidingWindow:
         est = self._smoother.calculateEstimate()
         newest = self._kfs[-1].serial
         self._estimate = est
-        self._gate_depths(est)
+        self._misfit = self._gate_depths(est)
         self._nav = gtsam.NavState(est.atPose3(X(newest)), est.atVector(V(newest)))
         self._bias = est.atConstantBias(B(newest))
         self.stats["keyframes"] += 1
