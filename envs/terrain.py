@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from exobench.core import SceneTruth
+from exobench.core.errors import check_range
 
 WALKABLE = ("ground", "tread", "ramp", "landing")
 _ROWS = 4096
@@ -90,8 +91,7 @@ class Terrain:
     """Height and surface id of the walkable terrain under arrays of (x, y) points."""
 
     def __init__(self, truth: SceneTruth, kinds: tuple[str, ...] = WALKABLE, tol_m: float = 1e-6) -> None:
-        if not tol_m >= 0.0:  # _inside_edges' rule holds for a band of zero or more
-            raise ValueError(f"Terrain tol_m must be >= 0, got {tol_m}")
+        tol_m = check_range("Terrain.tol_m", tol_m, 0.0)  # _inside_edges' rule holds for a band of zero or more
         self.truth = truth
         self._surfaces = [s for s in truth.surfaces if s.kind in kinds and abs(s.normal_w[2]) >= 1e-6]
         pad = 10.0 * tol_m

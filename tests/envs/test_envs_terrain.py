@@ -7,6 +7,7 @@ them)."""
 import numpy as np
 import pytest
 
+from exobench.core.errors import ConfigError
 from exobench.envs import terrain as terrain_module
 from exobench.envs.sim.scenarios.course import LocomotionScenario
 from exobench.envs.sim.scenarios.course_world import build_locomotion_world
@@ -53,5 +54,5 @@ def test_queries_give_the_per_surface_rule_to_the_bit(terrain, monkeypatch):
 
 
 def test_a_negative_band_is_refused():
-    with pytest.raises(ValueError, match="tol_m"):
+    with pytest.raises(ConfigError, match="Terrain.tol_m=-1e-06 is invalid; allowed: 0.0 <= tol_m"):
         Terrain(_truth("stairs"), tol_m=-1e-6)
