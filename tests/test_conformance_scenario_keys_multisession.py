@@ -5,7 +5,7 @@ workers run it beside the other tracks' keys instead of after them (tests/confte
 import pytest
 from test_conformance_scenario_keys import OWN_FILES, check_scenario_keys
 
-pytestmark = pytest.mark.long(seconds=9)  # the workers take it first (tests/conftest.py); 9: its CPU at -n 0, load 8-9 (22 s before the wrong-label key's one short session, 11 s before each base scenario's recorder inputs were built once)
+pytestmark = pytest.mark.long(seconds=10)  # the workers take it first (tests/conftest.py); 10: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 
 def test_every_multisession_scenario_key_changes_the_simulation_or_is_refused(monkeypatch):

@@ -5,7 +5,7 @@ workers run it beside the other tracks' keys instead of after them (tests/confte
 import pytest
 from test_conformance_scenario_keys import OWN_FILES, check_scenario_keys
 
-pytestmark = pytest.mark.long(seconds=33)  # the workers take it first (tests/conftest.py); 33: its CPU at -n 0, load 7-9 (70 s before the small camera of its fault keys, 42 s at 10 Hz, 36 s at 2 Hz, 33 s with each base scenario's recorder inputs built once)
+pytestmark = pytest.mark.long(seconds=41)  # the workers take it first (tests/conftest.py); 41: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 
 def test_every_vio_scenario_key_changes_the_simulation_or_is_refused(monkeypatch):

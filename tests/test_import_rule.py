@@ -5,6 +5,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.long(seconds=5)  # the workers take it first (tests/conftest.py); 5: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 ROOT = Path(__file__).resolve().parents[1]
 FORBIDDEN = {
     "core": ("mujoco", "dm_control", "open3d", "pinocchio", "gtsam", "rerun", "scipy", "matplotlib",

@@ -23,6 +23,8 @@ from exobench.benchmarks.tracks.stairs.track import CASES
 from exobench.core.counters import COUNTERS
 from exobench.core.frames import LidarScan, ToFReading
 
+pytestmark = pytest.mark.long(seconds=6)  # the workers take it first (tests/conftest.py); 6: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 STAIRS = ("rtls", "rtls-htvr", "batch-ransac")
 RIGHT_LEG = ("tof_r_lat", "tof_r_med")  # the sensors the default config (leg "r") reads
 

@@ -20,6 +20,8 @@ from exobench.benchmarks.tracks.spec import scoring_of
 from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.transforms import matrix_to_quat_wxyz, rot_z
 
+pytestmark = pytest.mark.long(seconds=9)  # the workers take it first (tests/conftest.py); 9: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 WALK_M = 1.0
 
 

@@ -17,6 +17,8 @@ from exobench.core import ConfigError, ImuSample, OdometrySample, RgbdFrame
 from exobench.mapping.locomotion import TerrainReconConfig, TerrainReconDvioConfig
 from exobench.mapping.odometry.dvio.pipeline import DvioConfig
 
+pytestmark = pytest.mark.long(seconds=19)  # the workers take it first (tests/conftest.py); 19: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 PIPELINE_REGISTRY = build_registry(entry_points=False)
 
 

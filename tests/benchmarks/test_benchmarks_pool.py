@@ -11,8 +11,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from exobench.benchmarks.pool import LOST_REASON, WATCH_INTERVAL_S, Death, lost_reason, run_pool
+
+pytestmark = pytest.mark.long(seconds=8)  # the workers take it first (tests/conftest.py); 8: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 
 def _work(job):

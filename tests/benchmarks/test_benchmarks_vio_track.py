@@ -27,6 +27,8 @@ from exobench.core.estimates import TrajectoryEstimate
 from exobench.core.frames import ImuSample, RgbdFrame
 from exobench.core.transforms import make_T, matrix_to_quat_wxyz, quat_wxyz_to_matrix, rot_z
 
+pytestmark = pytest.mark.long(seconds=20)  # the workers take it first (tests/conftest.py); 20: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 RATE_HZ = 30.0
 TRACK = get_track("vio")
 

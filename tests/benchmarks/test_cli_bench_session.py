@@ -11,6 +11,8 @@ from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
 
+pytestmark = pytest.mark.long(seconds=7)  # the workers take it first (tests/conftest.py); 7: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 
 @pytest.fixture(scope="module")
 def lidar_session(tmp_path_factory):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from click.testing import CliRunner
 
 from exobench.benchmarks.cli import cli
@@ -12,6 +13,8 @@ from exobench.benchmarks.results import json_safe, read_records
 from exobench.benchmarks.runner import execute, plan_run, run_pipelines, untimed_metrics
 from exobench.benchmarks.tracks.stairs import StairsTrack
 from exobench.benchmarks.tracks.stairs.track import CASES
+
+pytestmark = pytest.mark.long(seconds=10)  # the workers take it first (tests/conftest.py); 10: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 
 def _invoke(args):

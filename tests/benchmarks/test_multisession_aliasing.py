@@ -6,6 +6,7 @@ the first office (a false edge), and three true corridor edges against it keep t
 import math
 
 import numpy as np
+import pytest
 
 from exobench.core.transforms import matrix_to_quat_wxyz
 from exobench.envs.sensors.rgbd import RgbdCamera, RgbdConfig, intrinsics
@@ -18,6 +19,8 @@ from exobench.models.office import build_office
 from exobench.models.office_layout import build_layout
 from exobench.models.office_params import OfficeParams
 from exobench.models.vision_look import WorldLook, apply_look
+
+pytestmark = pytest.mark.long(seconds=5)  # the workers take it first (tests/conftest.py); 5: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 CFG = RgbdConfig(width_px=424, height_px=240)
 PARAMS = OfficeParams(seed=3, n_offices=3, corridor_length_m=12.0, meeting_room_m=3.0, repeated_rooms=2)

@@ -21,7 +21,7 @@ from exobench.core.faults import swap_place_labels
 from exobench.core.frames import ImuSample, PlaceLabel, SessionStart
 from exobench.envs.session import iter_frames, write_session
 
-pytestmark = pytest.mark.long(seconds=40)  # the workers take it first (tests/conftest.py); 40: the file's CPU at -n 0, load 10 (48 s when the smoke run also wrote the --rerun recording)
+pytestmark = pytest.mark.long(seconds=32)  # the workers take it first (tests/conftest.py); 32: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 
 def _episode(frames, extra=None, T_we=None) -> Episode:

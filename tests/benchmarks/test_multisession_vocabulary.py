@@ -17,6 +17,8 @@ from exobench.mapping.multisession.other_office import other_office_vocabulary_p
 from exobench.mapping.multisession.pipeline import LtExosense, LtExosenseConfig
 from exobench.mapping.multisession.place_recognition import Vocabulary, orb_features
 
+pytestmark = pytest.mark.long(seconds=26)  # the workers take it first (tests/conftest.py); 26: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 
 def _views(room, n, radius=0.8, phase=0.0):
     """Camera poses on a circle in the room, each looking outwards at a wall, and their views."""

@@ -32,6 +32,8 @@ from exobench.benchmarks.results import RESULTS_FILE, RUN_CONFIG_FILE, read_reco
 from exobench.benchmarks.runner import untimed_metrics
 from exobench.core.errors import FolderError
 
+pytestmark = pytest.mark.long(seconds=6)  # the workers take it first (tests/conftest.py); 6: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 
 class FakeTrack2(FakeTrack):
     """A second track, so that a run of every track has two."""

@@ -32,6 +32,8 @@ from exobench.benchmarks.run_tracks import execute_tracks
 from exobench.benchmarks.runner import plan_run, rerun_first_episode, untimed_metrics
 from exobench.core.episode import EpisodeStream
 
+pytestmark = pytest.mark.long(seconds=15)  # the workers take it first (tests/conftest.py); 15: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 STAMPS = "EXOBENCH_TEST_STAMPS"
 WAIT_S = 20.0
 

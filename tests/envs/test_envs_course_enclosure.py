@@ -12,7 +12,7 @@ from exobench.envs.sim.scenarios.course import LocomotionScenario, enclosure_of,
 from exobench.envs.sim.scenarios.course_enclosure import enclose_stairwell
 from exobench.envs.sim.scenarios.course_world import build_locomotion_world
 
-pytestmark = pytest.mark.long(seconds=20)  # the workers take it first (tests/conftest.py); 20: two walks and terrain-recon, 29 s wall at -n 0, load 12
+pytestmark = pytest.mark.long(seconds=2)  # the workers take it first (tests/conftest.py); 2: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 # a head camera that looks up more than the paper's (mean pitch 0.1 rad above the horizon), so a
 # 6 s walk sees the ceiling; 212 px wide so plane extraction finds it (at 64 px it finds none)

@@ -20,6 +20,8 @@ from exobench.envs.sensors.lidar import LidarConfig
 from exobench.envs.sensors.lidar.faults import LATE_PERIODS
 from exobench.envs.sim.scenarios.office import OfficeScenario, simulate_office
 
+pytestmark = pytest.mark.long(seconds=17)  # the workers take it first (tests/conftest.py); 17: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 BASE = {"route": "corridor", "max_distance_m": 1.0}
 FAULTS = {
     "scan_dropout": {"lidar_scan_dropout": 0.5},

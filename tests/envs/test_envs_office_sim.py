@@ -7,6 +7,8 @@ from exobench.core import ConfigError, LidarScan, UnknownNameError
 from exobench.envs.sim.pose import RigidPose
 from exobench.envs.sim.scenarios.office import LIDAR_ID, OfficeScenario, plan_office_walk, simulate_office
 
+pytestmark = pytest.mark.long(seconds=5)  # the workers take it first (tests/conftest.py); 5: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 SHORT = dict(route="corridor", max_distance_m=2.0, lidar_noise_m=0.0, lidar_resolution_m=0.0)
 SEED = 3
 

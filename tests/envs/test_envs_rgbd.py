@@ -17,6 +17,8 @@ from exobench.models import worlds
 from exobench.models.exo import R_OPTICAL_MJCAMERA
 from exobench.models.exo_spec import ExoSpec
 
+pytestmark = pytest.mark.long(seconds=6)  # the workers take it first (tests/conftest.py); 6: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 VISIBLE_GROUPS = np.array([1, 1, 1, 0, 0, 0], dtype=np.uint8)  # MuJoCo's default rendered groups
 NOISE_FREE = {"subpixel": 0.0, "edge_threshold_rel": 0.0, "resolution_m": 0.0}
 # optical frame looking along world +x, level: z_opt = +x, x_opt = -y, y_opt = -z

@@ -18,6 +18,8 @@ from exobench.envs.sim.scenarios.course import LocomotionScenario, simulate_loco
 from exobench.models import worlds
 from exobench.models.exo_spec import ExoSpec
 
+pytestmark = pytest.mark.long(seconds=8)  # the workers take it first (tests/conftest.py); 8: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 # a person crosses the view, so that the geom ids show more than the course
 COURSE = {"width_px": 64, "height_px": 48, "rate_hz": 5.0, "duration_cap_s": 3.0, "pedestrians": 1}
 # the office walk with the thigh camera alone: no LiDAR to cast; the baseline renders the glass

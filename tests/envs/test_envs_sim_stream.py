@@ -20,6 +20,8 @@ from exobench.envs.sim.scenarios.office import (
     stream_office,
 )
 
+pytestmark = pytest.mark.long(seconds=28)  # the workers take it first (tests/conftest.py); 28: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 SEED = 5
 
 

@@ -17,6 +17,8 @@ from exobench.models.exo import R_OPTICAL_MJCAMERA
 from exobench.models.vision_look import WorldLook, apply_look, texture_images
 from exobench.models.world_look import add_lights, add_materials, set_visual
 
+pytestmark = pytest.mark.long(seconds=10)  # the workers take it first (tests/conftest.py); 10: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 CFG = RgbdConfig(width_px=160, height_px=120)
 
 

@@ -17,6 +17,8 @@ from exobench.benchmarks.tracks import get_track
 from exobench.core.kinds import frame_kind
 from exobench.envs.sim.scenarios import course, office, stairs
 
+pytestmark = pytest.mark.long(seconds=15)  # the workers take it first (tests/conftest.py); 15: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 TABLES = {"stairs": stairs.PARAMS, "office": office.PARAMS, "course": course.PARAMS}
 TRACKS = {"stairs": "stairs", "office": "odometry", "course": "locomotion"}  # a track that simulates the world
 TINY = {"stairs": {}, "office": {"max_distance_m": 1.0}, "course": {"duration_cap_s": 2.5}}

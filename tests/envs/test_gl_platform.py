@@ -5,6 +5,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+pytestmark = pytest.mark.long(seconds=12)  # the workers take it first (tests/conftest.py); 12: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 ROOT = Path(__file__).resolve().parents[2]
 TINY = ["--set", "width_px=64", "--set", "height_px=48", "--set", "rate_hz=5", "--set", "duration_cap_s=3"]
 

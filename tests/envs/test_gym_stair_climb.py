@@ -20,6 +20,8 @@ from exobench.core import ConfigError, ExobenchError, UnknownNameError
 from exobench.envs.gym.stair_climb import StairClimbEnv
 from exobench.models.exo_spec import ExoSpec
 
+pytestmark = pytest.mark.long(seconds=5)  # the workers take it first (tests/conftest.py); 5: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 ENV_ID = "exobench/StairClimb-v0"
 FRONTAL = {"riser_m": 0.16, "tread_m": 0.30, "yaw_deg": 0.0, "distance_m": 0.30, "user_height_m": 1.75}
 

@@ -11,6 +11,8 @@ from exobench.envs.session.lidar_pack import pack_scans, pack_truths, unpack_sca
 from exobench.envs.session.packing import residual, restore, unzigzag, zigzag
 from exobench.envs.sim import OfficeScenario, simulate_office
 
+pytestmark = pytest.mark.long(seconds=5)  # the workers take it first (tests/conftest.py); 5: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 
 def _same(a, b) -> bool:
     a, b = np.asarray(a), np.asarray(b)

@@ -24,6 +24,8 @@ from exobench.core import (
 from exobench.envs.session import iter_frames, read_meta, read_session, write_session
 from exobench.envs.sim.scenarios.office import OfficeScenario, simulate_office
 
+pytestmark = pytest.mark.long(seconds=6)  # the workers take it first (tests/conftest.py); 6: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 
 def _same(a, b) -> bool:
     """Equal value and type; arrays must also have the same dtype and shape (NaN == NaN)."""

@@ -20,6 +20,8 @@ from exobench.core import SessionError
 from exobench.envs.session import read_session, write_session
 from exobench.envs.session.checks import check_truth_matches_frames
 
+pytestmark = pytest.mark.long(seconds=16)  # the workers take it first (tests/conftest.py); 16: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):

@@ -13,6 +13,8 @@ from exobench.core.frames import ImuSample, RgbdFrame
 from exobench.envs.sim.scenarios.course import LocomotionScenario, simulate_locomotion
 from exobench.mapping.odometry.dvio.pipeline import DvioConfig, DvioNoDepthPipeline, DvioPipeline
 
+pytestmark = pytest.mark.long(seconds=10)  # the workers take it first (tests/conftest.py); 10: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 FAST = {"window": 6, "init_keyframes": 6}  # a shorter window keeps the test's run short
 
 

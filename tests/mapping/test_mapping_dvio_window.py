@@ -23,6 +23,8 @@ from exobench.mapping.odometry.dvio.failure import (
 from exobench.mapping.odometry.dvio.imu import ImuNoise
 from exobench.mapping.odometry.dvio.window import SlidingWindow, WindowConfig
 
+pytestmark = pytest.mark.long(seconds=19)  # the workers take it first (tests/conftest.py); 19: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 RATE = 30.0
 
 

@@ -23,6 +23,8 @@ from exobench.mapping.odometry.loop_closure import in_search_ellipsoid
 from exobench.mapping.odometry.pose_graph import PoseGraph, PoseGraphConfig
 from exobench.mapping.odometry.preprocess import PreprocessConfig, deskew, preprocess
 
+pytestmark = pytest.mark.long(seconds=9)  # the workers take it first (tests/conftest.py); 9: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 ROOM_MIN = np.array([-2.0, -2.0, 0.0])
 ROOM_MAX = np.array([14.0, 10.0, 2.8])
 BOXES = [  # (min corner, max corner)

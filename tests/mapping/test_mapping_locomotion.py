@@ -20,6 +20,8 @@ from exobench.core import (
 from exobench.mapping.locomotion import SingleFramePipeline, TerrainReconstructionPipeline
 from exobench.perception.terrain.plane_extraction import AhcConfig
 
+pytestmark = pytest.mark.long(seconds=8)  # the workers take it first (tests/conftest.py); 8: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 W, H = 160, 120  # small images keep the test fast; the pipelines are resolution-agnostic
 FOVY = np.radians(58.0)
 F = 0.5 * H / np.tan(0.5 * FOVY)

@@ -19,6 +19,8 @@ from exobench.core.pipeline import config_from_dict
 from exobench.mapping.odometry.orbslam3 import OrbSlam3Config, OrbSlam3Pipeline
 from exobench.mapping.odometry.orbslam3.settings import settings_values, settings_yaml
 
+pytestmark = pytest.mark.long(seconds=6)  # the workers take it first (tests/conftest.py); 6: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 D455 = np.array([
     [0.9999654398038452, 0.007342326779113337, -0.003899927610975742, -0.027534314618518095],
     [-0.0073452195116216765, 0.9999727585590525, -0.0007279355223411334, -0.0030587146933711722],

@@ -18,7 +18,7 @@ from exobench.mapping.multisession.change import (
     voxel_keys,
 )
 
-pytestmark = pytest.mark.long(seconds=30)  # the workers take it first (tests/conftest.py)
+pytestmark = pytest.mark.long(seconds=12)  # the workers take it first (tests/conftest.py); 12: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
 
 BOX_A = ((1.0, 2.6, 0.0), (1.4, 3.0, 0.6))  # day 1 only: removed
 BOX_B = ((2.6, 1.0, 0.0), (3.1, 1.4, 0.5))  # day 2 only: added

@@ -20,6 +20,8 @@ from exobench.mapping.multisession.matching import MatchConfig, PlaceMatcher, sa
 from exobench.mapping.multisession.merge import MergeConfig, PoseEdge, SessionGraph, merge_sessions
 from exobench.mapping.multisession.pipeline import LtExosense
 
+pytestmark = pytest.mark.long(seconds=8)  # the workers take it first (tests/conftest.py); 8: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 # camera 0.1 m ahead of the base and 0.3 m up, looking along the base's x (OpenCV axes)
 T_BASE_CAM = np.array([[0.0, 0.0, 1.0, 0.1], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 0.3], [0, 0, 0, 1.0]])
 

@@ -26,6 +26,8 @@ from exobench.models.office import (
 )
 from exobench.models.worlds import RAY_GEOMGROUP_WORLD, build_level, compose
 
+pytestmark = pytest.mark.long(seconds=5)  # the workers take it first (tests/conftest.py); 5: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 WORLD_ONLY = np.array(RAY_GEOMGROUP_WORLD, dtype=np.uint8)
 
 CONFIGS = {

@@ -24,6 +24,8 @@ from exobench.models.office_layout import build_layout
 from exobench.models.office_routes import WALKER_HALF_WIDTH_M, region_route, standing
 from exobench.models.office_truth import solids_from_truth
 
+pytestmark = pytest.mark.long(seconds=11)  # the workers take it first (tests/conftest.py); 11: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+
 # digests of offices built by the code before the furniture layer existed (commit e84e66f):
 # every geom of the compiled model (name, type, pose, size, material) and the truth (surfaces,
 # objects, params less the layer's two new keys)
