@@ -9,8 +9,8 @@ script of day 1 is drawn among the places these walks pass within reach of
 (:func:`~exobench.models.office_changes.draw_changes` with ``near``: the day-0 walks, cut at
 ``max_distance_m``), and written into the case as the ``changes`` row, so the run's records
 show it. Formerly the script was drawn anywhere in the building and session 2 walked B then A:
-the changes stood 1.6-15 m from every walk, out of view, and in three of the four cases of run
-seed 0 session 2 shared no view with the others (docs/tracks/multisession.md).
+the changes stood 1.5-15 m from every walk, out of view, and in two of the four cases of run
+seed 0 session 2 shared no view with the others (docs/tracks/multisession.md, The general suite).
 """
 
 from __future__ import annotations
