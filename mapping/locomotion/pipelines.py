@@ -81,7 +81,7 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
             self._posed = False  # whether the last frame released had a pose
             self._unplaced: list[tuple[HeelStrike, float]] = []  # strikes since then, with their instants
             self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera", n_strikes_placed_with_window=0,
-                               n_map_resets=0)
+                               n_map_resets=0, n_frames_dead_reckoned=0)
 
     def process(self, frame: Frame) -> ModePrediction | None:
         if getattr(self, "_own", None) is None:  # the given odometry (or not reset: refused there)
@@ -133,6 +133,16 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
                 elif not self._posed:  # the map kept: the strikes of the loss stay without a pose
                     self._unplaced.clear()
             self._posed = T is not None
+            dead = None if T is not None or self.config.loss_pose != "imu" or self._last_own is None \
+                else self._own.dead_reckoned(float(frame.stamp_s), self.config.max_dead_reckon_s)
+            if dead is not None:
+                # lost: D-VIO's IMU propagation places the strikes and this frame's footprint,
+                # in the frame its next segment will be anchored in; its depth is not fused,
+                # as a dead-reckoned pose drifts quadratically and the map should not
+                self._remember_own(float(frame.stamp_s) - self._cam_latency_s, dead)
+                self._stats["n_frames_dead_reckoned"] += 1
+                pred = self._on_rgbd(frame, c, t0, own=True, T_own=dead, map_update=False) or pred
+                continue
             pred = self._on_rgbd(frame, c, t0, own=True, T_own=T) or pred
         return pred
 
