@@ -12,8 +12,10 @@ the current frame only, a fresh plane set each frame, no TSDF; same footprint an
 
 ``terrain-recon`` takes the camera poses from the odometry stream (``odometry="given"``) or from
 D-VIO run inside it (``"dvio"``, :mod:`.own_odometry`; the registered ``terrain-recon-dvio``):
-then each frame waits for its D-VIO pose, a frame without one (D-VIO initialising or lost) makes a
-prediction without a mode or footprint (status ``no_odometry``), the strikes take D-VIO's frame
+then each frame waits for its D-VIO pose, a frame while D-VIO is lost takes the pose of its IMU
+propagation of its last good state for a short loss (``loss_pose``; not fused into the map), a
+frame without a pose (D-VIO initialising, or lost beyond that) makes a prediction without a mode
+or footprint (status ``no_odometry``), the strikes take D-VIO's frame
 poses (velocity from the last two; a strike before D-VIO's first pose waits for it and the
 poses of its initialisation window), with ``reinit_map="reset"`` a re-initialisation starts a
 new map (and places the strikes of the loss so),
