@@ -181,6 +181,33 @@ def test_chest_rig_sways_a_third_of_the_head():
     assert view_motion("thigh", "unconventional", 0.14, 0.3, 0.5, lambda x: 0 * x, {}, 20.0, np.random.default_rng(2)).joints == {}
 
 
+def _head_view(view, seed, duration_s=20.0):
+    """The head's camera yaw and pitch below the horizon (trunk upright, a 0.3 rad mount, the
+    neck's range wide enough never to clip) of ``view`` over ``duration_s``."""
+    wide = {"neck_pitch": (-3.0, 3.0), "neck_yaw": (-3.0, 3.0)}
+    vm = view_motion("head", view, 0.14, 0.26, 0.3, lambda x: 0 * x, wide, duration_s, np.random.default_rng(seed))
+    v = vm.values(np.linspace(0.0, duration_s, 4001))
+    return v["neck_yaw"], v["neck_pitch"] + 0.3
+
+
+def test_the_unconventional_view_turns_as_far_as_the_papers_trial_and_the_wide_one_further():
+    """seeds/002 III-B 2: the terrain is "only partially captured", occupying "a corner of the
+    camera view": the view's yaw excursion peaks at half the D455's 87 deg horizontal field of
+    view, the walking direction at the image's edge, and its pitch stays in the paper's range
+    (Fig. 4(b), -0.66..1.18 rad). ``unconventional-wide`` turns up to 60 deg and pitches past
+    that range. Both add their excursion to the same ordinary looking around (the same draw)."""
+    for seed in range(4):
+        yaw0, _ = _head_view("normal", seed)
+        yaw, pitch = _head_view("unconventional", seed)
+        yaw_w, pitch_w = _head_view("unconventional-wide", seed)
+        ext, ext_w = np.degrees(np.abs(yaw - yaw0)).max(), np.degrees(np.abs(yaw_w - yaw0)).max()
+        assert 0.9 * 43.5 < ext <= 43.5 + 1e-6, ext
+        assert ext_w == pytest.approx(ext * 60.0 / 43.5, rel=1e-6)
+        assert -0.66 - 1e-9 <= pitch.min() and pitch.max() <= 1.18 + 1e-9
+    outside = [seed for seed in range(4) if not -0.66 <= _head_view("unconventional-wide", seed)[1].min()]
+    assert outside, "the wide view never pitched past the paper's range: nothing compared"
+
+
 def test_camera_imu_sits_on_the_camera(stairs_episode):
     imu = {f.stamp_s: f for f in stairs_episode.frames if isinstance(f, ImuSample)}
     assert {f.sensor_id for f in imu.values()} == {"imu_head"}
