@@ -43,7 +43,7 @@ GAZE_MIN_SPREAD = 0.5
 # only occupy a corner of the camera view", the side wall filling much of the image; the paper
 # gives no angle. The terrain ahead stays in the image while the walking direction is inside its
 # horizontal field of view: the excursion's peak is half the D455's 87 deg depth field of view
-# (SENSORS.md), the walking direction then at the image's edge (the ordinary looking around adds
+# (docs/sensor-reference.md), the walking direction then at the image's edge (the ordinary looking around adds
 # its +-0.15 rad spread, as on every walk). The pitch excursion adds to the walk's pitch inside the
 # paper's measured range (Fig. 4(b)). ``unconventional-wide`` [A: the first model of this trial]
 # turns up to 60 deg (74 deg with the ordinary yaw: the walking direction 30 deg outside the
