@@ -13,7 +13,9 @@ the head's spread around 0. ``unconventional`` (seeds/002 III-B 2) adds a slow e
 (0.05-0.15 Hz) of up to +-:data:`UNCONV_YAW_RAD` yaw and +-0.35 rad pitch, the camera's pitch kept
 in the paper's range; ``unconventional-wide`` is the harder excursion of +-60 deg yaw whose pitch
 may leave that range. Derivatives for the IMU come from central differences of these analytic
-signals (step :data:`DIFF_H_S`).
+signals (step :data:`DIFF_H_S`). Every limit is a smooth clamp (:func:`soft_clip`): a hard clip's
+kink in the angle's rate read as one sample of ~50 g in the head IMU (a neck pitch reaching its
+joint limit at 0.87 rad/s).
 """
 
 from __future__ import annotations
@@ -52,6 +54,26 @@ UNCONV_YAW_RAD = np.radians(0.5 * 87.0)
 UNCONV_WIDE_YAW_RAD = np.radians(60.0)
 UNCONV_PITCH_RAD = 0.35
 UNCONVENTIONAL_VIEWS = ("unconventional", "unconventional-wide")
+# [A] width of the smooth clamp's bend on each side of a limit: a neck turning at 2 rad/s into its
+# limit slows at most 0.75 * 2^2 / 0.1 = 30 rad/s^2, a few m/s^2 at the camera
+SOFT_CLIP_BAND_RAD = 0.1
+SOFT_CLIP_BAND_Z = 0.15  # the same in units of the excursion's normalised signal (clamped at +-1.5)
+
+
+def soft_clip(x: np.ndarray, lo: float, hi: float, band: float) -> np.ndarray:
+    """``x`` clamped to [lo, hi] with a C2 bend: the identity up to ``band`` inside a limit, the limit
+    from ``band`` beyond it, ``g(s) = s - s^3/4 + s^4/16`` on the 2 ``band`` between (g(0) = 0,
+    g'(0) = 1, g(2) = 1, g'(2) = g''(0) = g''(2) = 0; monotone, |g''| <= 0.75)."""
+    x = np.asarray(x, dtype=float)
+
+    def bend(s: np.ndarray) -> np.ndarray:
+        s = np.clip(s, 0.0, 2.0)
+        return s - s**3 / 4.0 + s**4 / 16.0
+
+    y = np.clip(x, lo, hi)
+    top, bottom = x > hi - band, x < lo + band
+    y = np.where(top, hi - band + band * bend((x - (hi - band)) / band), y)
+    return np.where(bottom, lo + band - band * bend(((lo + band) - x) / band), y)
 
 
 class SmoothSignal:
@@ -135,10 +157,10 @@ def view_motion(mount: str, view: str, pitch_mean: float, pitch_std: float, moun
     pitch_inside = view == "unconventional"
 
     def extra_pitch(t: np.ndarray) -> np.ndarray:
-        return UNCONV_PITCH_RAD * np.clip(up(t), -1.5, 1.5) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
+        return UNCONV_PITCH_RAD * soft_clip(up(t), -1.5, 1.5, SOFT_CLIP_BAND_Z) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
 
     def extra_yaw(t: np.ndarray) -> np.ndarray:
-        return yaw_amp * np.clip(uy(t), -1.5, 1.5) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
+        return yaw_amp * soft_clip(uy(t), -1.5, 1.5, SOFT_CLIP_BAND_Z) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
 
     if mount == "head":
         lo_p, hi_p = neck_range["neck_pitch"]
@@ -150,13 +172,13 @@ def view_motion(mount: str, view: str, pitch_mean: float, pitch_std: float, moun
 
         def neck_pitch(t: np.ndarray) -> np.ndarray:
             if pitch_inside:
-                cam = np.clip(mu + sd * zp(t) + g(t) + extra_pitch(t), *PITCH_RANGE_RAD)
+                cam = soft_clip(mu + sd * zp(t) + g(t) + extra_pitch(t), *PITCH_RANGE_RAD, SOFT_CLIP_BAND_RAD)
             else:
-                cam = np.clip(mu + sd * zp(t) + g(t), *PITCH_RANGE_RAD) + extra_pitch(t)
-            return np.clip(cam - mount_pitch - trunk_pitch(t), lo_p, hi_p)  # type: ignore[operator]
+                cam = soft_clip(mu + sd * zp(t) + g(t), *PITCH_RANGE_RAD, SOFT_CLIP_BAND_RAD) + extra_pitch(t)
+            return soft_clip(cam - mount_pitch - trunk_pitch(t), lo_p, hi_p, SOFT_CLIP_BAND_RAD)  # type: ignore[operator]
 
         def neck_yaw(t: np.ndarray) -> np.ndarray:
-            return np.clip(NECK_YAW_STD_RAD * zy(t) + extra_yaw(t), lo_y, hi_y)
+            return soft_clip(NECK_YAW_STD_RAD * zy(t) + extra_yaw(t), lo_y, hi_y, SOFT_CLIP_BAND_RAD)
 
         return ViewMotion({"neck_pitch": neck_pitch, "neck_yaw": neck_yaw})
     if mount == "chest":
