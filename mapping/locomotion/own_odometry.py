@@ -78,24 +78,12 @@ class DvioOdometry:
         self._note_dead_reckoning()
 
     def _note_dead_reckoning(self) -> None:
-        """Keep D-VIO's IMU propagation of its last good state while it is lost. D-VIO has no
-        public reader of it (its ``imu_pose`` is None while lost) and its code is not changed
-        here: this reads the window's ``_lost`` (preintegrator, state, bias) and ``_T_IC``,
-        and only predicts from them (``predict`` integrates nothing), so D-VIO's own use of
-        the propagation, the anchor of its next segment, is untouched. A rename there fails
-        ``test_a_short_loss_is_bridged_with_dvios_imu_propagation``."""
-        w = self._dvio._window
-        lost = w._lost
-        if lost is None or w.tracking:
+        """Keep D-VIO's IMU propagation of its last good state while it is lost (its
+        ``propagation``, one per new IMU sample), so that a frame's pose can be read at its stamp."""
+        p = self._dvio.propagation()
+        if p is None or (self._dead and self._dead[-1][0] == p[0]):
             return
-        prop, nav, bias = lost
-        if prop.start_s is None or prop.end_s is None:
-            return
-        if self._dead and self._dead[-1][0] == float(prop.end_s):
-            return
-        state = prop.predict(nav, bias)
-        self._dead.append((float(prop.end_s), (state.pose() * w._T_IC).matrix(), float(prop.end_s - prop.start_s),
-                           np.asarray(state.velocity(), float)))
+        self._dead.append(p)
 
     def dead_reckoned(self, stamp_s: float, max_age_s: float) -> np.ndarray | None:
         """The camera pose in G at ``stamp_s`` from D-VIO's IMU propagation of its last good

@@ -314,6 +314,10 @@ class DvioPipeline:
         pose = self._window.imu_pose() if self._reset_done else None
         return None if pose is None else ImuRatePose(pose[0], pose[1])
 
+    def propagation(self) -> tuple[float, np.ndarray, float, np.ndarray] | None:
+        """While lost, the last good state's IMU propagation (:meth:`SlidingWindow.propagation`)."""
+        return self._window.propagation()
+
     def finalize(self) -> TrajectoryEstimate:
         if not self._reset_done:
             return TrajectoryEstimate(np.zeros(0), np.zeros((0, 4, 4)), np.zeros(0))

@@ -332,6 +332,19 @@ class SlidingWindow:
             self._pending.insert(0, (stamp_s, taken[-1][1], taken[-1][2]))
         return taken
 
+    def propagation(self) -> tuple[float, np.ndarray, float, np.ndarray] | None:
+        """While lost: the last good state propagated with the IMU to its newest sample, as (IMU
+        time, T_G_camera, seconds propagated, velocity in G); None while tracking or before a
+        sample. Only predicts: the propagation that anchors the next segment is not advanced."""
+        if self._lost is None or self.tracking:
+            return None
+        prop, nav, bias = self._lost
+        if prop.start_s is None or prop.end_s is None:
+            return None
+        state = prop.predict(nav, bias)
+        return (float(prop.end_s), (state.pose() * self._T_IC).matrix(), float(prop.end_s - prop.start_s),
+                np.asarray(state.velocity(), float))
+
     def _dead_reckon(self, stamp_s: float) -> tuple[np.ndarray | None, float]:
         """T_G_imu at ``stamp_s`` propagated from the last good state; None when there is none or
         it is older than ``_MAX_DEAD_RECKON_S`` (an IMU alone drifts quadratically); and how long
