@@ -121,9 +121,10 @@ PARAMS: dict[str, ParamSpec] = {
     "lidar_truth": ParamSpec("full", None, None, "", "per-point LiDAR truth kept: full, or labels only "
                              "(kind, surface, range; ~8x smaller, for long walks)", choices=LIDAR_TRUTHS),
     "max_distance_m": ParamSpec(20.0, 0.5, 500.0, "m", "the route is cut after this length (keeps quick runs short)"),
-    "start_x_m": ParamSpec(-1.0, -1.0, 60.0, "m", "where the walk starts along the north corridor's centre line (-1: "
+    "start_x_m": ParamSpec(-1.0, -1.0, 23.1, "m", "where the walk starts along the north corridor's centre line (-1: "
                            "its west end, as always; else, with route_regions, from half a corridor width to the "
-                           "corridor's length less that), so a short walk can reach the rooms further east"),
+                           "corridor's length less that, at most 23.1 m: the default office's east end), so a short "
+                           "walk can reach the rooms further east"),
     "step_length_m": ParamSpec(0.35, 0.1, 0.8, "m", "nominal step length"),
     "swing_s": ParamSpec(0.8, 0.3, 5.0, "s", "duration of one swing"),
     "max_turn_deg": ParamSpec(30.0, 5.0, 60.0, "deg", "largest heading change per step (sharper corners are turned on the spot over several steps)"),
@@ -209,7 +210,7 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
 
         layout = build_layout(self.office_params())  # type: ignore[arg-type]
         lo, hi = self.office_params().corridor_width_m / 2, layout.routes["ring"][1][0]  # type: ignore[attr-defined]
-        if not lo <= self.start_x_m <= hi:
+        if not lo - 1e-9 <= self.start_x_m <= hi + 1e-9:  # the default office's 24 - 0.9 is 23.099999...
             raise ConfigError("start_x_m", self.start_x_m, f"-1 or in [{lo:.2f}, {hi:.2f}] m (the north corridor)")
         return [float(self.start_x_m), *layout.start_w[1:]]
 
