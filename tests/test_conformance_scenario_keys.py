@@ -49,6 +49,8 @@ CONTEXT: dict[tuple[str | None, str], dict[str, Any]] = {
     ("locomotion", "segmentation_truth"): {},  # which it has
     (None, "texture_seed"): {"surfaces": "textured"},  # the seed of the textures that setting draws
     (None, "change_seed"): {"day": 1},  # it draws a script of `day` days
+    (None, "start_x_m"): {"route_regions": "corridor_n"},  # the fixed routes start at the office's own start
+    ("multisession", "start_x_m"): {},  # its sessions walk through regions
     # a change script acts from day 1 on: with the first session on day 1 the recorder's first
     # call (the one compared) shows it, where on day 0 both episodes were simulated whole (12 s each)
     ("multisession", "change_seed"): {"changes": "", "sessions": "1:corridor_s;1:corridor_s"},  # written or drawn, not both

@@ -9,9 +9,13 @@ pitch below the horizon is ``mean + std * z(t)`` clipped to the paper's range -0
 spread of the random part reduced so that the episode keeps ``mean`` and ``std``); the neck
 pitch is that minus the mount's pitch and the trunk's pitch of the gait, clipped to the neck's
 joint range. Neck yaw is 0.15 rad * a second such signal. The chest rig sways with a third of
-the head's spread around 0. ``unconventional`` adds a slow excursion (0.05-0.15 Hz) of +-60 deg
-yaw and +-0.35 rad pitch. Derivatives for the IMU come from central differences of these
-analytic signals (step :data:`DIFF_H_S`).
+the head's spread around 0. ``unconventional`` (seeds/002 III-B 2) adds a slow excursion
+(0.05-0.15 Hz) of up to +-:data:`UNCONV_YAW_RAD` yaw and +-0.35 rad pitch, the camera's pitch kept
+in the paper's range; ``unconventional-wide`` is the harder excursion of +-60 deg yaw whose pitch
+may leave that range. Derivatives for the IMU come from central differences of these analytic
+signals (step :data:`DIFF_H_S`). Every limit is a smooth clamp (:func:`soft_clip`): a hard clip's
+kink in the angle's rate read as one sample of ~50 g in the head IMU (a neck pitch reaching its
+joint limit at 0.87 rad/s).
 """
 
 from __future__ import annotations
@@ -36,8 +40,40 @@ GAZE_DOWN_RAD = 0.45
 GAZE_STEPS_AHEAD = 2
 GAZE_WIDTH_STEPS = 2.5
 GAZE_MIN_SPREAD = 0.5
-UNCONV_YAW_RAD = np.radians(60.0)
+# The unconventional-view trial (seeds/002 III-B 2, Fig. 3(a)): the wearer walks "with a large and
+# changing view angle to the terrain", so that "the terrain is only partially captured" and "may
+# only occupy a corner of the camera view", the side wall filling much of the image; the paper
+# gives no angle. The terrain ahead stays in the image while the walking direction is inside its
+# horizontal field of view: the excursion's peak is half the D455's 87 deg depth field of view
+# (docs/sensor-reference.md), the walking direction then at the image's edge (the ordinary looking around adds
+# its +-0.15 rad spread, as on every walk). The pitch excursion adds to the walk's pitch inside the
+# paper's measured range (Fig. 4(b)). ``unconventional-wide`` [A: the first model of this trial]
+# turns up to 60 deg (74 deg with the ordinary yaw: the walking direction 30 deg outside the
+# image, the terrain ahead not seen for seconds) and pitches past that range.
+UNCONV_YAW_RAD = np.radians(0.5 * 87.0)
+UNCONV_WIDE_YAW_RAD = np.radians(60.0)
 UNCONV_PITCH_RAD = 0.35
+UNCONVENTIONAL_VIEWS = ("unconventional", "unconventional-wide")
+# [A] width of the smooth clamp's bend on each side of a limit: a neck turning at 2 rad/s into its
+# limit slows at most 0.75 * 2^2 / 0.1 = 30 rad/s^2, a few m/s^2 at the camera
+SOFT_CLIP_BAND_RAD = 0.1
+SOFT_CLIP_BAND_Z = 0.15  # the same in units of the excursion's normalised signal (clamped at +-1.5)
+
+
+def soft_clip(x: np.ndarray, lo: float, hi: float, band: float) -> np.ndarray:
+    """``x`` clamped to [lo, hi] with a C2 bend: the identity up to ``band`` inside a limit, the limit
+    from ``band`` beyond it, ``g(s) = s - s^3/4 + s^4/16`` on the 2 ``band`` between (g(0) = 0,
+    g'(0) = 1, g(2) = 1, g'(2) = g''(0) = g''(2) = 0; monotone, |g''| <= 0.75)."""
+    x = np.asarray(x, dtype=float)
+
+    def bend(s: np.ndarray) -> np.ndarray:
+        s = np.clip(s, 0.0, 2.0)
+        return s - s**3 / 4.0 + s**4 / 16.0
+
+    y = np.clip(x, lo, hi)
+    top, bottom = x > hi - band, x < lo + band
+    y = np.where(top, hi - band + band * bend((x - (hi - band)) / band), y)
+    return np.where(bottom, lo + band - band * bend(((lo + band) - x) / band), y)
 
 
 class SmoothSignal:
@@ -115,13 +151,16 @@ def view_motion(mount: str, view: str, pitch_mean: float, pitch_std: float, moun
     so that the pitch keeps ``pitch_mean`` and ``pitch_std`` over the episode)."""
     zp, zy = SmoothSignal(rng, duration_s), SmoothSignal(rng, duration_s)
     up, uy = SmoothSignal(rng, duration_s, 0.05, 0.15), SmoothSignal(rng, duration_s, 0.05, 0.15)
-    unconv = view == "unconventional"
+    unconv = view in UNCONVENTIONAL_VIEWS
+    yaw_amp = UNCONV_WIDE_YAW_RAD if view == "unconventional-wide" else UNCONV_YAW_RAD
+    # the paper's excursion is clipped with the walk's pitch to the measured range, the wide one after it
+    pitch_inside = view == "unconventional"
 
     def extra_pitch(t: np.ndarray) -> np.ndarray:
-        return UNCONV_PITCH_RAD * np.clip(up(t), -1.5, 1.5) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
+        return UNCONV_PITCH_RAD * soft_clip(up(t), -1.5, 1.5, SOFT_CLIP_BAND_Z) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
 
     def extra_yaw(t: np.ndarray) -> np.ndarray:
-        return UNCONV_YAW_RAD * np.clip(uy(t), -1.5, 1.5) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
+        return yaw_amp * soft_clip(uy(t), -1.5, 1.5, SOFT_CLIP_BAND_Z) / 1.5 if unconv else np.zeros_like(np.asarray(t, float))
 
     if mount == "head":
         lo_p, hi_p = neck_range["neck_pitch"]
@@ -132,11 +171,14 @@ def view_motion(mount: str, view: str, pitch_mean: float, pitch_std: float, moun
         sd = float(np.sqrt(max(pitch_std**2 - g.var, (GAZE_MIN_SPREAD * pitch_std) ** 2)))
 
         def neck_pitch(t: np.ndarray) -> np.ndarray:
-            cam = np.clip(mu + sd * zp(t) + g(t), *PITCH_RANGE_RAD) + extra_pitch(t)
-            return np.clip(cam - mount_pitch - trunk_pitch(t), lo_p, hi_p)  # type: ignore[operator]
+            if pitch_inside:
+                cam = soft_clip(mu + sd * zp(t) + g(t) + extra_pitch(t), *PITCH_RANGE_RAD, SOFT_CLIP_BAND_RAD)
+            else:
+                cam = soft_clip(mu + sd * zp(t) + g(t), *PITCH_RANGE_RAD, SOFT_CLIP_BAND_RAD) + extra_pitch(t)
+            return soft_clip(cam - mount_pitch - trunk_pitch(t), lo_p, hi_p, SOFT_CLIP_BAND_RAD)  # type: ignore[operator]
 
         def neck_yaw(t: np.ndarray) -> np.ndarray:
-            return np.clip(NECK_YAW_STD_RAD * zy(t) + extra_yaw(t), lo_y, hi_y)
+            return soft_clip(NECK_YAW_STD_RAD * zy(t) + extra_yaw(t), lo_y, hi_y, SOFT_CLIP_BAND_RAD)
 
         return ViewMotion({"neck_pitch": neck_pitch, "neck_yaw": neck_yaw})
     if mount == "chest":

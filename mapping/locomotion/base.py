@@ -288,10 +288,11 @@ class LocomotionPipeline(ABC):
             return 0
 
     def _on_rgbd(self, frame: RgbdFrame, counts: FrameCounts, t0: float, *, own: bool = False,
-                 T_own: np.ndarray | None = None) -> ModePrediction | None:
+                 T_own: np.ndarray | None = None, map_update: bool = True) -> ModePrediction | None:
         """The prediction on one camera frame, with the odometry stream's pose nearest to it, or
         with ``own`` the pose ``T_own`` of the pipeline's own odometry for this frame (None: it
-        has none, and the step is then not predicted)."""
+        has none, and the step is then not predicted); without ``map_update`` the frame's depth
+        is not fused (the prediction reads the map as it is)."""
         st, c = self._stats, self.config
         n_absurd = self._absurd_pixels(frame.depth_m)
         counts.add_absurd(n_absurd)
@@ -323,7 +324,7 @@ class LocomotionPipeline(ABC):
             depth = np.where(ok, depth, 0.0).astype(np.float32)
             if not np.any(depth > 0):
                 status = "no_depth"
-        if status == "ok":
+        if status == "ok" and map_update:
             try:
                 work_depth, work_K = decimate(depth, K, c.max_work_width_px)
                 if self._update_planes(work_depth, work_K, T_cam) == 0:

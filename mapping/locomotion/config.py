@@ -37,6 +37,7 @@ LOOKUPS = ("midfoot", "ankle")
 TRACK_POINTS = ("joint", "camera")
 ODOMETRIES = ("given", "dvio")
 REINIT_MAPS = ("keep", "reset")
+LOSS_POSES = ("none", "imu")
 
 
 def check_locomotion_config(cfg: Any) -> None:
@@ -131,13 +132,21 @@ class TerrainReconConfig(LocomotionConfig):
     ``init_keyframes`` :data:`LOCOMOTION_INIT_KEYFRAMES`). ``reinit_map``: at a re-initialisation
     of D-VIO, ``"keep"`` the map built in the old frame or ``"reset"`` it and build a new one in
     the new frame, placing the strikes of the loss with the new window's poses [A: keep; reset
-    decided fewer steps right on the paper cases measured, docs/tracks/locomotion.md]."""
+    decided fewer steps right on the paper cases measured, docs/tracks/locomotion.md].
+    ``loss_pose``: a frame while D-VIO is lost has ``"none"`` (no pose: no mode, no footprint)
+    or ``"imu"``, the pose of D-VIO's IMU propagation of its last good state (the one its next
+    segment is anchored on) for the first ``max_dead_reckon_s`` of the loss, while it stays
+    within D-VIO's failure bounds: the prediction and the strikes use it, the map does not (its
+    depth is not fused) [A: imu, for D-VIO's own 3 s bound on that propagation; it decided the
+    steps of the losses on the paper cases measured, docs/tracks/locomotion.md]."""
 
     tsdf: TsdfConfig = field(default_factory=TsdfConfig)
     raycast_downsample: int = 2
     upsample_jump_m: float = 0.05
     odometry: str = "given"
     reinit_map: str = "keep"
+    loss_pose: str = "imu"
+    max_dead_reckon_s: float = 3.0
     dvio: DvioConfig = field(default_factory=lambda: DvioConfig(init_keyframes=LOCOMOTION_INIT_KEYFRAMES))
 
     def __post_init__(self) -> None:
@@ -148,6 +157,9 @@ class TerrainReconConfig(LocomotionConfig):
             raise ConfigError("odometry", self.odometry, list(ODOMETRIES))
         if self.reinit_map not in REINIT_MAPS:
             raise ConfigError("reinit_map", self.reinit_map, list(REINIT_MAPS))
+        if self.loss_pose not in LOSS_POSES:
+            raise ConfigError("loss_pose", self.loss_pose, list(LOSS_POSES))
+        check_range("max_dead_reckon_s", self.max_dead_reckon_s, 0.0, 3.0)
 
 
 @dataclass(frozen=True)

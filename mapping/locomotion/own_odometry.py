@@ -9,6 +9,10 @@ handled each frame: D-VIO handles a frame once the IMU has reached its time, so 
 arrives after a frame and before its pose is released after that frame's prediction, as it
 arrived. A frame's pose is D-VIO's camera pose in its gravity-aligned frame G (origin and yaw
 of its own); a frame without one (``initialising``, ``lost``) is released with None.
+
+While D-VIO is lost it propagates its last good state with the IMU (the state the re-initialised
+segment is anchored on, :mod:`~exobench.mapping.odometry.dvio.window`); :meth:`DvioOdometry.
+dead_reckoned` reads that propagation's camera pose at a frame's time, for a short loss.
 """
 
 from __future__ import annotations
@@ -24,6 +28,13 @@ from exobench.core import Calibration, ConfigError, Frame, RgbdFrame
 from exobench.mapping.odometry.dvio.pipeline import DvioConfig, DvioPipeline
 
 __all__ = ["DvioOdometry", "camera_imu_of"]
+
+# A frame takes the propagated pose of the IMU sample nearest to it within this, moved on to the
+# frame's time at the propagated velocity [A: ten periods of a 200 Hz IMU; a frame arrives after
+# the samples of its time (its latency), and the first frame of a loss is handled before any
+# sample is propagated from the loss's start]; the last 400 (2 s at 200 Hz) are kept.
+_DEAD_RECKON_MATCH_S = 0.05
+_DEAD_RECKON_KEEP = 400
 
 
 def camera_imu_of(config: DvioConfig, calibration: Calibration) -> str:
@@ -51,12 +62,49 @@ class DvioOdometry:
         self._dvio.reset(calibration)
         self._pending: deque[tuple[Frame, Any, float]] = deque()  # (frame, its counters, arrival time)
         self._n_results = 0
+        # (IMU time, camera pose in G, seconds since the last good state, velocity in G) of
+        # D-VIO's IMU propagation through a loss, one a sample (and one after each frame); the
+        # oldest dropped past _DEAD_RECKON_KEEP
+        self._dead: deque[tuple[float, np.ndarray, float, np.ndarray]] = deque(maxlen=_DEAD_RECKON_KEEP)
+        self._bounds = config.window_config().failure_bounds()
+        self._last_pose: tuple[float, np.ndarray] | None = None  # (stamp, position) of D-VIO's last pose
+        self._runaway = False  # the propagation of this loss has left D-VIO's bounds
         # frames released without a pose, by D-VIO's status (or never handled by it)
         self.n_without_pose = {"initialising": 0, "lost": 0, "unhandled": 0}
 
     def feed(self, frame: Frame) -> None:
         """Give D-VIO an IMU sample or a camera frame."""
         self._dvio.process(frame)
+        self._note_dead_reckoning()
+
+    def _note_dead_reckoning(self) -> None:
+        """Keep D-VIO's IMU propagation of its last good state while it is lost (its
+        ``propagation``, one per new IMU sample), so that a frame's pose can be read at its stamp."""
+        p = self._dvio.propagation()
+        if p is None or (self._dead and self._dead[-1][0] == p[0]):
+            return
+        self._dead.append(p)
+
+    def dead_reckoned(self, stamp_s: float, max_age_s: float) -> np.ndarray | None:
+        """The camera pose in G at ``stamp_s`` from D-VIO's IMU propagation of its last good
+        state, if D-VIO was lost then, a propagated sample lies within ``_DEAD_RECKON_MATCH_S``
+        of it, the propagation had run at most ``max_age_s`` and it has stayed within D-VIO's
+        own bounds on a move since its last pose (its failure detection's speed and climb, with
+        the slack, :mod:`~exobench.mapping.odometry.dvio.failure`: a propagation from a bad
+        state runs away at metres a second); else None, for the rest of the loss once out."""
+        best = min(self._dead, key=lambda d: abs(d[0] - stamp_s), default=None)
+        if best is None or abs(best[0] - stamp_s) > _DEAD_RECKON_MATCH_S or best[2] > max_age_s \
+                or self._last_pose is None or self._runaway:
+            return None
+        T = best[1].copy()
+        T[:3, 3] += best[3] * (stamp_s - best[0])
+        dt, move = stamp_s - self._last_pose[0], T[:3, 3] - self._last_pose[1]
+        b = self._bounds
+        if np.linalg.norm(move) > b.max_update_speed_mps * dt + b.update_slack_m \
+                or abs(move[2]) > b.max_update_climb_mps * dt + b.update_slack_m:
+            self._runaway = True
+            return None
+        return T
 
     def hold(self, frame: Frame, counts: Any, t0: float) -> None:
         """Queue a camera frame or a contact until the frames before it have their pose."""
@@ -83,6 +131,8 @@ class DvioOdometry:
                 ok = T is not None and bool(np.all(np.isfinite(T)))
                 if not ok:
                     self.n_without_pose[status] = self.n_without_pose.get(status, 0) + 1
+                else:
+                    self._last_pose, self._runaway = (stamp, np.asarray(T, float)[:3, 3].copy()), False
                 yield frame, counts, t0, np.asarray(T, dtype=float) if ok else None
                 break
         while self._pending and not isinstance(self._pending[0][0], RgbdFrame):

@@ -12,8 +12,10 @@ the current frame only, a fresh plane set each frame, no TSDF; same footprint an
 
 ``terrain-recon`` takes the camera poses from the odometry stream (``odometry="given"``) or from
 D-VIO run inside it (``"dvio"``, :mod:`.own_odometry`; the registered ``terrain-recon-dvio``):
-then each frame waits for its D-VIO pose, a frame without one (D-VIO initialising or lost) makes a
-prediction without a mode or footprint (status ``no_odometry``), the strikes take D-VIO's frame
+then each frame waits for its D-VIO pose, a frame while D-VIO is lost takes the pose of its IMU
+propagation of its last good state for a short loss (``loss_pose``; not fused into the map), a
+frame without a pose (D-VIO initialising, or lost beyond that) makes a prediction without a mode
+or footprint (status ``no_odometry``), the strikes take D-VIO's frame
 poses (velocity from the last two; a strike before D-VIO's first pose waits for it and the
 poses of its initialisation window), with ``reinit_map="reset"`` a re-initialisation starts a
 new map (and places the strikes of the loss so),
@@ -81,7 +83,7 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
             self._posed = False  # whether the last frame released had a pose
             self._unplaced: list[tuple[HeelStrike, float]] = []  # strikes since then, with their instants
             self._stats.update(odometry_sensor_id="dvio", odometry_mount="camera", n_strikes_placed_with_window=0,
-                               n_map_resets=0)
+                               n_map_resets=0, n_frames_dead_reckoned=0)
 
     def process(self, frame: Frame) -> ModePrediction | None:
         if getattr(self, "_own", None) is None:  # the given odometry (or not reset: refused there)
@@ -133,6 +135,16 @@ class TerrainReconstructionPipeline(LocomotionPipeline):
                 elif not self._posed:  # the map kept: the strikes of the loss stay without a pose
                     self._unplaced.clear()
             self._posed = T is not None
+            dead = None if T is not None or self.config.loss_pose != "imu" or self._last_own is None \
+                else self._own.dead_reckoned(float(frame.stamp_s), self.config.max_dead_reckon_s)
+            if dead is not None:
+                # lost: D-VIO's IMU propagation places the strikes and this frame's footprint,
+                # in the frame its next segment will be anchored in; its depth is not fused,
+                # as a dead-reckoned pose drifts quadratically and the map should not
+                self._remember_own(float(frame.stamp_s) - self._cam_latency_s, dead)
+                self._stats["n_frames_dead_reckoned"] += 1
+                pred = self._on_rgbd(frame, c, t0, own=True, T_own=dead, map_update=False) or pred
+                continue
             pred = self._on_rgbd(frame, c, t0, own=True, T_own=T) or pred
         return pred
 

@@ -285,6 +285,9 @@ class ScriptedOdometry:
     def window_poses(self, before_s):
         return []
 
+    def dead_reckoned(self, stamp_s, max_age_s):
+        return None  # a scripted loss has no IMU propagation
+
     def finish(self):
         return {}
 
@@ -347,3 +350,58 @@ def test_a_reinitialisation_starts_a_new_map_in_its_new_frame(walk):
     _, kept = _scripted_run(walk, pose_of)
     assert kept.stats["n_map_resets"] == 0
     assert any(abs(z / 0.15 - round(z / 0.15)) * 0.15 > 0.03 for z in _level_heights_from(kept, M))
+
+
+# ------------------------------------------------------------------ a loss bridged by the IMU
+
+
+def test_loss_pose_refuses_a_bad_value_naming_field_value_and_choices():
+    with pytest.raises(ConfigError) as err:
+        TerrainReconDvioConfig(loss_pose="hold")
+    assert (err.value.field, err.value.value) == ("loss_pose", "hold")
+    assert "none" in str(err.value.allowed) and "imu" in str(err.value.allowed)
+    with pytest.raises(ConfigError) as err:
+        TerrainReconDvioConfig(max_dead_reckon_s=-1.0)
+    assert err.value.field == "max_dead_reckon_s"
+
+
+def test_a_short_loss_is_bridged_with_dvios_imu_propagation(walk):
+    """The camera sees a blank image for 0.5 s (a lens covered): D-VIO loses its features and is
+    lost until it re-initialises. With ``loss_pose="imu"`` the frames of the loss take the pose
+    of D-VIO's IMU propagation of its last good state: they predict as a frame with a pose does
+    (the predictor's status, not ``no_odometry``), their poses follow the true camera's (the world brought into D-VIO's frame at its last pose before
+    the loss) within 0.1 m and a fifth of the way it went, and their depth is not fused (the map is the one of the tracked
+    frames). With ``"none"`` they have no pose, no mode and no footprint."""
+    stamps = sorted(float(f.stamp_s) for f in walk.frames if isinstance(f, RgbdFrame))
+    t_off, t_on = stamps[0] + 1.2, stamps[0] + 1.7
+
+    def blank(f):
+        if isinstance(f, RgbdFrame) and t_off <= float(f.stamp_s) < t_on:
+            return dataclasses.replace(f, rgb=np.full_like(np.asarray(f.rgb), 128))
+        return f
+
+    frames = [blank(f) for f in walk.frames]
+    pipe, est = _run("terrain-recon-dvio", walk, frames, **SMALL_DVIO)  # loss_pose="imu", the default
+    assert est.stats["dvio_reinitialisations"] >= 1
+    lost = [s for s, _, status in pipe._own._dvio.frame_results() if status == "lost"]
+    assert lost and min(lost) >= t_off - 1e-9, "D-VIO lost tracking outside the blank frames"
+    preds = {round(p.stamp_s, 6): p for p in est.predictions}
+    before = max(p.stamp_s for p in est.predictions if p.stamp_s < min(lost) and p.T_odom_camera is not None)
+    T_G_world = preds[round(before, 6)].T_odom_camera @ np.linalg.inv(_truth_pose(walk, before))
+    bridged = [preds[round(s, 6)] for s in lost if s - min(lost) <= 1.0]
+    assert est.stats["n_frames_dead_reckoned"] == len(bridged) > 0
+    p0 = _truth_pose(walk, before)[:3, 3]
+    for p in bridged:
+        assert p.T_odom_camera is not None and p.status != "no_odometry", p
+        true = _truth_pose(walk, p.stamp_s)
+        err = np.linalg.norm(p.T_odom_camera[:3, 3] - (T_G_world @ true)[:3, 3])
+        # within 0.1 m and a fifth of the way the camera went since the last pose (holding that
+        # pose would be off by all of it)
+        assert err < min(0.1, 0.2 * np.linalg.norm(true[:3, 3] - p0) + 0.02), (p.stamp_s, err)
+    # "none" leaves them without a pose; the map (tracked frames only) is the same
+    _, none = _run("terrain-recon-dvio", walk, frames, **SMALL_DVIO, loss_pose="none")
+    for s in lost:
+        p = next(q for q in none.predictions if abs(q.stamp_s - s) < 1e-9)
+        assert p.T_odom_camera is None and p.mode == "" and p.status == "no_odometry"
+    assert none.stats["n_frames_dead_reckoned"] == 0
+    assert sorted(round(p["centroid"][2], 6) for p in est.planes) == sorted(round(p["centroid"][2], 6) for p in none.planes)

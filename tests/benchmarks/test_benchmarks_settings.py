@@ -44,6 +44,11 @@ CONTEXT = {
     # repeated_rooms needs as many offices (up to 3); the small offices of these quick cases have 1
     ("multisession", "repeated_rooms"): {"n_offices": "3", "corridor_length_m": "80", "changes": ""},
     ("loop-closure", "repeated_rooms"): {"n_offices": "3", "corridor_length_m": "80"},
+    # a moved start stands on the north corridor (the row's high: the default office's east end)
+    # and walks through regions
+    **{(t, "start_x_m"): {"route_regions": "corridor_n"} for t in ("odometry", "lidar-filter", "vio")},
+    ("loop-closure", "start_x_m"): {"route_regions": "corridor_n", "corridor_length_m": "24"},
+    ("multisession", "start_x_m"): {"corridor_length_m": "24", "changes": ""},
 }
 
 

@@ -4,10 +4,13 @@ the same places the same way round, or no place recognition can join them."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from exobench.benchmarks.tracks.multisession.episodes import parse_sessions, session_scenario
 from exobench.benchmarks.tracks.multisession.track import PAPER, MultisessionTrack
+from exobench.core.errors import ConfigError
 from exobench.envs.sim.scenarios.office import WorldLook, compiled_office
+from exobench.models.office_layout import build_layout
 from exobench.models.office_routes import region_route
 
 STEP_M = 0.1
@@ -20,7 +23,10 @@ def _walked(scenario: dict, plan) -> tuple[np.ndarray, np.ndarray]:
     """Points every STEP_M along a session's walked route (cut at max_distance_m) and the heading there (rad)."""
     office = session_scenario(scenario, plan)
     look = WorldLook(office.surfaces, office.light_level)
-    scene = compiled_office(office.office_params(), office.exo_spec(), (), None if look.is_default else look)
+    script, start = office.change_script(), office.start_w()
+    world = {} if script is None else {"changes": script, "day": office.day}
+    scene = compiled_office(office.office_params(), office.exo_spec(), (), None if look.is_default else look, **world,
+                            start_w=None if start is None else tuple(start))  # fmt: skip
     wps = np.asarray(office.route_polyline(region_route(scene.truth, office.regions())))
     pts, heads = [], []
     for a, b in zip(wps[:-1], wps[1:]):
@@ -116,3 +122,83 @@ def test_the_general_changes_stand_in_view_of_the_walks():
                         same = np.array([_region(layout, *p) == where for p in pts])
                         seen |= bool(np.any((d <= SEEN_M) & (off <= np.radians(SEEN_DEG)) & same))
                     assert seen, (run_seed, case.name, oid, kind, (x, y), where)
+
+
+HUMAN = ("human/area1", "human/area2")
+
+
+def _human(case: str) -> tuple[dict, list[tuple[np.ndarray, np.ndarray]], dict[str, list[float]]]:
+    scenario = MultisessionTrack().validate_scenario(PAPER[case])
+    walks = [_walked(scenario, p) for p in parse_sessions(scenario["sessions"])]
+    office = session_scenario(scenario, parse_sessions(scenario["sessions"])[0])
+    rects = {r["name"]: r["rect"] for r in build_layout(office.office_params()).regions}
+    return scenario, walks, rects
+
+
+def _room(rects: dict[str, list[float]], xy: np.ndarray) -> str:
+    return next((n for n, (x0, x1, y0, y1) in rects.items() if x0 <= xy[0] <= x1 and y0 <= xy[1] <= y1), "")
+
+
+def _changed(scenario: dict) -> list[tuple[str, str]]:
+    """(object id, room) of every place the day-1 script changes: a moved piece's old and new
+    place, a removed piece's place, an added piece's place (from the furnished layout and the
+    script's rows, not from the change truth)."""
+    office = session_scenario(scenario, parse_sessions(scenario["sessions"])[-1])
+    layout = build_layout(office.office_params())
+    rects = {r["name"]: r["rect"] for r in layout.regions}
+    furnished = {p.id: (p.x, p.y) for p in layout.furniture}
+    out = []
+    for c in office.change_script().changes:
+        if c.kind in ("move", "remove"):
+            out.append((c.object_id, _room(rects, np.asarray(furnished[c.object_id]))))
+        if c.kind != "remove":
+            out.append((c.object_id, _room(rects, np.array([c.x, c.y]))))
+    return out
+
+
+@pytest.mark.parametrize("case", HUMAN)
+def test_each_human_area_walks_into_the_office_it_names(case):
+    """Every session of a *Human* area ends inside the office the area is named after, walked
+    the length the case cuts it to: from the building's start no 12 m walk reached office1
+    (16.5 m) or office2 (22.9 m), so both areas walked the same corridor."""
+    scenario, walks, rects = _human(case)
+    target = {"human/area1": "office1", "human/area2": "office2"}[case]
+    for k, (pts, _) in enumerate(walks):
+        inside = sum(_room(rects, p) == target for p in pts) * STEP_M
+        assert inside >= 2.0, (case, k, inside)  # metres of the walk inside the office
+    links = {(i, j) for i in range(len(walks)) for j in range(i + 1, len(walks)) if _share_views(walks[i], walks[j])}
+    assert _components(len(walks), links) == [set(range(len(walks)))], sorted(links)
+
+
+@pytest.mark.parametrize("case", HUMAN)
+def test_each_human_areas_changes_stand_in_the_rooms_it_walks(case):
+    """The day-1 changes of an area lie in the rooms its sessions walk through (a change the
+    walks never come near scores nothing of that area): before, office0's chair3, cabinet2 and
+    new plant for both areas."""
+    scenario, walks, rects = _human(case)
+    walked = {_room(rects, p) for pts, _ in walks for p in pts} - {""}
+    changed = _changed(scenario)
+    assert changed
+    assert {room for _, room in changed} <= walked, (changed, walked)
+
+
+def test_the_two_human_areas_change_different_objects():
+    """Table II's two areas are two places with their own changes: no changed object in common."""
+    a1, a2 = ({oid for oid, _ in _changed(MultisessionTrack().validate_scenario(PAPER[c]))} for c in HUMAN)
+    assert a1 and a2 and not a1 & a2, (a1, a2)
+
+
+def test_a_start_off_the_north_corridor_is_refused_naming_it():
+    with pytest.raises(ConfigError, match="start_x_m"):
+        MultisessionTrack().validate_scenario({**PAPER["human/area1"], "start_x_m": 30.0})
+
+
+def test_a_moved_start_is_refused_on_the_fixed_routes():
+    """The loop, ring and corridor routes are drawn from the office's own start: a walker put
+    elsewhere would not stand on them."""
+    from exobench.envs.sim.scenario import check_scenario
+    from exobench.envs.sim.scenarios.office import OfficeScenario
+
+    with pytest.raises(ConfigError, match="start_x_m"):
+        check_scenario(OfficeScenario.from_dict({"start_x_m": 5.0, "route": "ring"}))
+    check_scenario(OfficeScenario.from_dict({"start_x_m": 5.0, "route_regions": "office0"}))  # accepted with regions

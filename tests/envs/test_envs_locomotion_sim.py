@@ -8,7 +8,14 @@ import pytest
 from exobench.core import ConfigError, ContactSample, ImuSample, OdometrySample, RgbdFrame, UnknownNameError
 from exobench.core.transforms import invert_T, quat_wxyz_to_matrix
 from exobench.envs.motion.odometry import drift_odometry
-from exobench.envs.motion.view import GAZE_DOWN_RAD, GazeDown, gaze_looks, view_motion
+from exobench.envs.motion.view import (
+    GAZE_DOWN_RAD,
+    SOFT_CLIP_BAND_RAD,
+    GazeDown,
+    gaze_looks,
+    soft_clip,
+    view_motion,
+)
 from exobench.envs.session import read_session, write_session
 from exobench.envs.sim.scenarios.course import (
     PARAMS,
@@ -179,6 +186,62 @@ def test_chest_rig_sways_a_third_of_the_head():
     vm = view_motion("chest", "normal", 0.14, 0.3, 0.5, lambda x: 0 * x, {}, 20.0, np.random.default_rng(2))
     assert abs(vm.values(t)["chest_pitch"].std() - 0.1) < 0.01
     assert view_motion("thigh", "unconventional", 0.14, 0.3, 0.5, lambda x: 0 * x, {}, 20.0, np.random.default_rng(2)).joints == {}
+
+
+def _head_view(view, seed, duration_s=20.0):
+    """The head's camera yaw and pitch below the horizon (trunk upright, a 0.3 rad mount, the
+    neck's range wide enough never to clip) of ``view`` over ``duration_s``."""
+    wide = {"neck_pitch": (-3.0, 3.0), "neck_yaw": (-3.0, 3.0)}
+    vm = view_motion("head", view, 0.14, 0.26, 0.3, lambda x: 0 * x, wide, duration_s, np.random.default_rng(seed))
+    v = vm.values(np.linspace(0.0, duration_s, 4001))
+    return v["neck_yaw"], v["neck_pitch"] + 0.3
+
+
+def test_the_unconventional_view_turns_as_far_as_the_papers_trial_and_the_wide_one_further():
+    """seeds/002 III-B 2: the terrain is "only partially captured", occupying "a corner of the
+    camera view": the view's yaw excursion peaks at half the D455's 87 deg horizontal field of
+    view, the walking direction at the image's edge, and its pitch stays in the paper's range
+    (Fig. 4(b), -0.66..1.18 rad). ``unconventional-wide`` turns up to 60 deg and pitches past
+    that range. Both add their excursion to the same ordinary looking around (the same draw)."""
+    for seed in range(4):
+        yaw0, _ = _head_view("normal", seed)
+        yaw, pitch = _head_view("unconventional", seed)
+        yaw_w, pitch_w = _head_view("unconventional-wide", seed)
+        ext, ext_w = np.degrees(np.abs(yaw - yaw0)).max(), np.degrees(np.abs(yaw_w - yaw0)).max()
+        assert 0.9 * 43.5 < ext <= 43.5 + 1e-6, ext
+        assert ext_w == pytest.approx(ext * 60.0 / 43.5, rel=1e-6)
+        assert -0.66 - 1e-9 <= pitch.min() and pitch.max() <= 1.18 + 1e-9
+    outside = [seed for seed in range(4) if not -0.66 <= _head_view("unconventional-wide", seed)[1].min()]
+    assert outside, "the wide view never pitched past the paper's range: nothing compared"
+
+
+def test_a_neck_driven_into_its_limits_slows_down_instead_of_stopping_in_one_sample():
+    """A hard clip at the neck's joint limit stopped a 0.87 rad/s pitch within the IMU's 0.2 ms
+    difference step: one head IMU sample of ~50 g on the MH01-like walk. The limits are smooth:
+    the angle stays inside them and its second derivative stays that of a head, about
+    0.75 rate^2 / band at most where it bends."""
+    narrow = {"neck_pitch": (-0.15, 0.15), "neck_yaw": (-0.1, 0.1)}  # limits the signals cross often
+    vm = view_motion("head", "unconventional", 0.14, 0.26, 0.3, lambda x: 0 * x, narrow, 20.0,
+                     np.random.default_rng(5))  # fmt: skip
+    t = np.arange(0.0, 20.0, 1e-3)
+    for name, (q, qd, qdd) in vm.derivatives(t).items():
+        lo, hi = narrow[name]
+        assert lo - 1e-12 <= q.min() and q.max() <= hi + 1e-12
+        assert np.mean(np.isclose(q, lo) | np.isclose(q, hi)) > 0.05, f"{name} never reached a limit"
+        rate = np.abs(qd).max()
+        assert np.abs(qdd).max() < 0.75 * (rate + 1.0) ** 2 / SOFT_CLIP_BAND_RAD + 100.0, name
+
+
+def test_soft_clip_is_the_identity_inside_and_the_limit_beyond_its_band():
+    x = np.linspace(-2.0, 2.0, 40001)
+    y = soft_clip(x, -1.0, 0.5, 0.1)
+    inside = (x >= -0.9) & (x <= 0.4)
+    np.testing.assert_array_equal(y[inside], x[inside])
+    np.testing.assert_array_equal(y[x >= 0.6], 0.5)
+    np.testing.assert_array_equal(y[x <= -1.1], -1.0)
+    dy = np.diff(y) / np.diff(x)
+    assert dy.min() >= -1e-9 and dy.max() <= 1.0 + 1e-6  # monotone, never steeper than x
+    assert np.abs(np.diff(dy)).max() < 1e-3  # no kink: the slope changes gradually
 
 
 def test_camera_imu_sits_on_the_camera(stairs_episode):

@@ -47,7 +47,9 @@ terrain-blind pitch alone (with it, a head camera at 0.14 rad never sees a ramp 
 landing: 60 % on a head-mounted jog down the 17.8 deg ramp). The ``chest`` camera sits on a two-hinge rig on the pelvis (``chest_yaw``, ``chest_pitch``)
 that sways with a third of that spread around the mount's 30 deg pitch; the ``thigh`` mount
 (``rgbd_thigh_r``) moves with the right thigh only. ``view="unconventional"`` (III-B 2) adds slow
-+-60 deg yaw and +-0.35 rad pitch excursions (head and chest), turning the camera to the walls.
+yaw excursions of up to +-43.5 deg (the walking direction at the image's edge: "the terrain only
+partially captured") and +-0.35 rad pitch ones (head and chest), turning the camera to the walls;
+``"unconventional-wide"`` turns up to +-60 deg (:mod:`exobench.envs.motion.view`).
 
 Pedestrians (III-B 4): ``pedestrians`` kinematic people (capsule + head, 1.6-1.9 m tall, mocap
 bodies in the compiled model, rendered) walk straight at 0.8-1.4 m/s towards or away from the
@@ -134,7 +136,7 @@ from .course_world import step_truths
 TERRAINS = ("stairs", "ramp", "parallel")
 MOUNTS = ("head", "chest", "thigh")
 PATTERNS_NAMES = ("wander", "walk", "jog")
-VIEWS = ("normal", "unconventional")
+VIEWS = ("normal", "unconventional", "unconventional-wide")
 PARALLEL_FIRST = ("stairs", "ramp")
 STOPS = ("none", "transitions")
 GAZES = ("transitions", "random")
@@ -162,7 +164,7 @@ PARAMS: dict[str, ParamSpec] = {
     "pattern": ParamSpec("walk", None, None, "", "walking pattern: wander, walk, jog (step length and cadence, see PATTERNS)", choices=PATTERNS_NAMES),
     "user_height_m": COMMON_PARAMS["user_height_m"],  # the paper's subjects: 1.65-1.88 m
     "user_mass_kg": COMMON_PARAMS["user_mass_kg"],
-    "view": ParamSpec("normal", None, None, "", "camera view: normal, or unconventional (large slow pitch/yaw excursions, walls fill the image)", choices=VIEWS),
+    "view": ParamSpec("normal", None, None, "", "camera view: normal, unconventional (the paper's: slow yaw excursions to +-43.5 deg, the walk's direction at the image's edge, walls fill it), or unconventional-wide (+-60 deg, the terrain ahead out of view)", choices=VIEWS),
     "head_pitch_mean_rad": ParamSpec(0.14, -0.3, 0.6, "rad", "mean camera pitch below the horizon of the head mount (paper Fig. 4(b): 0.14)"),
     "head_pitch_std_rad": ParamSpec(0.26, 0.0, 0.5, "rad", "standard deviation of the head-mount camera pitch (paper: 0.26); the chest sways with a third of it"),
     "gaze": ParamSpec("transitions", None, None, "", "head mount: transitions, the wearer looks down at each terrain transition about two steps ahead (the pitch keeps head_pitch_mean_rad and head_pitch_std_rad over the episode); random, the pitch ignores the terrain", choices=GAZES),

@@ -121,6 +121,10 @@ PARAMS: dict[str, ParamSpec] = {
     "lidar_truth": ParamSpec("full", None, None, "", "per-point LiDAR truth kept: full, or labels only "
                              "(kind, surface, range; ~8x smaller, for long walks)", choices=LIDAR_TRUTHS),
     "max_distance_m": ParamSpec(20.0, 0.5, 500.0, "m", "the route is cut after this length (keeps quick runs short)"),
+    "start_x_m": ParamSpec(-1.0, -1.0, 23.1, "m", "where the walk starts along the north corridor's centre line (-1: "
+                           "its west end, as always; else, with route_regions, from half a corridor width to the "
+                           "corridor's length less that, at most 23.1 m: the default office's east end), so a short "
+                           "walk can reach the rooms further east"),
     "step_length_m": ParamSpec(0.35, 0.1, 0.8, "m", "nominal step length"),
     "swing_s": ParamSpec(0.8, 0.3, 5.0, "s", "duration of one swing"),
     "max_turn_deg": ParamSpec(30.0, 5.0, 60.0, "deg", "largest heading change per step (sharper corners are turned on the spot over several steps)"),
@@ -189,10 +193,26 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
         super().check_composition()
         self.office_params()
         self.change_script()
+        self.start_w()
         for r in self.regions():
             names = _region_names(self.office_params())
             if r not in names:
                 raise UnknownNameError("office region (route_regions)", r, names)
+
+    def start_w(self) -> list[float] | None:
+        """Where the walk starts when ``start_x_m`` moves it (None: the office's own start);
+        ConfigError off the north corridor's centre line."""
+        if self.start_x_m < 0:
+            return None
+        if not self.regions():  # the fixed routes are drawn from the office's own start
+            raise ConfigError("start_x_m", self.start_x_m, "-1 unless route_regions is given")
+        from exobench.models.office_layout import build_layout
+
+        layout = build_layout(self.office_params())  # type: ignore[arg-type]
+        lo, hi = self.office_params().corridor_width_m / 2, layout.routes["ring"][1][0]  # type: ignore[attr-defined]
+        if not lo - 1e-9 <= self.start_x_m <= hi + 1e-9:  # the default office's 24 - 0.9 is 23.099999...
+            raise ConfigError("start_x_m", self.start_x_m, f"-1 or in [{lo:.2f}, {hi:.2f}] m (the north corridor)")
+        return [float(self.start_x_m), *layout.start_w[1:]]
 
     def regions(self) -> tuple[str, ...]:
         return tuple(r.strip() for r in self.route_regions.split(",") if r.strip())
@@ -235,13 +255,21 @@ class OfficeScenario(scenario_base("OfficeScenario", "office", PARAMS)):  # type
 
 @lru_cache(maxsize=8)
 def compiled_office(params: object, exo: ExoSpec, sites: tuple[tuple[str, Any], ...] = (), look: WorldLook | None = None,
-                    changes: Any = None, day: int = 0, chest_rig: bool = False) -> Any:
+                    changes: Any = None, day: int = 0, chest_rig: bool = False, start_w: tuple[float, ...] | None = None) -> Any:
     """The composed office world (``models.worlds.CompiledScene``), compiled once per key; ``look``
     (textures drawn from the office's seed, light level) when not the default; with a change
-    script, the office of ``day``; the chest camera on its turning rig with ``chest_rig``."""
+    script, the office of ``day``; the chest camera on its turning rig with ``chest_rig``; the
+    walker standing at ``start_w`` instead of the office's start when given (the routes planned
+    through regions start there too: they read the truth's ``start_w``)."""
+    import dataclasses
+
     from exobench.models.office import build_office
 
-    return compose_rig(build_office(params, changes, day), exo, sites, look=look, look_seed=params.seed,  # type: ignore[arg-type, attr-defined]
+    built = build_office(params, changes, day)
+    if start_w is not None:
+        truth = dataclasses.replace(built.truth, params={**built.truth.params, "start_w": list(start_w)})
+        built = dataclasses.replace(built, truth=truth)
+    return compose_rig(built, exo, sites, look=look, look_seed=params.seed,  # type: ignore[arg-type, attr-defined]
                        chest_rig=chest_rig)  # fmt: skip
 
 
@@ -293,6 +321,8 @@ def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()
     world: dict[str, Any] = {} if script is None else {"changes": script, "day": scenario.day}
     if scenario.moves_cameras() and any(s.sensor_id == CHEST_CAMERA for s in rig):
         world["chest_rig"] = True
+    if scenario.start_w() is not None:
+        world["start_w"] = tuple(scenario.start_w())
     scene = compiled_office(scenario.office_params(), exo, attached_sites(rig), None if look.is_default else look, **world)
     if scenario.regions():
         from exobench.models.office_routes import region_route

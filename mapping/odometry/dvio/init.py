@@ -256,10 +256,12 @@ def _alignment_system(poses_W: Sequence[gtsam.Pose3], pims: Sequence[gtsam.Prein
 
 def align_visual_inertial(poses_W: Sequence[gtsam.Pose3], pims: Sequence[gtsam.PreintegratedCombinedMeasurements],
                           gravity_mps2: float = GRAVITY_MPS2, gyro_bias: np.ndarray | None = None,
+                          gravity_dir_W: np.ndarray | None = None,
                           ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
     """The linear system of the docstring: the free solution's scale and gravity in W, then the
-    velocities (M, 3) and gravity in W with the scale 1 and gravity's magnitude imposed. With
-    ``gyro_bias`` the preintegrations are taken corrected to it (accelerometer bias as held)."""
+    velocities (M, 3) and gravity in W with the scale 1 and gravity's magnitude imposed, along
+    ``gravity_dir_W`` when given (else along the free solution's). With ``gyro_bias`` the
+    preintegrations are taken corrected to it (accelerometer bias as held)."""
     M = len(poses_W)
     A0, b0 = _alignment_system(poses_W, pims, _deltas(pims, gyro_bias))
 
@@ -277,7 +279,8 @@ def align_visual_inertial(poses_W: Sequence[gtsam.Pose3], pims: Sequence[gtsam.P
 
     free = solve(None)
     g_free, s_free = free[3 * M:3 * M + 3], float(free[3 * M + 3])
-    g = gravity_mps2 * g_free / max(np.linalg.norm(g_free), 1e-9)
+    direction = g_free if gravity_dir_W is None else np.asarray(gravity_dir_W, dtype=float).reshape(3)
+    g = gravity_mps2 * direction / max(np.linalg.norm(direction), 1e-9)
     x = solve(g, 1.0)
     return x[:3 * M].reshape(M, 3), g, s_free, g_free, x
 
@@ -296,9 +299,17 @@ def _rotation_to_down(g_W: np.ndarray) -> np.ndarray:
 def initialise(frames: Sequence[KeyframeObs], pims: Sequence[gtsam.PreintegratedCombinedMeasurements],
                ext: Extrinsics, noise: DepthNoise, pixel_sigma: float = 1.5 / 424.0,
                gravity_mps2: float = GRAVITY_MPS2, max_scale_error: float | None = None,
-               max_gravity_error_mps2: float = 1.0, estimate_gyro_bias: bool = True) -> InitResult:
+               max_gravity_error_mps2: float = 1.0, estimate_gyro_bias: bool = True,
+               gravity_dir_W: np.ndarray | None = None) -> InitResult:
     """SfM, gyroscope bias (unless ``estimate_gyro_bias`` is False: the preintegrations' own),
-    then alignment over a window; ``pims[k]`` spans keyframes k to k+1."""
+    then alignment over a window; ``pims[k]`` spans keyframes k to k+1.
+
+    ``gravity_dir_W``: gravity's direction in the first keyframe's IMU frame when it is known
+    from elsewhere (the window after a short loss: its last good attitude propagated by the
+    gyroscope). The velocities are then solved, and the poses put in G, with it instead of the
+    free solution's direction, which over the second of keyframes of a slow walk in a bare
+    corridor came out 14-18 deg off (docs/dvio.md "The MH01-like walk"); the free solution's
+    gravity magnitude is still checked."""
     if len(frames) < 3 or len(pims) != len(frames) - 1:
         return InitResult(False, f"{len(frames)} keyframes and {len(pims)} preintegrations; "
                                  "at least 3 keyframes and one preintegration between each pair")
@@ -307,7 +318,7 @@ def initialise(frames: Sequence[KeyframeObs], pims: Sequence[gtsam.Preintegrated
         return InitResult(False, sfm)
     poses_W, lms_W = sfm
     bg = solve_gyro_bias(poses_W, pims) if estimate_gyro_bias else np.array(pims[0].biasHat().gyroscope(), float)
-    v_W, g_W, s, g_free, _ = align_visual_inertial(poses_W, pims, gravity_mps2, bg)
+    v_W, g_W, s, g_free, _ = align_visual_inertial(poses_W, pims, gravity_mps2, bg, gravity_dir_W=gravity_dir_W)
     # The depth makes the SfM metric, so D-VIO need not observe the scale from the IMU, which is
     # what VINS-Mono waits for (enough excitation): on a slow walk the free scale is biased far
     # from 1 (0.2-0.9 on the vio smoke walk, standard error about 0.1) while gravity is right

@@ -65,6 +65,7 @@ class DvioConfig:
         window: keyframes in the sliding window.
         init_keyframes: keyframes of the initialisation (at most ``window``).
         max_features / min_distance_px / keyframe_parallax_px: KLT front end (:class:`.tracker.TrackerConfig`).
+        equalize: CLAHE on each grey image before tracking (VINS-Mono's ``equalize``, :mod:`.tracker`).
         pixel_sigma_px: reprojection sigma, px.
         kernel / kernel_k: robust kernel ("cauchy", "huber", "none") and its scale.
         depth_factors: the host and projection depth factors (eq. 11-14) on.
@@ -86,6 +87,7 @@ class DvioConfig:
     # VINS-Mono's 30 px is for EuRoC's 752x480 images; at 424x240 the same spacing is 17 px.
     min_distance_px: float = 20.0
     keyframe_parallax_px: float = 10.0
+    equalize: bool = True
     pixel_sigma_px: float = 1.5
     kernel: str = "cauchy"
     kernel_k: float = 1.0
@@ -117,7 +119,7 @@ class DvioConfig:
 
     def tracker(self) -> TrackerConfig:
         return TrackerConfig(max_features=self.max_features, min_distance_px=self.min_distance_px,
-                             keyframe_parallax_px=self.keyframe_parallax_px)
+                             keyframe_parallax_px=self.keyframe_parallax_px, equalize=self.equalize)
 
     def window_config(self) -> WindowConfig:
         return WindowConfig(window=self.window, init_keyframes=self.init_keyframes, pixel_sigma_px=self.pixel_sigma_px,
@@ -311,6 +313,10 @@ class DvioPipeline:
         """The newest IMU-rate pose (None when not tracking)."""
         pose = self._window.imu_pose() if self._reset_done else None
         return None if pose is None else ImuRatePose(pose[0], pose[1])
+
+    def propagation(self) -> tuple[float, np.ndarray, float, np.ndarray] | None:
+        """While lost, the last good state's IMU propagation (:meth:`SlidingWindow.propagation`)."""
+        return self._window.propagation()
 
     def finalize(self) -> TrajectoryEstimate:
         if not self._reset_done:

@@ -6,6 +6,10 @@ euroc_config.yaml``: ``max_cnt`` 150, ``min_dist`` 30 px, ``F_threshold`` 1 px,
 ``feature_tracker.cpp``) with VINS-Fusion's forward-backward check (``flow_back``, 0.5 px):
 the paper gives no numbers of its own. Per frame (:meth:`FeatureTracker.track`):
 
+0. equalise the grey image with CLAHE (clip limit 3, 8x8 tiles), as VINS-Mono does with its
+   default ``equalize: 1`` ("if image is too dark or light ... to find enough features"): a dim
+   room's image or a plain wall's weak texture otherwise gives KLT too few corners to hold
+   (docs/tracks/vio.md, "The general draw");
 1. track the previous frame's features with ``cv2.calcOpticalFlowPyrLK``, track the result back,
    keep those found both ways that land within ``fb_max_px`` of their start and inside the image;
 2. reject outliers with a fundamental-matrix RANSAC (``ransac_px`` from the epipolar line) when
@@ -51,6 +55,7 @@ class TrackerConfig:
     ransac_confidence: float = 0.99
     keyframe_parallax_px: float = 10.0
     min_tracked: int = 20
+    equalize: bool = True
 
     def __post_init__(self) -> None:
         check_int("tracker.max_features", self.max_features, 1, 5000)
@@ -121,6 +126,7 @@ class FeatureTracker:
         self._pts = np.zeros((0, 2), dtype=np.float32)
         self._len = np.zeros(0, dtype=np.int64)
         self._kf: dict[int, np.ndarray] | None = None
+        self._clahe = cv2.createCLAHE(clipLimit=3.0, tileGridSize=(8, 8))
 
     def track(self, stamp_s: float, image: np.ndarray) -> TrackedFrame | None:
         """Track into ``image`` (HxW or HxWxC) taken at ``stamp_s``; None if the stamp is skipped."""
@@ -128,6 +134,8 @@ class FeatureTracker:
             self.skipped += 1
             return None
         gray = _gray(image)
+        if self.config.equalize:
+            gray = self._clahe.apply(gray)
         if self._prev_img is not None and self._prev_img.shape == gray.shape and len(self._pts):
             self._flow(self._prev_img, gray)
         else:

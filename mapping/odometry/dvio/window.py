@@ -43,10 +43,11 @@ held by the IMU alone is not solvable in double precision, docs/dvio.md "The ind
 system"), or a window update whose newest state fails VINS-Mono's ``failureDetection`` adapted to a
 walker (:mod:`.failure`: speed, biases, a jump, a vertical jump or a turn since the previous
 update; that update is discarded). The window is then cleared; the caller re-initialises
-(:mod:`.init`) and the new segment is anchored (position and yaw, its velocities turned with it; the gravity direction is the new
-initialisation's) on the last good state (before the failed update) propagated by the IMU through the loss to the first
-keyframe of the new initialisation (on the last good pose when the loss lasted longer than
-``_MAX_DEAD_RECKON_S``).
+(:mod:`.init`) and the new segment is anchored (position and yaw, its velocities turned with it) on
+the last good state (before the failed update) propagated by the IMU through the loss to the first
+keyframe of the new initialisation, which also gives the new segment its vertical and gyroscope
+bias (on the last good pose, with the initialisation's own vertical and bias, when the loss lasted
+longer than ``_MAX_DEAD_RECKON_S``).
 """
 
 from __future__ import annotations
@@ -331,6 +332,19 @@ class SlidingWindow:
             self._pending.insert(0, (stamp_s, taken[-1][1], taken[-1][2]))
         return taken
 
+    def propagation(self) -> tuple[float, np.ndarray, float, np.ndarray] | None:
+        """While lost: the last good state propagated with the IMU to its newest sample, as (IMU
+        time, T_G_camera, seconds propagated, velocity in G); None while tracking or before a
+        sample. Only predicts: the propagation that anchors the next segment is not advanced."""
+        if self._lost is None or self.tracking:
+            return None
+        prop, nav, bias = self._lost
+        if prop.start_s is None or prop.end_s is None:
+            return None
+        state = prop.predict(nav, bias)
+        return (float(prop.end_s), (state.pose() * self._T_IC).matrix(), float(prop.end_s - prop.start_s),
+                np.asarray(state.velocity(), float))
+
     def _dead_reckon(self, stamp_s: float) -> tuple[np.ndarray | None, float]:
         """T_G_imu at ``stamp_s`` propagated from the last good state; None when there is none or
         it is older than ``_MAX_DEAD_RECKON_S`` (an IMU alone drifts quadratically); and how long
@@ -363,14 +377,22 @@ class SlidingWindow:
         if len(self._kfs) < n:
             return status, None
         self.stats["init_attempts"] += 1
-        zero = gtsam.imuBias.ConstantBias()
-        pims = [self._pim(kf, zero) for kf in self._kfs[1:]]
+        # After a short loss the last good state, propagated by the gyroscope through it, gives
+        # the vertical and the gyroscope bias better than a second of keyframes where tracking was
+        # just lost (a bare corridor, a close poster): their alignments came out 14-18 deg off the
+        # vertical and their SfM rotations gave biases of 0.2 rad/s (docs/dvio.md "The MH01-like walk").
+        anchor = self._kfs[0].dead_reckoned
+        lost_bias = self._lost[2] if anchor is not None and self._lost is not None else None
+        down = None if anchor is None else anchor[:3, :3].T @ np.array([0.0, 0.0, -1.0])
+        bias = gtsam.imuBias.ConstantBias(np.zeros(3), lost_bias.gyroscope() if lost_bias is not None else np.zeros(3))
+        pims = [self._pim(kf, bias) for kf in self._kfs[1:]]
         # Both variants initialise with the depth-enhanced SfM (eq. 1-5): the ablation removes
         # the window's depth factors, as Table IV's VINS-Mono row differs from D-VIO.
         obs = [KeyframeObs(kf.stamp_s, kf.features) for kf in self._kfs]
         if any(p.deltaTij() <= 0.0 for p in pims):
             return status, None  # an interval without IMU samples: wait for the stream
-        res = initialise(obs, pims, self.ext, self.depth, self.sigma, self.imu.gravity_mps2)
+        res = initialise(obs, pims, self.ext, self.depth, self.sigma, self.imu.gravity_mps2,
+                         estimate_gyro_bias=lost_bias is None, gravity_dir_W=down)
         if not res.ok:
             return status, None
         first = self._kfs[0]
