@@ -278,7 +278,7 @@ def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60, near: 
     regions = {r["name"]: r for r in layout.regions}
     corridors = [r for r in layout.regions if r["kind"] == "corridor"]
     rooms = [r for r in layout.regions if r["kind"] != "corridor"]
-    seen = None if near is None else _Seen(layout, np.asarray(near, dtype=float).reshape(-1, 3), near_m)
+    seen = None if near is None else Seen(layout, np.asarray(near, dtype=float).reshape(-1, 3), near_m)
     if seen is not None:  # draw only among what the walks see
         corridors = [r for r in corridors if r["name"] in seen.regions]
         rooms = [r for r in rooms if r["name"] in seen.regions]
@@ -314,7 +314,7 @@ def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60, near: 
     return ChangeScript(tuple(out))
 
 
-class _Seen:
+class Seen:
     """What walks through ``points`` (x, y, heading) see: a spot within ``near_m`` of a walked
     point, ahead of the walker there and in the region the point lies in (a room's furniture
     seen from the corridor only through its door is left out)."""
@@ -338,7 +338,7 @@ def _holds(rect: tuple[float, float, float, float], points: np.ndarray) -> np.nd
 
 
 def _draw_one(rng: np.random.Generator, state: _State, kind: str, day: int, added: int, regions: dict,
-              corridors: list[dict], rooms: list[dict], seen: _Seen | None = None) -> Change | None:
+              corridors: list[dict], rooms: list[dict], seen: Seen | None = None) -> Change | None:
     items = list(state.items.values())
     if kind.startswith("clear:"):
         return Change(day, "remove", kind.partition(":")[2])

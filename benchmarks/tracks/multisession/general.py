@@ -24,6 +24,8 @@ from .episodes import parse_sessions, session_scenario
 GENERAL_CASES = 4
 GENERAL_REGIONS = ("corridor_s", "corridor_n", "corridor_w", "corridor_e", "meeting", "office0")
 STEP_M = 0.1  # the walked points' spacing
+SHARED_M = 1.0  # a stretch this long gives several keyframes (one every 0.3 m) to match
+DRAW_TRIES = 8
 
 
 def walked_points(scenario: dict[str, Any], plan: Any) -> np.ndarray:
@@ -63,5 +65,40 @@ def general_scenario(run_seed: int, k: int) -> dict[str, Any]:
     day0 = [type(p)(p.session, 0, p.regions) for p in plans]  # the walks in the office as furnished
     near = np.concatenate([walked_points(base, p) for p in day0])
     office = session_scenario(base, day0[0])
-    script = draw_changes(build_layout(office.office_params()), change_seed, plans[-1].day, near=near)
-    return {**base, "changes": script.compact()}
+    layout = build_layout(office.office_params())
+    # the day-1 walks go round what the script puts in their way: a script after which a session
+    # shares no stretch with an earlier one, or no day-1 walk sees a change, is drawn again from the
+    # next seed (general/2 of seed 0: a trolley across corridor_w turned both day-1 walks east)
+    for attempt in range(DRAW_TRIES):
+        script = draw_changes(layout, change_seed + attempt, plans[-1].day, near=near)
+        case = {**base, "changes": script.compact()}
+        if _overlapping_and_seen(case, plans, layout, script):
+            return case
+    return case
+
+
+def _overlapping_and_seen(case: dict[str, Any], plans: list[Any], layout: Any, script: Any) -> bool:
+    """Each session shares :data:`SHARED_M` walked the same way round with an earlier one, and a
+    day-1 walk sees every changed piece (``draw_changes``' own test of view, on the day-1 walks)."""
+    from exobench.models.office_changes import NEAR_M, Seen, apply_changes, changed_ids
+
+    walks = [walked_points(case, p) for p in plans]
+    for i in range(1, len(walks)):
+        if not any(_shared_m(walks[i], walks[j]) >= SHARED_M for j in range(i)):
+            return False
+    last = plans[-1].day
+    seen = Seen(layout, np.concatenate([w for w, p in zip(walks, plans) if p.day == last]), NEAR_M)
+    before, after = apply_changes(layout, script, last)
+    spots = {q.id: [(q.x, q.y)] for q in before}
+    for q in after:
+        spots.setdefault(q.id, []).append((q.x, q.y))
+    changed = changed_ids(before, after)
+    return bool(changed) and all(seen.sees(x, y) for oid, kind in changed.items()
+                                 for x, y in (spots[oid] if kind == "moved" else spots[oid][-1:]))
+
+
+def _shared_m(a: np.ndarray, b: np.ndarray) -> float:
+    """Metres of walk ``a`` within 0.5 m of walk ``b`` and heading within 30 deg of it there."""
+    near = np.linalg.norm(a[:, None, :2] - b[None, :, :2], axis=-1) <= 0.5
+    turn = np.abs((a[:, None, 2] - b[None, :, 2] + np.pi) % (2 * np.pi) - np.pi)
+    return float((near & (turn <= np.radians(30.0))).any(axis=1).sum() * STEP_M)
