@@ -43,6 +43,8 @@ from .office_routes import corridor_open, floor_grid
 CHANGE_KINDS = ("move", "remove", "add", "obstacle")
 MAX_DAY = 365
 EPS_M = 1e-9
+NEAR_M = 2.5  # a drawn change a walk sees: this close to a walked point (the camera's depth reaches 6 m) ...
+AHEAD_DEG = 40.0  # ... and this near the walker's heading there (the thigh camera spans 90 deg)
 
 
 @dataclass(frozen=True)
@@ -249,7 +251,8 @@ def apply_changes(layout: Layout, script: ChangeScript, day: int) -> list[list[P
     return days
 
 
-def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60) -> ChangeScript:
+def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60, near: np.ndarray | None = None,
+                 near_m: float = NEAR_M) -> ChangeScript:
     """A plausible script of ``n_days`` days drawn from ``seed``.
 
     What the paper's office saw between days (seeds/000 IV-B, IV-D): object-level changes in
@@ -260,6 +263,13 @@ def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60) -> Cha
     or boxes); an obstacle of an earlier day is taken away again with probability 0.5. A change
     that the validation refuses is drawn again (up to ``tries`` times, then left out). Day d
     draws from ``(seed, d)``, so the first days of a longer script are the same.
+
+    With ``near`` (walked points (N, 3): x, y and the walker's heading in rad), every change is
+    one those walks see: a moved or removed piece, an added one and an obstacle stand (before and
+    after) within ``near_m`` of a walked point, within :data:`AHEAD_DEG` of the heading there and
+    in the same room or corridor (not behind a wall); a day
+    that would draw none of them gets an obstacle. Without it, the script is drawn anywhere in
+    the building, as before (the same draws to the bit).
     """
     if n_days < 0:
         raise ConfigError("change_days", n_days, ">= 0")
@@ -268,6 +278,10 @@ def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60) -> Cha
     regions = {r["name"]: r for r in layout.regions}
     corridors = [r for r in layout.regions if r["kind"] == "corridor"]
     rooms = [r for r in layout.regions if r["kind"] != "corridor"]
+    seen = None if near is None else Seen(layout, np.asarray(near, dtype=float).reshape(-1, 3), near_m)
+    if seen is not None:  # draw only among what the walks see
+        corridors = [r for r in corridors if r["name"] in seen.regions]
+        rooms = [r for r in rooms if r["name"] in seen.regions]
     added = 0
     for d in range(1, n_days + 1):
         rng = np.random.default_rng([seed, d])
@@ -275,11 +289,21 @@ def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60) -> Cha
         for oid in [i for i, p in state.items.items() if p.piece.cls in OBSTACLE_CLASSES]:
             if rng.random() < 0.5:
                 todo.insert(0, f"clear:{oid}")
+        n_before = len(out)
+        if seen is not None:
+            todo.append("obstacle?")  # drawn only if the day has no change yet
         for kind in todo:
+            if kind == "obstacle?":
+                if len(out) > n_before:
+                    break
+                kind = "obstacle"
             for _ in range(tries):
-                c = _draw_one(rng, state, kind, d, added, regions, corridors, rooms)
+                c = _draw_one(rng, state, kind, d, added, regions, corridors, rooms, seen)
                 if c is None:
                     break
+                if seen is not None and (c.kind != "remove" and not seen.sees(c.x, c.y)
+                                         or any(o.object_id == c.object_id for o in out[n_before:])):
+                    continue  # unseen, or a piece already changed that day (its change would be one)
                 try:
                     state.apply(c)
                 except ChangeScriptError:
@@ -290,13 +314,36 @@ def draw_changes(layout: Layout, seed: int, n_days: int, tries: int = 60) -> Cha
     return ChangeScript(tuple(out))
 
 
+class Seen:
+    """What walks through ``points`` (x, y, heading) see: a spot within ``near_m`` of a walked
+    point, ahead of the walker there and in the region the point lies in (a room's furniture
+    seen from the corridor only through its door is left out)."""
+
+    def __init__(self, layout: Layout, points: np.ndarray, near_m: float) -> None:
+        self.points, self.near_m, self.layout = points, float(near_m), layout
+        self.regions = {r["name"] for r in layout.regions if _holds(r["rect"], points).any()}
+
+    def sees(self, x: float, y: float) -> bool:
+        r = next((r for r in self.layout.regions if _holds(r["rect"], np.array([[x, y]]))[0]), None)
+        if r is None or r["name"] not in self.regions:
+            return False
+        p = self.points[_holds(r["rect"], self.points)]
+        off = np.abs((np.arctan2(y - p[:, 1], x - p[:, 0]) - p[:, 2] + np.pi) % (2 * np.pi) - np.pi)
+        return bool(np.any((np.hypot(p[:, 0] - x, p[:, 1] - y) <= self.near_m) & (off <= np.radians(AHEAD_DEG))))
+
+
+def _holds(rect: tuple[float, float, float, float], points: np.ndarray) -> np.ndarray:
+    x0, x1, y0, y1 = rect
+    return (points[:, 0] >= x0) & (points[:, 0] <= x1) & (points[:, 1] >= y0) & (points[:, 1] <= y1)
+
+
 def _draw_one(rng: np.random.Generator, state: _State, kind: str, day: int, added: int, regions: dict,
-              corridors: list[dict], rooms: list[dict]) -> Change | None:
+              corridors: list[dict], rooms: list[dict], seen: Seen | None = None) -> Change | None:
     items = list(state.items.values())
     if kind.startswith("clear:"):
         return Change(day, "remove", kind.partition(":")[2])
     if kind in ("move", "remove"):
-        pool = [p for p in items if p.piece.cls not in OBSTACLE_CLASSES]
+        pool = [p for p in items if p.piece.cls not in OBSTACLE_CLASSES and (seen is None or seen.sees(p.x, p.y))]
         if not pool:
             return None
         w = np.array([3.0 if p.piece.cls == "chair" else 1.0 for p in pool])
@@ -307,11 +354,15 @@ def _draw_one(rng: np.random.Generator, state: _State, kind: str, day: int, adde
         return Change(day, "move", p.id, x=round(p.x + r * np.cos(a), 3), y=round(p.y + r * np.sin(a), 3),
                       turn=int(rng.integers(4)))
     if kind == "add":
+        if not rooms:
+            return None
         room = rooms[int(rng.integers(len(rooms)))]
         x0, x1, y0, y1 = room["clear"]
         cls = str(rng.choice(["chair", "bin", "plant", "cabinet"]))
         return Change(day, "add", f"{cls}_d{day}_{added}", cls, int(rng.integers(2**31)),
                       round(float(rng.uniform(x0, x1)), 3), round(float(rng.uniform(y0, y1)), 3), int(rng.integers(4)))
+    if not corridors:
+        return None
     cor = corridors[int(rng.integers(len(corridors)))]
     x0, x1, y0, y1 = cor["rect"]
     cls = str(rng.choice(list(OBSTACLE_CLASSES)))

@@ -68,6 +68,62 @@ def test_the_exo_case_sessions_share_views_walked_the_same_way_round():
     assert _components(len(walks), links) == [set(range(len(walks)))], sorted(links)
 
 
+SEEN_M = 4.0  # a changed piece this close to the camera ...
+SEEN_DEG = 45.0  # ... and this near its heading is in view (the thigh camera spans 90 deg)
+
+
+def _region(layout, x: float, y: float) -> str | None:
+    return next((r["name"] for r in layout.regions
+                 if r["rect"][0] <= x <= r["rect"][1] and r["rect"][2] <= y <= r["rect"][3]), None)  # fmt: skip
+
+
+def test_the_general_sessions_each_share_views_with_an_earlier_one():
+    """A general case's sessions overlap as the paper's do: each shares a stretch walked the same
+    way round with an earlier one. Formerly session 2 walked the regions the other way round and,
+    in general/1 and general/3 of run seed 0, met sessions 0 and 1 nowhere (docs/tracks/multisession.md)."""
+    track = MultisessionTrack()
+    for run_seed in (0, 1):
+        for case in track.cases("general", run_seed):
+            scenario = track.validate_scenario(case.scenario)
+            walks = [_walked(scenario, p) for p in parse_sessions(scenario["sessions"])]
+            alone = [i for i in range(1, len(walks)) if not any(_share_views(walks[i], walks[j]) for j in range(i))]
+            assert alone == [], (run_seed, case.name, scenario["sessions"])
+
+
+def test_the_general_changes_stand_in_view_of_the_walks():
+    """Every piece the general case's script changes (where it stood and where it stands) is in
+    view of a day-1 session somewhere along its walk: within SEEN_M of the camera, within SEEN_DEG
+    of its heading, in the room or corridor the walker is in; and each case changes something.
+    Formerly the script was drawn anywhere in the building: 1.6-15 m from every walk (seed 0)."""
+    from exobench.models.office_changes import apply_changes, changed_ids
+    from exobench.models.office_layout import build_layout
+
+    track = MultisessionTrack()
+    for run_seed in (0, 1):
+        for case in track.cases("general", run_seed):
+            scenario = track.validate_scenario(case.scenario)
+            plans = [p for p in parse_sessions(scenario["sessions"]) if p.day == 1]
+            office = session_scenario(scenario, plans[0])
+            layout = build_layout(office.office_params())
+            before, after = apply_changes(layout, office.change_script(), 1)
+            spots = {p.id: [(p.x, p.y)] for p in before}
+            for p in after:
+                spots.setdefault(p.id, []).append((p.x, p.y))
+            changed = changed_ids(before, after)
+            assert changed, (run_seed, case.name)
+            walks = [_walked(scenario, p) for p in plans]
+            for oid, kind in changed.items():
+                for x, y in spots[oid] if kind == "moved" else spots[oid][-1:]:
+                    where = _region(layout, x, y)
+                    seen = False
+                    for pts, heads in walks:
+                        d = np.hypot(x - pts[:, 0], y - pts[:, 1])
+                        off = np.abs((np.arctan2(y - pts[:, 1], x - pts[:, 0]) - heads + np.pi) % (2 * np.pi) - np.pi)
+                        same = np.array([_region(layout, *p) == where for p in pts])
+                        seen |= bool(np.any((d <= SEEN_M) & (off <= np.radians(SEEN_DEG)) & same))
+                    assert seen, (run_seed, case.name, oid, kind, (x, y), where)
+
+
 HUMAN = ("human/area1", "human/area2")
 
 

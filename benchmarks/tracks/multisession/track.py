@@ -18,8 +18,8 @@ Suites (the run seed drives the sensor noise; the building is ``office_seed``):
   west half, labs in its east half), and the Table I alignment set (three sessions of one area
   on one day); floors carpet-tiled (``textured_floors``), as the paper's real offices give its
   thigh camera texture; the blank corridors are the general suite's.
-- ``general``: office layout, furniture, a drawn change script and the regions walked drawn
-  from the run seed.
+- ``general``: office layout, furniture, the regions walked and a change script among the places
+  the walks see, drawn from the run seed (:mod:`.general`).
 
 Bad input: an invalid change script (an object into a wall, an object that is not there) is
 refused when the case is validated, before anything runs, naming the day and the object; a
@@ -33,8 +33,6 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, ClassVar
 
-import numpy as np
-
 from exobench.core.episode import Episode, EpisodeStream
 from exobench.core.errors import UnknownNameError
 from exobench.core.estimates import MultiSessionEstimate
@@ -42,6 +40,7 @@ from exobench.core.estimates import MultiSessionEstimate
 from ..office_walks import office_params, validate_office_scenario
 from ..spec import Case, ParamInfo, Reference, SummaryRow
 from .episodes import EXTRA, check_sessions, parse_sessions, scenario_class, stream_sessions
+from .general import GENERAL_CASES, general_scenario
 from .report import figure_arrays
 from .scoring import failure_metrics, score_multisession
 
@@ -82,7 +81,6 @@ PAPER = {
     "alignment/area1": {"max_distance_m": 12.0, "surfaces": "textured_floors",
                         "sessions": "0:office1,corridor_w;0:corridor_w,office1;0:office1,corridor_w"},
 }  # fmt: skip
-GENERAL_CASES = 4
 PER_SESSION = ("day", "route", "route_regions")  # office rows that `sessions` sets for each session
 # rows of the LiDAR walk's rig (trunk IMU, encoders, glass seen by LiDAR) and the corner turn of the
 # fixed routes: they change nothing in a camera session walked through regions (scenario-key conformance)
@@ -232,16 +230,3 @@ class MultisessionTrack:
         from .report import write_recording
 
         return write_recording(episode, estimates_by_pipeline, path)
-
-
-GENERAL_REGIONS = ("corridor_s", "corridor_n", "corridor_w", "corridor_e", "meeting", "office0")
-
-
-def general_scenario(run_seed: int, k: int) -> dict[str, Any]:
-    """Case ``k`` of the general suite: layout, furniture, change script and two regions drawn
-    from ``(run_seed, k)``; three sessions over two days through them, the last reversed."""
-    rng = np.random.default_rng([int(run_seed), 28, k])
-    a, b = (str(x) for x in rng.choice(GENERAL_REGIONS, size=2, replace=False))
-    return {"office_seed": int(rng.integers(0, 1000)), "furniture_seed": int(rng.integers(0, 1000)),
-            "change_seed": int(rng.integers(0, 1000)), "max_distance_m": 10.0, "surfaces": "textured",
-            "sessions": f"0:{a},{b};1:{a},{b};1:{b},{a}"}  # fmt: skip
