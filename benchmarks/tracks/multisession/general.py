@@ -15,6 +15,7 @@ seed 0 session 2 shared no view with the others (docs/tracks/multisession.md, Th
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -50,6 +51,17 @@ def walked_points(scenario: dict[str, Any], plan: Any) -> np.ndarray:
 
 def general_scenario(run_seed: int, k: int) -> dict[str, Any]:
     """Case ``k`` of the general suite, drawn from ``(run_seed, k)`` (module docstring)."""
+    return dict(_general_case(int(run_seed), int(k)))
+
+
+@functools.lru_cache(maxsize=64)
+def _general_case(run_seed: int, k: int) -> tuple[tuple[str, Any], ...]:
+    """:func:`general_scenario`'s rows, kept per process: a draw plans every session's walk (twice
+    where a script is drawn again), and the suite is listed often (plans, checks, tests)."""
+    return tuple(_draw(run_seed, k).items())
+
+
+def _draw(run_seed: int, k: int) -> dict[str, Any]:
     from exobench.models.office_changes import draw_changes
     from exobench.models.office_layout import build_layout
 
