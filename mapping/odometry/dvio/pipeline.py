@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
 import numpy as np
@@ -122,15 +122,9 @@ class DvioConfig:
                              keyframe_parallax_px=self.keyframe_parallax_px, equalize=self.equalize)
 
     def window_config(self) -> WindowConfig:
-        return WindowConfig(window=self.window, init_keyframes=self.init_keyframes, pixel_sigma_px=self.pixel_sigma_px,
-                            kernel=self.kernel, kernel_k=self.kernel_k, depth_factors=self.depth_factors,
-                            max_iterations=self.max_iterations, min_features=self.min_features,
-                            min_landmarks=self.min_landmarks, max_speed_mps=self.max_speed_mps,
-                            max_accel_bias=self.max_accel_bias, max_gyro_bias=self.max_gyro_bias, max_update_speed_mps=self.max_update_speed_mps,
-                            max_update_climb_mps=self.max_update_climb_mps, update_slack_m=self.update_slack_m,
-                            max_update_turn_deg=self.max_update_turn_deg, max_depth_misfit=self.max_depth_misfit,
-                            max_init_tilt_deg=self.max_init_tilt_deg, max_init_gyro_bias=self.max_init_gyro_bias,
-                            linear_solver=self.linear_solver)
+        # every window field this config also declares, by name (a bound added to both cannot be
+        # left out); the window's own (bias and tilt sigmas, the depth gate) keep their defaults
+        return WindowConfig(**{f.name: getattr(self, f.name) for f in fields(WindowConfig) if hasattr(self, f.name)})
 
 
 @dataclass(frozen=True)
