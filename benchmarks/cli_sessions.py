@@ -67,31 +67,50 @@ def replay(session_dir: str, track: str | None, pipelines: tuple[str, ...], assi
 @click.command()
 @click.argument("out_dir", type=click.Path())
 @click.option("--track", default="stairs", show_default=True)
-@click.option("--case", "case_name", default=None, help="Start from a named case of the paper suite (A, B, C, ...).")
+@click.option("--suite", default=None,
+              help="Take --case from this suite of the track, drawn as `exobench run` draws it: --seed is then the run seed (default: the paper suite, --seed the episode seed).")
+@click.option("--case", "case_name", default=None, help="Start from a named case of the paper suite (A, B, C, ...), or of --suite.")
 @click.option("--set", "assignments", multiple=True, metavar="KEY=VALUE", help="Scenario parameter.")
-@click.option("--seed", type=int, default=0, show_default=True)
-def record(out_dir: str, track: str, case_name: str | None, assignments: tuple[str, ...], seed: int) -> None:
-    """Simulate one episode and write it as a session folder OUT_DIR."""
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Episode seed; with --suite, the run seed (the episode seed is derived from it and the case's name).")
+def record(out_dir: str, track: str, suite: str | None, case_name: str | None, assignments: tuple[str, ...], seed: int) -> None:
+    """Simulate one episode and write it as a session folder OUT_DIR.
+
+    With --suite, the episode is the one `exobench run SUITE --track TRACK --case CASE --seed SEED`
+    scores (the same scenario, drawn from the run seed in a drawn suite, and the same episode
+    seed), so a replay of the session gives the run's figures."""
 
     from exobench.core.errors import ConfigError
     from exobench.envs.session import write_session
 
     from .out_paths import check_out_dir, reserve_dir
     from .overrides import check_scenario_overrides, parse_assignments
-    from .runner import load_case
+    from .runner import episode_seed, load_case
     from .tracks import get_track
 
     trk = get_track(track)
-    base = load_case(trk, "paper", case_name).scenario if case_name else {}
+    if seed < 0:
+        raise ConfigError("--seed", seed, "--seed >= 0")
+    sim_seed = seed
+    if suite is not None:
+        if suite not in trk.suites:
+            from exobench.core.errors import UnknownNameError
+
+            raise UnknownNameError(f"suite of track {trk.name!r}", suite, trk.suites)
+        if case_name is None:
+            raise ConfigError("--case", None, f"a case of suite {suite!r} (a session holds one episode)")
+        base = load_case(trk, suite, case_name, seed).scenario
+        sim_seed = episode_seed(seed, case_name)
+    else:
+        base = load_case(trk, "paper", case_name).scenario if case_name else {}
     given = check_scenario_overrides(trk, parse_assignments(assignments))
     scoring = sorted(k for k in given if k in trk.scoring_keys)
     if scoring:  # not part of the episode: they would be silently lost
         raise ConfigError("--set", ",".join(scoring), "simulation parameters; scoring settings are given to `exobench replay`")
     scenario = trk.validate_scenario({**base, **given})
-    if seed < 0:
-        raise ConfigError("--seed", seed, "--seed >= 0")
     check_out_dir("OUT_DIR", out_dir, existing=False)
     with reserve_dir(out_dir, "record"):  # a second `record` into it is refused before simulating
-        episode = trk.simulate(scenario, seed)
+        episode = trk.simulate(scenario, sim_seed)
         path = write_session(episode, out_dir, track=trk.name)
-    click.echo(f"session: {path} ({len(episode.frames)} frames, seed {seed}, track {trk.name})")
+    drawn = f"seed {sim_seed} (run seed {seed}, {suite} {case_name})" if suite is not None else f"seed {seed}"
+    click.echo(f"session: {path} ({len(episode.frames)} frames, {drawn}, track {trk.name})")

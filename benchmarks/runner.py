@@ -636,9 +636,10 @@ def write_rerun(track: Track, episode: Any, estimates: dict[str, Any], timelines
         raise FolderError(f"{path}: cannot be written ({e.strerror or e})") from None
 
 
-def load_case(track: Track, suite: str, name: str) -> Case:
-    """A case of a suite by name (UnknownNameError lists the valid ones)."""
-    cases = {c.name: c for c in track.cases(suite)}
+def load_case(track: Track, suite: str, name: str, run_seed: int = 0) -> Case:
+    """A case of a suite by name, as drawn under ``run_seed`` in a drawn suite (UnknownNameError
+    lists the valid ones)."""
+    cases = {c.name: c for c in track.cases(suite, run_seed)}
     if name not in cases:
-        raise UnknownNameError("case", name, cases)
+        raise UnknownNameError(f"case of suite {suite!r}", name, cases)
     return cases[name]

@@ -125,3 +125,29 @@ def test_scoring_settings_are_given_to_replay_not_to_record(tmp_path):
     assert default["n_revisits"] == 0 and near["n_revisits"] == near["n_keyframes"] - 1
     wrong = CliRunner().invoke(cli, ["replay", str(session), "--set", "max_distance_m=3"])
     assert wrong.exit_code == 2 and "max_distance_m" in wrong.stderr and "revisit_m" in wrong.stderr
+
+
+def test_record_of_a_drawn_suite_case_replays_to_the_runs_figures(tmp_path):
+    # general/01 under run seed 1: a drawn case (its staircase differs from run seed 0's) whose
+    # episode seed is derived from the run seed and the case name, as `run` derives it
+    session = tmp_path / "session"
+    out = _invoke(["record", "--track", "stairs", "--suite", "general", "--case", "general/01", "--seed", "1", str(session)]).output
+    _invoke(["run", "general", "--track", "stairs", "--case", "general/01", "--seed", "1", "--pipeline", "rtls",
+             "--out", str(tmp_path / "run"), "--no-report"])  # fmt: skip
+    (run,) = read_records(tmp_path / "run" / "results.jsonl")
+    replayed = json.loads(_invoke(["replay", str(session), "--pipeline", "rtls", "--json"]).output.strip().splitlines()[0])
+    assert replayed["seed"] == run["seed"] != 1 and f"seed {run['seed']} (run seed 1" in out
+    scenario = StairsTrack().validate_scenario  # a session leaves out parameters at their neutral defaults
+    assert scenario(replayed["scenario"]) == scenario(run["scenario"]) != scenario(StairsTrack().cases("general", 0)[1].scenario)
+    assert untimed_metrics(StairsTrack, replayed["metrics"]) == untimed_metrics(StairsTrack, run["metrics"])
+
+
+def test_record_refuses_an_unknown_suite_or_a_suite_without_a_case(tmp_path):
+    bad = CliRunner().invoke(cli, ["record", "--track", "stairs", "--suite", "papr", "--case", "A", str(tmp_path / "s")])
+    assert bad.exit_code == 2
+    assert "unknown suite of track 'stairs' 'papr'; valid: full, general, paper, quick" in bad.stderr
+    no_case = CliRunner().invoke(cli, ["record", "--track", "stairs", "--suite", "general", str(tmp_path / "s")])
+    assert no_case.exit_code == 2 and "--case" in no_case.stderr and "general" in no_case.stderr
+    unknown = CliRunner().invoke(cli, ["record", "--track", "stairs", "--suite", "general", "--case", "B", str(tmp_path / "s")])
+    assert unknown.exit_code == 2 and "unknown case of suite 'general' 'B'; valid: general/00" in unknown.stderr
+    assert not (tmp_path / "s").exists()  # nothing written
