@@ -79,7 +79,8 @@ Sample = tuple[float, np.ndarray, np.ndarray]
 _MAX_DEAD_RECKON_S = 3.0
 # A re-initialisation is checked against the carried vertical only this long into a loss: refused
 # any longer, the next segment would start after the propagation's limit, on the last good pose's
-# stale yaw (the ring loop: a 3.3 s loss at its first corner, 55 deg of yaw; docs/dvio.md).
+# stale position (and, before the carried heading below, its stale yaw: the ring loop, a 3.3 s loss
+# at its first corner, 55 deg of yaw; docs/dvio.md).
 _MAX_REFUSING_S = _MAX_DEAD_RECKON_S / 2.0
 # Longest loss whose gyroscope-propagated attitude still gives a re-initialised segment its heading
 # once its position is no longer dead-reckoned [A]: integrated with the last good gyroscope bias,
