@@ -46,8 +46,9 @@ update; that update is discarded). The window is then cleared; the caller re-ini
 (:mod:`.init`) and the new segment is anchored (position and yaw, its velocities turned with it) on
 the last good state (before the failed update) propagated by the IMU through the loss to the first
 keyframe of the new initialisation, which also gives the new segment its vertical and gyroscope
-bias (on the last good pose, with the initialisation's own vertical and bias, when the loss lasted
-longer than ``_MAX_DEAD_RECKON_S``).
+bias (on the last good pose's position, with the initialisation's own vertical and bias, when the
+loss lasted longer than ``_MAX_DEAD_RECKON_S``; the heading is then still the gyroscope's, carried
+through losses of up to ``_MAX_ATTITUDE_S``, else the last good pose's).
 """
 
 from __future__ import annotations
@@ -78,8 +79,16 @@ Sample = tuple[float, np.ndarray, np.ndarray]
 _MAX_DEAD_RECKON_S = 3.0
 # A re-initialisation is checked against the carried vertical only this long into a loss: refused
 # any longer, the next segment would start after the propagation's limit, on the last good pose's
-# stale yaw (the ring loop: a 3.3 s loss at its first corner, 55 deg of yaw; docs/dvio.md).
+# stale position (and, before the carried heading below, its stale yaw: the ring loop, a 3.3 s loss
+# at its first corner, 55 deg of yaw; docs/dvio.md).
 _MAX_REFUSING_S = _MAX_DEAD_RECKON_S / 2.0
+# Longest loss whose gyroscope-propagated attitude still gives a re-initialised segment its heading
+# once its position is no longer dead-reckoned [A]: integrated with the last good gyroscope bias,
+# whose vertical component the ring loop's windows estimate within 5 mrad/s (95th percentile; the
+# simulated IMU's bias stays within 1e-4 rad/s), the heading is off by at most 9 deg after 30 s,
+# while the last good pose's is off by whatever the walker turned meanwhile (a corridor corner:
+# 90 deg). Yaw is unobservable: a heading left behind at a loss stays in the rest of the walk.
+_MAX_ATTITUDE_S = 30.0
 _SOLVERS = {"cholesky": "MULTIFRONTAL_CHOLESKY", "qr": "MULTIFRONTAL_QR"}
 
 
@@ -183,6 +192,7 @@ class _Keyframe:
     samples: list[Sample]  # IMU samples from the previous keyframe to this one (camera clock)
     dead_reckoned: np.ndarray | None = None  # T_G_imu from the last good state, while lost
     dead_reckoned_s: float = math.inf  # how long that state was propagated, s
+    carried_R: np.ndarray | None = None  # R_G_imu of that state, while propagated < _MAX_ATTITUDE_S
 
 
 @dataclass(eq=False)
@@ -345,17 +355,24 @@ class SlidingWindow:
         return (float(prop.end_s), (state.pose() * self._T_IC).matrix(), float(prop.end_s - prop.start_s),
                 np.asarray(state.velocity(), float))
 
-    def _dead_reckon(self, stamp_s: float) -> tuple[np.ndarray | None, float]:
+    def _dead_reckon(self, stamp_s: float) -> tuple[np.ndarray | None, float, np.ndarray | None]:
         """T_G_imu at ``stamp_s`` propagated from the last good state; None when there is none or
-        it is older than ``_MAX_DEAD_RECKON_S`` (an IMU alone drifts quadratically); and how long
-        it was propagated (inf without one)."""
+        it is older than ``_MAX_DEAD_RECKON_S`` (an IMU alone drifts quadratically); how long it
+        was propagated (inf without one); and its attitude R_G_imu alone, kept up to
+        ``_MAX_ATTITUDE_S`` (the gyroscope's integral drifts linearly, with the bias error)."""
         if self._lost is None:
-            return None, math.inf
+            return None, math.inf, None
         prop, nav, bias = self._lost
         prop.integrate_to(stamp_s)
-        if prop.start_s is None or prop.end_s is None or prop.end_s - prop.start_s > _MAX_DEAD_RECKON_S:
-            return None, math.inf
-        return prop.predict(nav, bias).pose().matrix(), prop.end_s - prop.start_s
+        if prop.start_s is None or prop.end_s is None:
+            return None, math.inf, None
+        age = prop.end_s - prop.start_s
+        if age > _MAX_ATTITUDE_S:
+            return None, math.inf, None
+        T = prop.predict(nav, bias).pose().matrix()
+        if age > _MAX_DEAD_RECKON_S:
+            return None, math.inf, T[:3, :3]
+        return T, age, T[:3, :3]
 
     def _pim(self, kf: _Keyframe, bias: gtsam.imuBias.ConstantBias) -> gtsam.PreintegratedCombinedMeasurements:
         pre = ImuPreintegrator(self.imu, bias)
@@ -419,10 +436,13 @@ class SlidingWindow:
         c = self.config
         T_G = res.T_G_imu
         # Continue the last segment: position and yaw of the first keyframe from the IMU
-        # propagated through the loss (or, without it, the last good pose).
+        # propagated through the loss (or, without it, the last good pose, with the heading the
+        # gyroscope carried through a loss too long to dead-reckon: docs/dvio.md "The ring loop's heading").
         anchor = self._kfs[0].dead_reckoned
         if anchor is None and self._anchor is not None:
             anchor = self._anchor.matrix()
+            if self._kfs[0].carried_R is not None:
+                anchor[:3, :3] = self._kfs[0].carried_R
         v_G = np.asarray(res.v_G, float)
         if anchor is not None:
             # The velocities turn with the poses: left in the initialisation's own yaw, the
