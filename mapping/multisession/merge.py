@@ -101,7 +101,13 @@ class MergeConfig:
     """Noise, robust loss and Levenberg-Marquardt settings.
 
     Attributes:
-        odom_sigma_rad / odom_sigma_m: odometry edge noise between consecutive keyframes.
+        odom_sigma_rad / odom_sigma_m: odometry edge noise between consecutive keyframes (0.3 m
+            or 15 degrees apart). The rotation's 0.003 rad (0.17 deg) a keyframe is 30 times the
+            sessions' heading drift (0.02 deg/m) and about the odometry kind's former default
+            (0.5 deg/m). At 0.01 rad a session's chain bent to whichever edge held it at one end:
+            general/3's first edge, 1.9 degrees off, turned the 4 m of the session before it (up
+            to 1.4 degrees, 0.17 m at its start) and bent the anchor session, whose map came out
+            worse than its own odometry's (docs/tracks/multisession.md, general/3).
         loop_sigma_rad / loop_sigma_m: noise of an edge given without covariance.
         prior_sigma: noise of the anchor's prior (rad and m).
         cauchy_scale: Cauchy kernel scale ``c`` in whitened units (weight ``1 / (1 + (r/c)^2)``);
@@ -123,7 +129,7 @@ class MergeConfig:
         join_tolerance_deg: ... and their rotations differ by at most this.
     """
 
-    odom_sigma_rad: float = 0.01
+    odom_sigma_rad: float = 0.003
     odom_sigma_m: float = 0.02
     loop_sigma_rad: float = 0.02
     loop_sigma_m: float = 0.05

@@ -164,6 +164,29 @@ def test_inter_session_edges_hold_despite_odometry_drift():
     assert before > 0.15 and after < 0.6 * before
 
 
+def test_one_turned_edge_does_not_turn_the_session_it_holds_at_one_end():
+    """general/3 constructed: session 1 walks 0.5 m beside session 0 with drift-free odometry and
+    meets it only through four edges at keyframes 20-26 (PnP-like covariance: 0.0075 rad, 0.02 m),
+    the first of them turned by 2 degrees, as its (0, 18) -> (1, 16) edge was 1.9 degrees off. The
+    odometry holds the session's shape, so the edges' consensus places it: its start, 6 m from the
+    edges, within 0.06 m of the truth, and the anchor session within 0.02 m of its odometry. With
+    the odometry's rotation at 0.01 rad a keyframe the turned edge turned the chain behind it:
+    0.19 m at the start, the anchor bent by 0.04 m."""
+    n = 30
+    w0 = [_pose(0.3 * i, 0.0, 0.0) for i in range(n)]
+    w1 = [_pose(0.3 * i, 0.5, 0.0) for i in range(n)]
+    frame1 = _pose(1.0, -2.0, 0.7, z=0.0)
+    graphs = [SessionGraph(0, np.array(w0)), SessionGraph(1, np.array([np.linalg.inv(frame1) @ T for T in w1]))]
+    cov = np.diag([0.0075**2] * 3 + [0.02**2] * 3)
+    turned = _pose(0.0, 0.0, math.radians(2.0), z=0.0)
+    edges = [PoseEdge((0, i), (1, i), np.linalg.inv(w0[i]) @ w1[i] @ (turned if i == 20 else np.eye(4)), cov)
+             for i in (20, 22, 24, 26)]
+    merged = merge_sessions(graphs, edges).maps[0]
+    assert merged.sessions == (0, 1)
+    assert _errors(merged.T_m_b[(1, 0)], w1[0])[0] < 0.06
+    assert max(_errors(merged.T_m_b[(0, i)], T)[0] for i, T in enumerate(w0)) < 0.02
+
+
 def _edge(T_w_a, T_w_b, a, b, lookalike=None):
     """An edge between keyframes ``a`` and ``b`` with the PnP-like covariance of :func:`_synthetic`:
     true, or (``lookalike``: where the query's look-alike view truly stands) what PnP gives for
