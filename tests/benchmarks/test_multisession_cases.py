@@ -9,9 +9,8 @@ import pytest
 from exobench.benchmarks.tracks.multisession.episodes import parse_sessions, session_scenario
 from exobench.benchmarks.tracks.multisession.track import PAPER, MultisessionTrack
 from exobench.core.errors import ConfigError
-from exobench.envs.sim.scenarios.office import WorldLook, compiled_office
+from exobench.envs.sim.scenarios.office import region_waypoints
 from exobench.models.office_layout import build_layout
-from exobench.models.office_routes import region_route
 
 STEP_M = 0.1
 NEAR_M = 0.5  # two walkers this close ...
@@ -21,13 +20,8 @@ SHARED_M = 1.0  # a stretch this long gives several keyframes (one every 0.3 m) 
 
 def _walked(scenario: dict, plan) -> tuple[np.ndarray, np.ndarray]:
     """Points every STEP_M along a session's walked route (cut at max_distance_m) and the heading there (rad)."""
-    office = session_scenario(scenario, plan)
-    look = WorldLook(office.surfaces, office.light_level)
-    script, start = office.change_script(), office.start_w()
-    world = {} if script is None else {"changes": script, "day": office.day}
-    scene = compiled_office(office.office_params(), office.exo_spec(), (), None if look.is_default else look, **world,
-                            start_w=None if start is None else tuple(start))  # fmt: skip
-    wps = np.asarray(office.route_polyline(region_route(scene.truth, office.regions())))
+    # planned on the day's layout: the compiled office's waypoints (test_envs_office_days.py)
+    wps = np.asarray(region_waypoints(session_scenario(scenario, plan)))
     pts, heads = [], []
     for a, b in zip(wps[:-1], wps[1:]):
         n = max(1, int(np.linalg.norm(b - a) / STEP_M))
