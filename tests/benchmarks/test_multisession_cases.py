@@ -3,6 +3,8 @@ the same places the same way round, or no place recognition can join them."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -71,17 +73,27 @@ def _region(layout, x: float, y: float) -> str | None:
                  if r["rect"][0] <= x <= r["rect"][1] and r["rect"][2] <= y <= r["rect"][3]), None)  # fmt: skip
 
 
+@functools.cache
+def _general(run_seed: int) -> list[tuple[str, dict, list, list[tuple[np.ndarray, np.ndarray]]]]:
+    """(case name, validated scenario, session plans, their walks) of every general case of
+    ``run_seed``, planned once for the tests of this file."""
+    track = MultisessionTrack()
+    out = []
+    for case in track.cases("general", run_seed):
+        scenario = track.validate_scenario(case.scenario)
+        plans = parse_sessions(scenario["sessions"])
+        out.append((case.name, scenario, plans, [_walked(scenario, p) for p in plans]))
+    return out
+
+
 def test_the_general_sessions_each_share_views_with_an_earlier_one():
     """A general case's sessions overlap as the paper's do: each shares a stretch walked the same
     way round with an earlier one. Formerly session 2 walked the regions the other way round and,
     in general/1 and general/3 of run seed 0, met sessions 0 and 1 nowhere (docs/tracks/multisession.md)."""
-    track = MultisessionTrack()
     for run_seed in (0, 1):
-        for case in track.cases("general", run_seed):
-            scenario = track.validate_scenario(case.scenario)
-            walks = [_walked(scenario, p) for p in parse_sessions(scenario["sessions"])]
+        for name, scenario, _, walks in _general(run_seed):
             alone = [i for i in range(1, len(walks)) if not any(_share_views(walks[i], walks[j]) for j in range(i))]
-            assert alone == [], (run_seed, case.name, scenario["sessions"])
+            assert alone == [], (run_seed, name, scenario["sessions"])
 
 
 def test_the_general_changes_stand_in_view_of_the_walks():
@@ -92,11 +104,9 @@ def test_the_general_changes_stand_in_view_of_the_walks():
     from exobench.models.office_changes import apply_changes, changed_ids
     from exobench.models.office_layout import build_layout
 
-    track = MultisessionTrack()
     for run_seed in (0, 1):
-        for case in track.cases("general", run_seed):
-            scenario = track.validate_scenario(case.scenario)
-            plans = [p for p in parse_sessions(scenario["sessions"]) if p.day == 1]
+        for name, scenario, every, walked in _general(run_seed):
+            plans = [p for p in every if p.day == 1]
             office = session_scenario(scenario, plans[0])
             layout = build_layout(office.office_params())
             before, after = apply_changes(layout, office.change_script(), 1)
@@ -104,8 +114,8 @@ def test_the_general_changes_stand_in_view_of_the_walks():
             for p in after:
                 spots.setdefault(p.id, []).append((p.x, p.y))
             changed = changed_ids(before, after)
-            assert changed, (run_seed, case.name)
-            walks = [_walked(scenario, p) for p in plans]
+            assert changed, (run_seed, name)
+            walks = [w for w, p in zip(walked, every) if p.day == 1]
             for oid, kind in changed.items():
                 for x, y in spots[oid] if kind == "moved" else spots[oid][-1:]:
                     where = _region(layout, x, y)
@@ -115,12 +125,13 @@ def test_the_general_changes_stand_in_view_of_the_walks():
                         off = np.abs((np.arctan2(y - pts[:, 1], x - pts[:, 0]) - heads + np.pi) % (2 * np.pi) - np.pi)
                         same = np.array([_region(layout, *p) == where for p in pts])
                         seen |= bool(np.any((d <= SEEN_M) & (off <= np.radians(SEEN_DEG)) & same))
-                    assert seen, (run_seed, case.name, oid, kind, (x, y), where)
+                    assert seen, (run_seed, name, oid, kind, (x, y), where)
 
 
 HUMAN = ("human/area1", "human/area2")
 
 
+@functools.cache  # two tests per area
 def _human(case: str) -> tuple[dict, list[tuple[np.ndarray, np.ndarray]], dict[str, list[float]]]:
     scenario = MultisessionTrack().validate_scenario(PAPER[case])
     walks = [_walked(scenario, p) for p in parse_sessions(scenario["sessions"])]
