@@ -14,6 +14,8 @@ from exobench.core.errors import ConfigError
 from exobench.envs.sim.scenarios.office import region_waypoints
 from exobench.models.office_layout import build_layout
 
+pytestmark = pytest.mark.long(seconds=8)  # the workers take it first (tests/conftest.py); 8: the file's CPU-s alone at -n 0 (27.5 unmarked, when its walks compiled the textured office)
+
 STEP_M = 0.1
 NEAR_M = 0.5  # two walkers this close ...
 SAME_WAY_DEG = 30.0  # ... heading this alike see the same views
