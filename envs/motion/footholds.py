@@ -94,7 +94,7 @@ class Footholds:
         x = np.array([np.cos(yaw), np.sin(yaw), 0.0])
         y = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
         out: list[tuple[Foot, float] | None] = [None] * len(soles_xy)
-        placed = []  # (point, sole, zf, pitch)
+        placed = []  # (row, sole point, the foot's up axis, pitch, the sole grid's points)
         for i in np.flatnonzero(sid >= 0):
             n = self.normals[int(sid[i])]
             if abs(float(n @ y)) > np.sin(np.radians(3.0)):
