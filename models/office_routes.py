@@ -237,5 +237,25 @@ def region_route(truth: object, regions: Sequence[str], clearance_m: float = ROU
     return [(float(p[0]), float(p[1])) for p in path]
 
 
+@dataclass(frozen=True)
+class _Floor:
+    """What :func:`region_route` reads of an office's truth: its ``params``."""
+
+    params: dict
+
+
+def layout_route(layout: object, regions: Sequence[str], start_w: Sequence[float] | None = None,
+                 clearance_m: float = ROUTE_CLEARANCE_M, cell_m: float = CELL_M) -> list[tuple[float, float]]:
+    """:func:`region_route` on a layout (``models.office_layout.Layout``, furnished for the day)
+    standing at ``start_w`` (None: the layout's start), instead of on a built office's truth:
+    ``build_office`` writes these very regions, extent, start and solids into its truth, so the
+    waypoints are the same, without building the office (its model and surfaces; with a look,
+    its textures too: planning a general multisession case's walks took 4/5 of their time there)."""
+    params = {"regions": layout.regions, "extent_m": list(layout.extent),  # type: ignore[attr-defined]
+              "start_w": list(layout.start_w if start_w is None else start_w),  # type: ignore[attr-defined]
+              "solids": [s.as_dict() for s in layout.solids]}  # type: ignore[attr-defined]  # fmt: skip
+    return region_route(_Floor(params), regions, clearance_m, cell_m)
+
+
 __all__ = ["CELL_M", "ROUTE_CLEARANCE_M", "WALKER_HALF_WIDTH_M", "WALKER_HEIGHT_M", "FloorGrid", "corridor_open",
-           "floor_grid", "region_route", "standing"]
+           "floor_grid", "layout_route", "region_route", "standing"]

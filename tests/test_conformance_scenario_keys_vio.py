@@ -5,7 +5,7 @@ workers run it beside the other tracks' keys instead of after them (tests/confte
 import pytest
 from test_conformance_scenario_keys import OWN_FILES, check_scenario_keys
 
-pytestmark = pytest.mark.long(seconds=41)  # the workers take it first (tests/conftest.py); 41: the file at -n 0 in one run at load 12-15, scaled to that run's CPU
+pytestmark = pytest.mark.long(seconds=25)  # the workers take it first (tests/conftest.py); 25: the file's CPU-s alone at -n 0 (31.1 before the batched footholds)
 
 
 def test_every_vio_scenario_key_changes_the_simulation_or_is_refused(monkeypatch):

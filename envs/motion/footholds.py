@@ -82,34 +82,54 @@ class Footholds:
         ``overhang``: only placements whose toes overhang a lower surface (or nothing) beyond the
         ball of the foot, the rest of the sole from the ankle on the surface.
         """
-        z, sid = self.terrain.query(sole_xy[None, :])
-        if sid[0] < 0:
-            return None
-        n = self.normals[int(sid[0])]
+        return self.footholds(np.asarray(sole_xy, dtype=float)[None, :2], yaw, overhang)[0]
+
+    def footholds(self, soles_xy: np.ndarray, yaw: float, overhang: bool = False) -> list[tuple[Foot, float] | None]:
+        """:meth:`foothold` of each sole point (M, 2), with two terrain queries in all instead of two
+        per point: the planner scans a hundred placements along the heading at each step, and the
+        queries' fixed cost was most of its time. Each point's answer is the one it has alone
+        (the terrain answers every point by itself)."""
+        soles_xy = np.asarray(soles_xy, dtype=float)
+        z, sid = self.terrain.query(soles_xy)
         x = np.array([np.cos(yaw), np.sin(yaw), 0.0])
         y = np.array([-np.sin(yaw), np.cos(yaw), 0.0])
-        if abs(float(n @ y)) > np.sin(np.radians(3.0)):
-            return None  # the foot cannot roll
-        pitch = float(np.arctan2(-(n @ x), n[2]))
-        zf = np.array([-np.sin(pitch) * x[0], -np.sin(pitch) * x[1], np.cos(pitch)])
-        xf = np.array([np.cos(pitch) * x[0], np.cos(pitch) * x[1], np.sin(pitch)])
-        sole = np.array([sole_xy[0], sole_xy[1], z[0]])
-        pts = sole + np.outer(self.grid[:, 0], xf) + np.outer(self.grid[:, 1], y)
-        tz, tid = self.terrain.query(pts[:, :2])
-        if np.any(np.isfinite(tz) & (tz > pts[:, 2] + 1e-6)):
-            return None
-        whole = not np.any(tid[self.front] != sid[0])
-        if whole == overhang or (overhang and np.any(tid[self.to_ball] != sid[0])):
-            return None
-        ankle = sole + self.exo.sole_height_m * zf
-        return Foot(ankle, pitch, int(sid[0])), float(z[0])
+        out: list[tuple[Foot, float] | None] = [None] * len(soles_xy)
+        placed = []  # (row, sole point, the foot's up axis, pitch, the sole grid's points)
+        for i in np.flatnonzero(sid >= 0):
+            n = self.normals[int(sid[i])]
+            if abs(float(n @ y)) > np.sin(np.radians(3.0)):
+                continue  # the foot cannot roll
+            pitch = float(np.arctan2(-(n @ x), n[2]))
+            zf = np.array([-np.sin(pitch) * x[0], -np.sin(pitch) * x[1], np.cos(pitch)])
+            xf = np.array([np.cos(pitch) * x[0], np.cos(pitch) * x[1], np.sin(pitch)])
+            sole = np.array([soles_xy[i, 0], soles_xy[i, 1], z[i]])
+            pts = sole + np.outer(self.grid[:, 0], xf) + np.outer(self.grid[:, 1], y)
+            placed.append((int(i), sole, zf, pitch, pts))
+        if not placed:
+            return out
+        tz_all, tid_all = self.terrain.query(np.concatenate([p[4][:, :2] for p in placed]))
+        g = len(self.grid)
+        for k, (i, sole, zf, pitch, pts) in enumerate(placed):
+            tz, tid = tz_all[k * g:(k + 1) * g], tid_all[k * g:(k + 1) * g]
+            if np.any(np.isfinite(tz) & (tz > pts[:, 2] + 1e-6)):
+                continue
+            whole = not np.any(tid[self.front] != sid[i])
+            if whole == overhang or (overhang and np.any(tid[self.to_ball] != sid[i])):
+                continue
+            ankle = sole + self.exo.sole_height_m * zf
+            out[i] = (Foot(ankle, pitch, int(sid[i])), float(z[i]))
+        return out
 
     def place(self, A: np.ndarray, sg: float, yaw: float, a: float, overhang: bool = False) -> tuple[Foot, float] | None:
         """:meth:`foothold` of the swing foot ``a`` ahead of the stance ankle ``A`` along the
         heading ``yaw``, one hip width beside it (``sg`` +1 for a left stance)."""
+        return self.place_all(A, sg, yaw, np.array([a], dtype=float), overhang)[0]
+
+    def place_all(self, A: np.ndarray, sg: float, yaw: float, a: np.ndarray, overhang: bool = False) -> list[tuple[Foot, float] | None]:
+        """:meth:`place` at each of the distances ``a`` (M,), in one :meth:`footholds` call."""
         x = np.array([np.cos(yaw), np.sin(yaw)])
         y = np.array([-np.sin(yaw), np.cos(yaw)])
-        return self.foothold(A[:2] + a * x - sg * self.w * y, yaw, overhang)
+        return self.footholds(A[:2] + np.asarray(a, dtype=float)[:, None] * x - sg * self.w * y, yaw, overhang)
 
 
 def choose_footholds(
@@ -127,8 +147,7 @@ def choose_footholds(
             return [(got[0], a_nom)]
     grid = np.round(np.arange(-0.15, max(0.8, 2.0 * route.step_length_m) + 1e-9, 0.01), 6)
     cands: list[tuple[float, Foot]] = []
-    for a in grid:
-        got = pl.place(A, sg, yaw, float(a), overhang)
+    for a, got in zip(grid, pl.place_all(A, sg, yaw, grid, overhang)):
         if got is not None and abs(got[0].ankle[2] - z_A) <= 0.35:
             cands.append((float(a), got[0]))
 
@@ -203,7 +222,7 @@ def approach_step(
     if n_max <= 0 or a_nom <= 0.0 or not pl.coplanar(S, feet[swing].surface):
         return a_nom, None
     grid = np.round(np.arange(0.02, (n_max + 0.5) * a_nom + 0.5, 0.01), 6)
-    got = [pl.place(A, sg, yaw, float(a)) for a in grid]
+    got = pl.place_all(A, sg, yaw, grid)
     on = [g is not None and pl.coplanar(g[0].surface, S) for g in got]
     if all(on) or not on[0]:
         return a_nom, None  # no transition within reach, or standing at one already

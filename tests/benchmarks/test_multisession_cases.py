@@ -3,15 +3,18 @@ the same places the same way round, or no place recognition can join them."""
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 
 from exobench.benchmarks.tracks.multisession.episodes import parse_sessions, session_scenario
 from exobench.benchmarks.tracks.multisession.track import PAPER, MultisessionTrack
 from exobench.core.errors import ConfigError
-from exobench.envs.sim.scenarios.office import WorldLook, compiled_office
+from exobench.envs.sim.scenarios.office import region_waypoints
 from exobench.models.office_layout import build_layout
-from exobench.models.office_routes import region_route
+
+pytestmark = pytest.mark.long(seconds=8)  # the workers take it first (tests/conftest.py); 8: the file's CPU-s alone at -n 0 (27.5 unmarked, when its walks compiled the textured office)
 
 STEP_M = 0.1
 NEAR_M = 0.5  # two walkers this close ...
@@ -21,13 +24,8 @@ SHARED_M = 1.0  # a stretch this long gives several keyframes (one every 0.3 m) 
 
 def _walked(scenario: dict, plan) -> tuple[np.ndarray, np.ndarray]:
     """Points every STEP_M along a session's walked route (cut at max_distance_m) and the heading there (rad)."""
-    office = session_scenario(scenario, plan)
-    look = WorldLook(office.surfaces, office.light_level)
-    script, start = office.change_script(), office.start_w()
-    world = {} if script is None else {"changes": script, "day": office.day}
-    scene = compiled_office(office.office_params(), office.exo_spec(), (), None if look.is_default else look, **world,
-                            start_w=None if start is None else tuple(start))  # fmt: skip
-    wps = np.asarray(office.route_polyline(region_route(scene.truth, office.regions())))
+    # planned on the day's layout: the compiled office's waypoints (test_envs_office_days.py)
+    wps = np.asarray(region_waypoints(session_scenario(scenario, plan)))
     pts, heads = [], []
     for a, b in zip(wps[:-1], wps[1:]):
         n = max(1, int(np.linalg.norm(b - a) / STEP_M))
@@ -77,17 +75,27 @@ def _region(layout, x: float, y: float) -> str | None:
                  if r["rect"][0] <= x <= r["rect"][1] and r["rect"][2] <= y <= r["rect"][3]), None)  # fmt: skip
 
 
+@functools.cache
+def _general(run_seed: int) -> list[tuple[str, dict, list, list[tuple[np.ndarray, np.ndarray]]]]:
+    """(case name, validated scenario, session plans, their walks) of every general case of
+    ``run_seed``, planned once for the tests of this file."""
+    track = MultisessionTrack()
+    out = []
+    for case in track.cases("general", run_seed):
+        scenario = track.validate_scenario(case.scenario)
+        plans = parse_sessions(scenario["sessions"])
+        out.append((case.name, scenario, plans, [_walked(scenario, p) for p in plans]))
+    return out
+
+
 def test_the_general_sessions_each_share_views_with_an_earlier_one():
     """A general case's sessions overlap as the paper's do: each shares a stretch walked the same
     way round with an earlier one. Formerly session 2 walked the regions the other way round and,
     in general/1 and general/3 of run seed 0, met sessions 0 and 1 nowhere (docs/tracks/multisession.md)."""
-    track = MultisessionTrack()
     for run_seed in (0, 1):
-        for case in track.cases("general", run_seed):
-            scenario = track.validate_scenario(case.scenario)
-            walks = [_walked(scenario, p) for p in parse_sessions(scenario["sessions"])]
+        for name, scenario, _, walks in _general(run_seed):
             alone = [i for i in range(1, len(walks)) if not any(_share_views(walks[i], walks[j]) for j in range(i))]
-            assert alone == [], (run_seed, case.name, scenario["sessions"])
+            assert alone == [], (run_seed, name, scenario["sessions"])
 
 
 def test_the_general_changes_stand_in_view_of_the_walks():
@@ -98,11 +106,9 @@ def test_the_general_changes_stand_in_view_of_the_walks():
     from exobench.models.office_changes import apply_changes, changed_ids
     from exobench.models.office_layout import build_layout
 
-    track = MultisessionTrack()
     for run_seed in (0, 1):
-        for case in track.cases("general", run_seed):
-            scenario = track.validate_scenario(case.scenario)
-            plans = [p for p in parse_sessions(scenario["sessions"]) if p.day == 1]
+        for name, scenario, every, walked in _general(run_seed):
+            plans = [p for p in every if p.day == 1]
             office = session_scenario(scenario, plans[0])
             layout = build_layout(office.office_params())
             before, after = apply_changes(layout, office.change_script(), 1)
@@ -110,8 +116,8 @@ def test_the_general_changes_stand_in_view_of_the_walks():
             for p in after:
                 spots.setdefault(p.id, []).append((p.x, p.y))
             changed = changed_ids(before, after)
-            assert changed, (run_seed, case.name)
-            walks = [_walked(scenario, p) for p in plans]
+            assert changed, (run_seed, name)
+            walks = [w for w, p in zip(walked, every) if p.day == 1]
             for oid, kind in changed.items():
                 for x, y in spots[oid] if kind == "moved" else spots[oid][-1:]:
                     where = _region(layout, x, y)
@@ -121,12 +127,13 @@ def test_the_general_changes_stand_in_view_of_the_walks():
                         off = np.abs((np.arctan2(y - pts[:, 1], x - pts[:, 0]) - heads + np.pi) % (2 * np.pi) - np.pi)
                         same = np.array([_region(layout, *p) == where for p in pts])
                         seen |= bool(np.any((d <= SEEN_M) & (off <= np.radians(SEEN_DEG)) & same))
-                    assert seen, (run_seed, case.name, oid, kind, (x, y), where)
+                    assert seen, (run_seed, name, oid, kind, (x, y), where)
 
 
 HUMAN = ("human/area1", "human/area2")
 
 
+@functools.cache  # two tests per area
 def _human(case: str) -> tuple[dict, list[tuple[np.ndarray, np.ndarray]], dict[str, list[float]]]:
     scenario = MultisessionTrack().validate_scenario(PAPER[case])
     walks = [_walked(scenario, p) for p in parse_sessions(scenario["sessions"])]

@@ -72,3 +72,26 @@ def test_a_walk_through_regions_goes_round_the_day_s_corridor_obstacle():
     for s in standing(solids_from_truth(scene.truth)):
         g = np.linalg.norm(np.maximum(np.maximum(s.lo[:2] - pelvis, pelvis - s.hi[:2]), 0.0), axis=1)
         assert g.min() >= WALKER_HALF_WIDTH_M - 0.05, s.name  # the pelvis sways a few cm about the route
+
+
+@pytest.mark.parametrize("rows", [
+    {"n_offices": 3, "day": 1, "changes": "1 obstacle trolley/3 cart 6.0 1.3 0; 1 remove chair0", "surfaces": "textured",
+     "route_regions": "corridor_s,corridor_e", "max_distance_m": 40.0},
+    {"furniture_seed": 5, "day": 2, "change_seed": 7, "start_x_m": 9.0, "route_regions": "office1,meeting"},
+])  # fmt: skip
+def test_waypoints_planned_on_the_layout_are_those_of_the_compiled_office(rows):
+    """``region_waypoints`` (the walks a draw or a check plans, without compiling the office)
+    gives the waypoints planned on the compiled office's truth, as ``plan_office_walk`` plans
+    them: the day's furniture, a moved start, a textured look (which changes the model only)."""
+    from exobench.envs.sim.scenarios.office import compiled_office, region_waypoints
+    from exobench.models.vision_look import WorldLook
+
+    sc = OfficeScenario.from_dict(rows)
+    check_scenario(sc)
+    look = WorldLook(sc.surfaces, sc.light_level)
+    start = sc.start_w()
+    scene = compiled_office(sc.office_params(), sc.exo_spec(), (), None if look.is_default else look,
+                            changes=sc.change_script(), day=sc.day, start_w=None if start is None else tuple(start))  # fmt: skip
+    assert region_waypoints(sc) == sc.route_polyline(region_route(scene.truth, sc.regions()))
+    if start is not None:
+        assert region_waypoints(sc)[0] == tuple(start[:2])

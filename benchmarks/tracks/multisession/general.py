@@ -32,15 +32,9 @@ DRAW_TRIES = 8
 def walked_points(scenario: dict[str, Any], plan: Any) -> np.ndarray:
     """Points (N, 3) every :data:`STEP_M` along one session's planned walk, cut at ``max_distance_m``:
     x, y and the heading of the walk there (rad)."""
-    from exobench.envs.sim.scenarios.office import WorldLook, compiled_office
-    from exobench.models.office_routes import region_route
+    from exobench.envs.sim.scenarios.office import region_waypoints
 
-    office = session_scenario(scenario, plan)
-    look = WorldLook(office.surfaces, office.light_level)
-    script = office.change_script()
-    world: dict[str, Any] = {} if script is None else {"changes": script, "day": office.day}
-    scene = compiled_office(office.office_params(), office.exo_spec(), (), None if look.is_default else look, **world)
-    wps = np.asarray(office.route_polyline(region_route(scene.truth, office.regions())))
+    wps = np.asarray(region_waypoints(session_scenario(scenario, plan)))
     pts = []
     for a, b in zip(wps[:-1], wps[1:]):
         n = max(1, int(np.linalg.norm(b - a) / STEP_M))

@@ -311,6 +311,21 @@ def route_waypoints(waypoints: list[tuple[float, float]], max_distance_m: float)
     return tuple((float(p[0]), float(p[1])) for p in out)
 
 
+def region_waypoints(scenario: OfficeScenario) -> tuple[tuple[float, float], ...]:
+    """The waypoints a scenario with ``route_regions`` walks (:func:`plan_office_walk`'s), planned
+    on its day's layout (``models.office_routes.layout_route``) without compiling the office: for
+    the walks a draw or a check plans and never simulates."""
+    from exobench.models.office_changes import apply_changes
+    from exobench.models.office_layout import build_layout
+    from exobench.models.office_routes import layout_route
+
+    layout = build_layout(scenario.office_params())  # type: ignore[arg-type]
+    script = scenario.change_script()
+    if script is not None:
+        layout = layout.with_furniture(apply_changes(layout, script, scenario.day)[scenario.day])  # type: ignore[arg-type]
+    return scenario.route_polyline(layout_route(layout, scenario.regions(), scenario.start_w()))
+
+
 def plan_office_walk(scenario: OfficeScenario, rig: Sequence[MountedSensor] = ()) -> tuple[Any, Motion]:
     """(compiled office scene, walking motion) of a scenario, without sensing."""
     from exobench.models.office import office_route
