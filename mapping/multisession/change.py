@@ -6,8 +6,10 @@ the sensor origin it was taken from (keyframe submaps at their optimised poses).
 ``kind = "octree"`` (:func:`octree_changes`), the paper's volumetric differencing after LiSTA:
 each side is integrated into an OctoMap (``pyoctomap``) at 5 cm, casting free space along every
 ray from the sensor origin to its point. Occupancy comes only from hits, so every occupied voxel
-of either octree holds one of its points: the differencing visits the voxels of both sides'
-points and reads each octree's state there (occupied / free / unknown)::
+of either octree holds one of its points, and a voxel that holds one is occupied on its side
+(OctoMap would read a thin surface's voxel free when its own rays cross it: a desk top): the
+differencing visits the voxels of both sides' points and reads each octree's state there
+(occupied / free / unknown)::
 
     O_r = occupied in O_p and free in O_c         (removed octree)
     O_a = occupied in O_c and free in O_p         (added octree)
@@ -293,6 +295,17 @@ def _states(tree, keys: np.ndarray, resolution_m: float) -> np.ndarray:
     return tree.getLabels((keys.astype(float) + 0.5) * resolution_m)
 
 
+def _own_hits_occupied(tree, keys: np.ndarray, hits: _Hits, resolution_m: float) -> np.ndarray:
+    """Each voxel's state on one side, occupied wherever that side has a hit. The map keeps every
+    point, so a voxel holding one must be occupied for eq. 2-3, but OctoMap's log-odds reads it
+    free when more of the side's own rays cross it than end in it: a thin surface in a 5 cm voxel
+    (a 25 mm desk top, a chair's legs), crossed by the rays to what lies beyond. Such a voxel was
+    never removed nor added, whatever the other day saw (the *Human* case's desk6,
+    docs/tracks/multisession.md). OctoMap still decides where no hit lies: free or unknown."""
+    states = np.asarray(_states(tree, keys, resolution_m))
+    return np.where(_near(keys, hits.packed, 0), 1, states)
+
+
 class _Hits:
     """The occupied voxels (unique keys) of scans seen one at a time: as many as the area has
     voxels, however many scans (sessions) fill them."""
@@ -352,8 +365,8 @@ def _octree_classifier(prior: ScanSource, current: Sequence[Scan], cfg: OctreeCo
     tree_c = _octree((hits_c.add(s) for s in current), cfg)
     keys_p, keys_c = hits_p.keys, hits_c.keys
     keys = _rows(np.concatenate([keys_p, keys_c]))
-    voxels = voxel_changes(keys, _states(tree_p, keys, res), _states(tree_c, keys, res), keys_p, keys_c,
-                           cfg.hit_guard_voxels)
+    voxels = voxel_changes(keys, _own_hits_occupied(tree_p, keys, hits_p, res),
+                           _own_hits_occupied(tree_c, keys, hits_c, res), keys_p, keys_c, cfg.hit_guard_voxels)
     del tree_p, tree_c
     return ChangeClassifier(lambda p: _isin(voxel_keys(p, res), voxels.removed),
                             lambda p: _isin(voxel_keys(p, res), voxels.added), voxels)
