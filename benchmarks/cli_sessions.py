@@ -80,7 +80,7 @@ def record(out_dir: str, track: str, suite: str | None, case_name: str | None, a
     scores (the same scenario, drawn from the run seed in a drawn suite, and the same episode
     seed), so a replay of the session gives the run's figures."""
 
-    from exobench.core.errors import ConfigError
+    from exobench.core.errors import ConfigError, UnknownNameError
     from exobench.envs.session import write_session
 
     from .out_paths import check_out_dir, reserve_dir
@@ -94,8 +94,6 @@ def record(out_dir: str, track: str, suite: str | None, case_name: str | None, a
     sim_seed = seed
     if suite is not None:
         if suite not in trk.suites:
-            from exobench.core.errors import UnknownNameError
-
             raise UnknownNameError(f"suite of track {trk.name!r}", suite, trk.suites)
         if case_name is None:
             raise ConfigError("--case", None, f"a case of suite {suite!r} (a session holds one episode)")

@@ -59,7 +59,7 @@ __all__ = ["DvioConfig", "DvioNoDepthConfig", "DvioNoDepthPipeline", "DvioPipeli
 
 @dataclass(frozen=True)
 class DvioConfig:
-    """Parameters of D-VIO (front end: VINS-Mono's; back end: :class:`.window.WindowConfig`).
+    """Parameters of D-VIO (front end: VINS-Mono's; back end: :class:`.window_config.WindowConfig`).
 
     Attributes:
         window: keyframes in the sliding window.
